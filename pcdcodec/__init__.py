@@ -1,0 +1,51 @@
+"""pcdcodec: small RGB-D point cloud streams, given back as Open3D point clouds.
+
+An RGB-D stream is split into color and depth: color is encoded as video, depth with a lossless
+codec, and each point cloud is rebuilt with a pinhole camera model. Codecs are pluggable and
+live in one registry that keeps the two kinds apart::
+
+    import pcdcodec
+
+    codec = pcdcodec.get_codec("jpegxl")          # the default depth codec
+    data = codec.encode(depth)                     # uint16 H×W -> bytes
+    assert (codec.decode(data) == depth).all()     # bit-exact
+
+Importing pcdcodec does not import open3d, av or cv2; they are imported where they are used.
+"""
+
+from __future__ import annotations
+
+from ._validate import as_uint16_depth
+from ._version import __version__
+from .codec import KINDS, Codec, StreamCodec
+from .depth import DEFAULT_DEPTH_CODEC, FrameCodec, decode_depth
+from .errors import (
+    CodecUnavailableError,
+    DecodeError,
+    InputError,
+    InputTypeError,
+    PcdcodecError,
+    UnknownCodecError,
+)
+from .registry import codec_class, get_codec, list_codecs, register_codec
+
+__all__ = [
+    "DEFAULT_DEPTH_CODEC",
+    "KINDS",
+    "Codec",
+    "CodecUnavailableError",
+    "DecodeError",
+    "FrameCodec",
+    "InputError",
+    "InputTypeError",
+    "PcdcodecError",
+    "StreamCodec",
+    "UnknownCodecError",
+    "__version__",
+    "as_uint16_depth",
+    "codec_class",
+    "decode_depth",
+    "get_codec",
+    "list_codecs",
+    "register_codec",
+]

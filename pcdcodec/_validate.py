@@ -1,0 +1,116 @@
+"""Input checks shared by the codecs and the projector.
+
+Each check returns an array the caller can use directly (C-contiguous, little-endian) or raises
+one of the project's input errors naming the value that was wrong and what was expected.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import InputError, InputTypeError
+
+__all__ = ["as_uint16_depth", "check_color", "check_depth"]
+
+_DEPTH_DTYPES: dict[str, np.dtype[Any]] = {"uint16": np.dtype("<u2"), "float32": np.dtype("<f4")}
+
+
+def _dtype_name(dtype: np.dtype[Any]) -> str:
+    if dtype.kind == "u" and dtype.itemsize == 2:
+        return "uint16"
+    if dtype.kind == "f" and dtype.itemsize == 4:
+        return "float32"
+    return str(dtype)
+
+
+def check_depth(
+    depth: Any, *, allowed: tuple[str, ...] = ("uint16", "float32"), name: str = "depth"
+) -> npt.NDArray[Any]:
+    """Validate a depth image and return it as a C-contiguous little-endian 2-D array.
+
+    ``depth`` must be 2-D (height × width), non-empty, and of a dtype in ``allowed``
+    (``"uint16"`` for integer depth units, ``"float32"`` for metres with NaN as no measurement).
+    Views, non-contiguous arrays and big-endian arrays are accepted and copied only when needed.
+    """
+    arr: npt.NDArray[Any] = depth if isinstance(depth, np.ndarray) else np.asarray(depth)
+    if arr.ndim != 2:
+        extra = ""
+        if arr.ndim == 3 and arr.shape[2] == 1:
+            extra = " (for an H×W×1 array pass depth[..., 0])"
+        raise InputError(
+            f"{name} must be a 2-D array (height, width), got shape {arr.shape}{extra}"
+        )
+    if arr.size == 0:
+        raise InputError(f"{name} must not be empty, got shape {arr.shape}")
+    dname = _dtype_name(arr.dtype)
+    if dname not in allowed:
+        hint = ""
+        if "uint16" in allowed and arr.dtype.kind in "iuf":
+            hint = "; pcdcodec.as_uint16_depth converts integer-valued arrays exactly"
+        raise InputTypeError(f"{name} must be {' or '.join(allowed)}, got {arr.dtype}{hint}")
+    out: npt.NDArray[Any] = np.ascontiguousarray(arr, dtype=_DEPTH_DTYPES[dname])
+    return out
+
+
+def check_color(
+    color: Any, shape: tuple[int, int] | None = None, *, name: str = "color"
+) -> npt.NDArray[np.uint8]:
+    """Validate an 8-bit RGB image (H × W × 3 uint8), optionally of the given (height, width)."""
+    arr = color if isinstance(color, np.ndarray) else np.asarray(color)
+    if arr.dtype != np.uint8:
+        raise InputTypeError(f"{name} must be uint8, got {arr.dtype}")
+    if arr.ndim != 3 or arr.shape[2] != 3:
+        extra = (
+            " (RGBA is not accepted: pass color[..., :3])"
+            if arr.ndim == 3 and arr.shape[2] == 4
+            else ""
+        )
+        raise InputError(f"{name} must have shape (height, width, 3), got {arr.shape}{extra}")
+    if arr.shape[0] == 0 or arr.shape[1] == 0:
+        raise InputError(f"{name} must not be empty, got shape {arr.shape}")
+    if shape is not None and arr.shape[:2] != tuple(shape):
+        raise InputError(
+            f"{name} size {arr.shape[1]}x{arr.shape[0]} differs from the depth size "
+            f"{shape[1]}x{shape[0]} (width x height)"
+        )
+    return np.ascontiguousarray(arr)
+
+
+def as_uint16_depth(values: Any, *, name: str = "depth") -> npt.NDArray[np.uint16]:
+    """Convert integer-valued depth (any integer or float dtype) to uint16, exactly or not at all.
+
+    Use it for depth loaded as int32, int64 or float64 in depth units (not metres). Raises
+    :class:`~pcdcodec.InputError` for NaN, negative, fractional or too large (> 65535) values,
+    naming the first offending value and where it is.
+    """
+    arr = values if isinstance(values, np.ndarray) else np.asarray(values)
+    if arr.dtype.kind not in "iuf" and arr.dtype.kind != "b":
+        raise InputTypeError(f"{name} must be numeric, got {arr.dtype}")
+    if arr.ndim != 2:
+        raise InputError(f"{name} must be a 2-D array (height, width), got shape {arr.shape}")
+    if arr.size == 0:
+        raise InputError(f"{name} must not be empty, got shape {arr.shape}")
+    if arr.dtype.kind == "f":
+        bad = np.isnan(arr)
+        if bad.any():
+            idx = np.unravel_index(int(np.flatnonzero(bad)[0]), arr.shape)
+            raise InputError(
+                f"{name} has NaN at (row, col) {tuple(int(i) for i in idx)}; uint16 depth "
+                "expects 0 for no measurement (use np.nan_to_num(depth, nan=0) first)"
+            )
+        frac = arr != np.round(arr)
+        if frac.any():
+            idx = np.unravel_index(int(np.flatnonzero(frac)[0]), arr.shape)
+            raise InputError(
+                f"{name} has a fractional value {arr[idx]!r} at (row, col) "
+                f"{tuple(int(i) for i in idx)}; uint16 depth expects whole depth units"
+            )
+    lo, hi = arr.min(), arr.max()
+    if lo < 0:
+        raise InputError(f"{name} has a negative value {lo!r}; uint16 depth expects 0..65535")
+    if hi > 65535:
+        raise InputError(f"{name} has a value {hi!r} above 65535, the uint16 maximum")
+    return arr.astype(np.uint16)

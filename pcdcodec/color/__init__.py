@@ -1,0 +1,5 @@
+"""Color codecs: video stream codecs (see :class:`pcdcodec.codec.StreamCodec`)."""
+
+from __future__ import annotations
+
+__all__: list[str] = []

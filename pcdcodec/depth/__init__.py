@@ -1,0 +1,45 @@
+"""Depth codecs: lossless frame codecs, one module per codec.
+
+Adding a codec means adding one module with a :class:`FrameCodec` subclass and one line below.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..registry import register_codec
+from .base import FORMAT_VERSION, FrameCodec, FrameHeader, read_header
+from .jpegxl import JPEGXL
+from .lz4 import LZ4
+from .png16 import PNG16
+from .zstd import Zstd
+
+__all__ = [
+    "DEFAULT_DEPTH_CODEC",
+    "FORMAT_VERSION",
+    "JPEGXL",
+    "LZ4",
+    "PNG16",
+    "FrameCodec",
+    "FrameHeader",
+    "Zstd",
+    "decode_depth",
+    "read_header",
+]
+
+#: The depth codec used when none is named.
+DEFAULT_DEPTH_CODEC = "jpegxl"
+
+for _cls in (LZ4, Zstd, PNG16, JPEGXL):
+    register_codec(_cls)
+
+
+def decode_depth(data: bytes | bytearray | memoryview) -> np.ndarray:
+    """Decode a depth frame written by any registered depth codec, read from its header."""
+    from ..registry import codec_class
+
+    header = read_header(data)
+    cls = codec_class(header.codec, "depth")
+    codec = cls()
+    assert isinstance(codec, FrameCodec)
+    return codec.decode(data)

@@ -1,0 +1,295 @@
+"""The frame codec base and the byte container every depth codec writes.
+
+The container (documented in ``docs/format.md``) wraps the codec's body with a header that
+names the codec, the dtype and shape of the image, the body length and a CRC-32 of the header
+and of the decoded image. Decoding checks all of it, so corrupt, truncated or foreign bytes
+raise :class:`~pcdcodec.DecodeError` instead of returning wrong depth.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from abc import abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+import numpy.typing as npt
+
+from .._validate import check_depth
+from ..codec import Codec
+from ..errors import DecodeError, InputTypeError
+
+__all__ = ["FORMAT_VERSION", "MAGIC", "FrameCodec", "FrameHeader", "read_header"]
+
+MAGIC = b"PCDF"
+FORMAT_VERSION = 1
+
+_DTYPE_CODES: dict[int, np.dtype[Any]] = {1: np.dtype("<u2"), 2: np.dtype("<f4")}
+_CODE_OF_DTYPE = {v.str: k for k, v in _DTYPE_CODES.items()}
+
+#: How the image was turned into what the codec body holds.
+LAYOUT_DIRECT = 0  # the image itself
+LAYOUT_TABLE = 1  # float32: a table of distinct values + a uint16 index image
+LAYOUT_PLANES = 2  # float32: high and low 16-bit halves stacked as a (2H, W) uint16 image
+
+_FIXED = struct.Struct("<4sBBBB")  # magic, version, dtype code, layout, name length
+_TAIL = struct.Struct("<IIQI")  # height, width, body length, crc32
+
+
+@dataclass(frozen=True)
+class FrameHeader:
+    """The decoded header of an encoded depth frame."""
+
+    codec: str
+    dtype: np.dtype[Any]
+    layout: int
+    height: int
+    width: int
+    body_length: int
+    checksum: int
+    header_size: int
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.height, self.width)
+
+
+def _pack_header(
+    codec: str, dtype: np.dtype[Any], layout: int, shape: tuple[int, int], body_len: int
+) -> bytes:
+    name = codec.encode("ascii")
+    return (
+        _FIXED.pack(MAGIC, FORMAT_VERSION, _CODE_OF_DTYPE[dtype.str], layout, len(name))
+        + name
+        + struct.pack("<IIQ", shape[0], shape[1], body_len)
+    )
+
+
+def read_header(data: bytes | bytearray | memoryview) -> FrameHeader:
+    """Parse and check the header of an encoded depth frame (not the body)."""
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise InputTypeError(f"encoded depth must be bytes-like, got {type(data).__name__}")
+    mv = memoryview(data)
+    if mv.nbytes < _FIXED.size:
+        raise DecodeError(f"encoded depth is truncated: {mv.nbytes} bytes, shorter than any header")
+    magic, version, dcode, layout, nlen = _FIXED.unpack_from(mv, 0)
+    if magic != MAGIC:
+        raise DecodeError(
+            f"not a pcdcodec depth frame: starts with {bytes(magic)!r}, expected {MAGIC!r}"
+        )
+    if version != FORMAT_VERSION:
+        raise DecodeError(
+            f"depth frame format version {version} is not supported (this pcdcodec reads "
+            f"version {FORMAT_VERSION}); a newer pcdcodec may read it"
+        )
+    if dcode not in _DTYPE_CODES:
+        raise DecodeError(f"depth frame has unknown dtype code {dcode}")
+    if layout not in (LAYOUT_DIRECT, LAYOUT_TABLE, LAYOUT_PLANES):
+        raise DecodeError(f"depth frame has unknown layout code {layout}")
+    header_size = _FIXED.size + nlen + _TAIL.size
+    if mv.nbytes < header_size:
+        raise DecodeError(
+            f"encoded depth is truncated: {mv.nbytes} bytes, header needs {header_size}"
+        )
+    try:
+        name = bytes(mv[_FIXED.size : _FIXED.size + nlen]).decode("ascii")
+    except UnicodeDecodeError:
+        raise DecodeError("depth frame header holds a codec name that is not ASCII") from None
+    height, width, body_len, crc = _TAIL.unpack_from(mv, _FIXED.size + nlen)
+    if height == 0 or width == 0:
+        raise DecodeError(f"depth frame header has an empty shape ({height}, {width})")
+    if mv.nbytes != header_size + body_len:
+        state = "truncated" if mv.nbytes < header_size + body_len else "followed by extra bytes"
+        raise DecodeError(
+            f"encoded depth is {state}: {mv.nbytes} bytes, header says {header_size + body_len}"
+        )
+    return FrameHeader(name, _DTYPE_CODES[dcode], layout, height, width, body_len, crc, header_size)
+
+
+def _float_to_table(
+    image: npt.NDArray[np.float32],
+) -> tuple[npt.NDArray[np.uint32], npt.NDArray[np.uint16]] | None:
+    """Map float32 values to indices into a table of their distinct bit patterns.
+
+    NaN patterns come first, so "no measurement" gets the small indices; the rest keep bit order,
+    which for non-negative floats is value order, so the index image is as smooth as the depth.
+    Returns ``None`` when there are more than 65536 distinct values.
+    """
+    bits = image.view(np.uint32).ravel()
+    table, inverse = np.unique(bits, return_inverse=True)
+    if table.size > 65536:
+        return None
+    is_nan = (table & 0x7F800000 == 0x7F800000) & (table & 0x007FFFFF != 0)
+    if is_nan.any():
+        order = np.argsort(~is_nan, kind="stable")
+        rank = np.empty_like(order)
+        rank[order] = np.arange(order.size)
+        table = table[order]
+        inverse = rank[inverse]
+    return table, inverse.astype(np.uint16).reshape(image.shape)
+
+
+def _pack_table(table: npt.NDArray[np.uint32]) -> bytes:
+    import zstandard
+
+    # Sorted runs make small deltas; uint32 wrap-around keeps it exact for the NaN prefix too.
+    deltas = np.diff(table, prepend=np.uint32(0)).astype("<u4")
+    return zstandard.ZstdCompressor(level=9).compress(deltas.tobytes())
+
+
+def _unpack_table(data: memoryview, count_limit: int = 65536) -> npt.NDArray[np.uint32]:
+    import zstandard
+
+    raw = zstandard.ZstdDecompressor().decompress(bytes(data), max_output_size=4 * count_limit)
+    if len(raw) % 4 or not raw:
+        raise DecodeError(f"float value table has {len(raw)} bytes, not a positive multiple of 4")
+    return np.cumsum(np.frombuffer(raw, "<u4"), dtype=np.uint32)
+
+
+class FrameCodec(Codec):
+    """Base of depth codecs: one depth image to self-describing bytes, and back.
+
+    Subclasses implement :meth:`_encode_body` and :meth:`_decode_body` for the dtypes in
+    :attr:`native_dtypes`. When ``"float32"`` is in :attr:`dtypes` but not native, float32
+    depth is carried losslessly through a table of its distinct values (``docs/format.md``).
+    """
+
+    kind: ClassVar[str] = "depth"
+    #: Whether decoding gives back exactly what was encoded.
+    lossless: ClassVar[bool] = True
+    #: Depth dtypes :meth:`encode` accepts.
+    dtypes: ClassVar[tuple[str, ...]] = ("uint16",)
+    #: Dtypes the body codec handles itself; others in :attr:`dtypes` go through a mapping.
+    native_dtypes: ClassVar[tuple[str, ...]] = ("uint16",)
+
+    @abstractmethod
+    def _encode_body(self, image: npt.NDArray[Any]) -> bytes:
+        """Compress a C-contiguous little-endian 2-D image of a native dtype."""
+
+    @abstractmethod
+    def _decode_body(
+        self, body: memoryview, shape: tuple[int, int], dtype: np.dtype[Any]
+    ) -> npt.NDArray[Any]:
+        """Decompress a body into an image of ``shape`` and ``dtype``; may raise anything."""
+
+    # -- public API ----------------------------------------------------------------------
+
+    def encode(self, depth: npt.ArrayLike) -> bytes:
+        """Encode one depth image.
+
+        ``depth`` is a 2-D uint16 image in depth units (0 = no measurement) or, where the codec
+        supports it (see :attr:`dtypes`), a float32 image in metres with NaN for no measurement.
+        Raises :class:`~pcdcodec.InputError` / :class:`~pcdcodec.InputTypeError` for other input.
+        """
+        self._require_available()
+        image = check_depth(depth, allowed=self.dtypes, name=f"depth for codec {self.name!r}")
+        layout = LAYOUT_DIRECT
+        prefix = b""
+        work = image
+        dname = "uint16" if image.dtype.kind == "u" else "float32"
+        if dname not in self.native_dtypes:
+            mapped = _float_to_table(image)
+            if mapped is not None:
+                table, work = mapped
+                layout = LAYOUT_TABLE
+                packed = _pack_table(table)
+                prefix = struct.pack("<I", len(packed)) + packed
+            else:
+                layout = LAYOUT_PLANES
+                bits = image.view("<u4")
+                work = np.concatenate([(bits >> 16).astype("<u2"), (bits & 0xFFFF).astype("<u2")])
+        body = prefix + self._encode_body(work)
+        header = _pack_header(self.name, image.dtype, layout, image.shape, len(body))
+        crc = zlib.crc32(image.data, zlib.crc32(header))
+        return header + struct.pack("<I", crc) + body
+
+    def decode(self, data: bytes | bytearray | memoryview) -> npt.NDArray[Any]:
+        """Decode bytes written by :meth:`encode` back into the exact depth image.
+
+        Raises :class:`~pcdcodec.DecodeError` when the bytes are corrupt, truncated, of another
+        format version, or were written by another codec.
+        """
+        self._require_available()
+        header = read_header(data)
+        if header.codec != self.name:
+            raise DecodeError(
+                f"depth frame was written by codec {header.codec!r}, not {self.name!r}; "
+                "pcdcodec.decode_depth() picks the right codec from the bytes"
+            )
+        body = memoryview(data)[header.header_size :]
+        try:
+            image = self._decode_layout(header, body)
+        except DecodeError:
+            raise
+        except Exception as exc:  # backend libraries raise all sorts of things
+            raise DecodeError(
+                f"codec {self.name!r} could not decode a {header.width}x{header.height} "
+                f"{header.dtype.name} frame: {type(exc).__name__}: {exc}"
+            ) from exc
+        crc = zlib.crc32(image.data, zlib.crc32(bytes(memoryview(data)[: header.header_size - 4])))
+        if crc != header.checksum:
+            raise DecodeError(
+                f"checksum mismatch in a {header.width}x{header.height} {self.name!r} depth frame "
+                f"(stored {header.checksum:#010x}, decoded {crc:#010x}): the data is corrupt"
+            )
+        return image
+
+    def _decode_layout(self, header: FrameHeader, body: memoryview) -> npt.NDArray[Any]:
+        shape = header.shape
+        if header.layout == LAYOUT_DIRECT:
+            dname = "uint16" if header.dtype.kind == "u" else "float32"
+            if dname not in self.native_dtypes:
+                raise DecodeError(f"codec {self.name!r} cannot hold {dname} depth directly")
+            return self._check_image(
+                self._decode_body(body, shape, header.dtype), shape, header.dtype
+            )
+        if header.dtype.kind != "f":
+            raise DecodeError(f"layout {header.layout} is only valid for float32 depth")
+        u16 = np.dtype("<u2")
+        if header.layout == LAYOUT_TABLE:
+            if len(body) < 4:
+                raise DecodeError("float value table is truncated")
+            (tlen,) = struct.unpack_from("<I", body, 0)
+            if 4 + tlen > len(body):
+                raise DecodeError(f"float value table length {tlen} runs past the end of the frame")
+            table = _unpack_table(body[4 : 4 + tlen])
+            index = self._check_image(self._decode_body(body[4 + tlen :], shape, u16), shape, u16)
+            if index.max() >= table.size:
+                raise DecodeError(
+                    f"float index {int(index.max())} is outside the value table of {table.size}"
+                )
+            values: npt.NDArray[np.float32] = table[index].view("<f4")
+            return values
+        planes_shape = (2 * shape[0], shape[1])
+        planes = self._check_image(self._decode_body(body, planes_shape, u16), planes_shape, u16)
+        bits = (planes[: shape[0]].astype("<u4") << 16) | planes[shape[0] :]
+        floats: npt.NDArray[np.float32] = bits.view("<f4")
+        return floats
+
+    @staticmethod
+    def _check_image(image: Any, shape: tuple[int, int], dtype: np.dtype[Any]) -> npt.NDArray[Any]:
+        arr = np.asarray(image)
+        if (
+            arr.shape != shape
+            or arr.dtype.kind != dtype.kind
+            or arr.dtype.itemsize != dtype.itemsize
+        ):
+            raise DecodeError(
+                f"decoded body is {arr.dtype} {arr.shape}, header says {dtype.name} {shape}"
+            )
+        arr = np.ascontiguousarray(arr, dtype=dtype)
+        return arr if arr.flags.writeable else arr.copy()
+
+
+def bytes_body(
+    raw: bytes | bytearray, shape: tuple[int, int], dtype: np.dtype[Any]
+) -> npt.NDArray[Any]:
+    """Turn decompressed raw bytes into an image, checking the length first."""
+    expected = shape[0] * shape[1] * dtype.itemsize
+    if len(raw) != expected:
+        raise DecodeError(
+            f"decompressed {len(raw)} bytes, expected {expected} for {dtype.name} {shape}"
+        )
+    return np.frombuffer(raw, dtype).reshape(shape)

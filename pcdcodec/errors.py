@@ -1,0 +1,45 @@
+"""The exception tree of pcdcodec.
+
+Every error the library raises on purpose derives from :class:`PcdcodecError`, and each
+one also derives from the builtin exception a caller would naturally catch, so
+``except ValueError`` keeps working in code that does not know about pcdcodec.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "CodecUnavailableError",
+    "DecodeError",
+    "InputError",
+    "InputTypeError",
+    "PcdcodecError",
+    "UnknownCodecError",
+]
+
+
+class PcdcodecError(Exception):
+    """Root of every error raised by pcdcodec."""
+
+
+class UnknownCodecError(PcdcodecError, LookupError):
+    """A codec name or config that no registered codec answers to."""
+
+    def __str__(self) -> str:
+        # LookupError subclasses such as KeyError quote their message; we never want that.
+        return str(self.args[0]) if self.args else ""
+
+
+class CodecUnavailableError(PcdcodecError, ImportError):
+    """A codec is known, but the library it needs is not installed or lacks a feature."""
+
+
+class DecodeError(PcdcodecError, ValueError):
+    """Encoded bytes are corrupt, truncated, or were not written by the expected codec."""
+
+
+class InputError(PcdcodecError, ValueError):
+    """An argument has a wrong value: shape, range, NaN where none is allowed, and so on."""
+
+
+class InputTypeError(InputError, TypeError):
+    """An argument has a wrong type or dtype. Also a ``TypeError`` and a ``ValueError``."""
