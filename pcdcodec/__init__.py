@@ -18,6 +18,7 @@ from __future__ import annotations
 from ._validate import as_uint16_depth
 from ._version import __version__
 from .codec import KINDS, Codec, StreamCodec
+from .datasets import RGBDFrame, RGBDSequence, load_folder, load_sample
 from .depth import DEFAULT_DEPTH_CODEC, FrameCodec, decode_depth
 from .errors import (
     CodecUnavailableError,
@@ -39,6 +40,8 @@ __all__ = [
     "InputError",
     "InputTypeError",
     "PcdcodecError",
+    "RGBDFrame",
+    "RGBDSequence",
     "StreamCodec",
     "UnknownCodecError",
     "__version__",
@@ -47,5 +50,7 @@ __all__ = [
     "decode_depth",
     "get_codec",
     "list_codecs",
+    "load_folder",
+    "load_sample",
     "register_codec",
 ]

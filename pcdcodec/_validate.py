@@ -105,10 +105,10 @@ def as_uint16_depth(values: Any, *, name: str = "depth") -> npt.NDArray[np.uint1
         if frac.any():
             idx = np.unravel_index(int(np.flatnonzero(frac)[0]), arr.shape)
             raise InputError(
-                f"{name} has a fractional value {arr[idx]!r} at (row, col) "
+                f"{name} has a fractional value {arr[idx].item()!r} at (row, col) "
                 f"{tuple(int(i) for i in idx)}; uint16 depth expects whole depth units"
             )
-    lo, hi = arr.min(), arr.max()
+    lo, hi = arr.min().item(), arr.max().item()
     if lo < 0:
         raise InputError(f"{name} has a negative value {lo!r}; uint16 depth expects 0..65535")
     if hi > 65535:

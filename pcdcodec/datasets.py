@@ -206,7 +206,8 @@ def load_folder(
     camera_file = root / "camera.json"
     meta: dict[str, Any] = json.loads(camera_file.read_text()) if camera_file.exists() else {}
     if intrinsics is None and {"fx", "fy", "cx", "cy"} <= meta.keys():
-        intrinsics = CameraIntrinsics.from_dict(meta)
+        keys = ("width", "height", "fx", "fy", "cx", "cy")
+        intrinsics = CameraIntrinsics.from_dict({k: meta[k] for k in keys if k in meta})
     if depth_scale is None:
         depth_scale = float(meta.get("depth_scale", 1000.0))
 

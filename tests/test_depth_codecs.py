@@ -141,7 +141,9 @@ GARBAGE = [
 ]
 
 
-@pytest.mark.parametrize("garbage", GARBAGE, ids=["empty", "one-byte", "magic-only", "ramp", "random"])
+@pytest.mark.parametrize(
+    "garbage", GARBAGE, ids=["empty", "one-byte", "magic-only", "ramp", "random"]
+)
 def test_garbage_raises_decode_error(codec: FrameCodec, garbage: bytes) -> None:
     with pytest.raises(pcdcodec.DecodeError):
         codec.decode(garbage)
@@ -200,9 +202,7 @@ def test_wrong_dtype_raises_naming_it(codec: FrameCodec, dtype: str) -> None:
         codec.encode(np.ones((4, 5), dtype=dtype))
 
 
-@pytest.mark.parametrize(
-    "shape", [(4, 5, 1), (4, 5, 3), (20,), (0, 5), (5, 0), ()], ids=str
-)
+@pytest.mark.parametrize("shape", [(4, 5, 1), (4, 5, 3), (20,), (0, 5), (5, 0), ()], ids=str)
 def test_wrong_shape_raises_naming_it(codec: FrameCodec, shape: tuple[int, ...]) -> None:
     with pytest.raises(pcdcodec.InputError, match=r"shape|\(\)"):
         codec.encode(np.ones(shape, dtype=np.uint16))

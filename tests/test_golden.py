@@ -14,7 +14,9 @@ from .golden.make_golden import golden_source
 
 GOLDEN = Path(__file__).resolve().parent / "golden" / "depth"
 BUILTIN_DEPTH = [
-    n for n in pcdcodec.list_codecs("depth") if pcdcodec.codec_class(n).__module__.startswith("pcdcodec.")
+    n
+    for n in pcdcodec.list_codecs("depth")
+    if pcdcodec.codec_class(n).__module__.startswith("pcdcodec.")
 ]
 
 
@@ -32,5 +34,7 @@ def test_golden_frames_decode_exactly(name: str) -> None:
         decoded = codec.decode(data)
         assert decoded.dtype == expected.dtype
         view = np.uint32 if expected.dtype.itemsize == 4 else np.uint16
-        np.testing.assert_array_equal(decoded.view(view), expected.view(view), err_msg=entry["file"])
+        np.testing.assert_array_equal(
+            decoded.view(view), expected.view(view), err_msg=entry["file"]
+        )
         assert pcdcodec.decode_depth(data).shape == expected.shape
