@@ -17,7 +17,8 @@ from __future__ import annotations
 
 from ._validate import as_uint16_depth
 from ._version import __version__
-from .codec import KINDS, Codec, StreamCodec
+from .codec import KINDS, Codec, ColorCodec
+from .color import DEFAULT_COLOR_CODEC
 from .datasets import RGBDFrame, RGBDSequence, load_folder, load_sample
 from .depth import DEFAULT_DEPTH_CODEC, FrameCodec, decode_depth
 from .errors import (
@@ -31,10 +32,12 @@ from .errors import (
 from .registry import codec_class, get_codec, list_codecs, register_codec
 
 __all__ = [
+    "DEFAULT_COLOR_CODEC",
     "DEFAULT_DEPTH_CODEC",
     "KINDS",
     "Codec",
     "CodecUnavailableError",
+    "ColorCodec",
     "DecodeError",
     "FrameCodec",
     "InputError",
@@ -42,7 +45,6 @@ __all__ = [
     "PcdcodecError",
     "RGBDFrame",
     "RGBDSequence",
-    "StreamCodec",
     "UnknownCodecError",
     "__version__",
     "as_uint16_depth",

@@ -9,19 +9,19 @@ Two kinds exist and are kept apart:
 
 * ``"depth"`` codecs are *frame codecs* (:class:`pcdcodec.depth.FrameCodec`): one depth image in,
   one self-describing ``bytes`` object out, and back. No state is kept between frames.
-* ``"color"`` codecs are *stream codecs* (:class:`StreamCodec`): video encoders that keep state
-  across frames and emit packets.
+* ``"color"`` codecs (:class:`ColorCodec`) encode video. Most are *stream codecs*
+  (:class:`pcdcodec.color.StreamCodec`): encoders that keep state across frames and emit packets.
 """
 
 from __future__ import annotations
 
 import inspect
-from abc import ABC, abstractmethod
+from abc import ABC
 from typing import Any, ClassVar
 
 from .errors import CodecUnavailableError, InputError
 
-__all__ = ["KINDS", "Codec", "StreamCodec"]
+__all__ = ["KINDS", "Codec", "ColorCodec"]
 
 #: The codec kinds, in the order they are listed.
 KINDS: tuple[str, ...] = ("depth", "color")
@@ -123,15 +123,10 @@ class Codec(ABC):
         return f"{type(self).__name__}({params})"
 
 
-class StreamCodec(Codec):
-    """Base of color (video) codecs: stateful encoders that turn frames into packets."""
+class ColorCodec(Codec):
+    """Base of color codecs: packet stream codecs (:class:`pcdcodec.color.StreamCodec`) and
+    whole-file video codecs (:class:`pcdcodec.color.FileVideoCodec`)."""
 
     kind: ClassVar[str] = "color"
-
-    @abstractmethod
-    def encoder(self, width: int, height: int, fps: float) -> Any:
-        """Start a new stream of ``width`` × ``height`` RGB frames at ``fps`` frames per second."""
-
-    @abstractmethod
-    def decoder(self) -> Any:
-        """Start decoding a stream written by :meth:`encoder`."""
+    #: Whether decoding gives back exactly the RGB bytes that were encoded.
+    lossless: ClassVar[bool] = False

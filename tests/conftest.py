@@ -22,6 +22,7 @@ class Sequence:
     root: Path
     depth_glob: str
     depth_scale: float
+    color_glob: str = "rgb/*.png"
 
     @property
     def present(self) -> bool:
@@ -38,7 +39,11 @@ SEQUENCES = {
         "realsense_d435", SHARED_DATA / "realsense_d435_office", "depth/*.png", 1000.0
     ),
     "7scenes_redkitchen": Sequence(
-        "7scenes_redkitchen", SHARED_DATA / "7scenes_redkitchen", "depth/*.depth.png", 1000.0
+        "7scenes_redkitchen",
+        SHARED_DATA / "7scenes_redkitchen",
+        "depth/*.depth.png",
+        1000.0,
+        "rgb/*.color.jpg",
     ),
 }
 SHARED_SEQUENCES = [name for name in SEQUENCES if name != "sample"]
@@ -64,6 +69,23 @@ def load_depths(name: str, count: int) -> list[np.ndarray[Any, Any]]:
         picks = np.linspace(0, len(paths) - 1, min(count, len(paths))).round().astype(int)
         _cache[key] = [read_png(paths[i]) for i in sorted(set(picks))]
     return _cache[key]
+
+
+_color_cache: dict[tuple[str, int], list[np.ndarray[Any, Any]]] = {}
+
+
+def load_colors(name: str, count: int) -> list[np.ndarray[Any, Any]]:
+    """The first ``count`` consecutive RGB frames of sequence ``name``; skips when absent."""
+    import imagecodecs
+
+    seq = SEQUENCES[name]
+    if not seq.present:
+        pytest.skip(f"{seq.root} is not present")
+    key = (name, count)
+    if key not in _color_cache:
+        paths = sorted(seq.root.glob(seq.color_glob))[:count]
+        _color_cache[key] = [np.asarray(imagecodecs.imread(str(p)))[..., :3] for p in paths]
+    return _color_cache[key]
 
 
 def to_metres(depth: np.ndarray[Any, Any], scale: float) -> np.ndarray[Any, Any]:

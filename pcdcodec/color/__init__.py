@@ -1,5 +1,76 @@
-"""Color codecs: video stream codecs (see :class:`pcdcodec.codec.StreamCodec`)."""
+"""Color codecs: video, one module per backend.
+
+Stream codecs (:class:`StreamCodec`) turn RGB frames into packets and back; the PyAV backend
+provides them. Adding a codec means adding a class and one registration line below.
+"""
 
 from __future__ import annotations
 
-__all__: list[str] = []
+from ..registry import register_codec
+from .base import (
+    DecodedFrame,
+    Packet,
+    StreamCodec,
+    VideoDecoder,
+    VideoEncoder,
+    decode_packets,
+    encode_frames,
+)
+from .pyav import (
+    AV1,
+    FFV1,
+    H264,
+    H264NVENC,
+    H265,
+    HEVCNVENC,
+    MJPEG,
+    MPEG4,
+    VP9,
+    FFVHuff,
+    H264Lossless,
+    HuffYUV,
+    PyAVCodec,
+)
+
+__all__ = [
+    "AV1",
+    "DEFAULT_COLOR_CODEC",
+    "FFV1",
+    "H264",
+    "H264NVENC",
+    "H265",
+    "HEVCNVENC",
+    "MJPEG",
+    "MPEG4",
+    "VP9",
+    "DecodedFrame",
+    "FFVHuff",
+    "H264Lossless",
+    "HuffYUV",
+    "Packet",
+    "PyAVCodec",
+    "StreamCodec",
+    "VideoDecoder",
+    "VideoEncoder",
+    "decode_packets",
+    "encode_frames",
+]
+
+#: The color codec used when none is named.
+DEFAULT_COLOR_CODEC = "h264"
+
+for _cls in (
+    H264,
+    H265,
+    AV1,
+    VP9,
+    MJPEG,
+    MPEG4,
+    FFV1,
+    HuffYUV,
+    FFVHuff,
+    H264Lossless,
+    H264NVENC,
+    HEVCNVENC,
+):
+    register_codec(_cls)

@@ -1,0 +1,232 @@
+"""The stream codec interface for color: encoders that emit packets, decoders that take them.
+
+A color codec (:class:`StreamCodec`) is a factory: :meth:`StreamCodec.encoder` starts a stream of
+RGB frames and :meth:`StreamCodec.decoder` starts reading one. Encoders keep state across frames
+(reference frames, rate control, B-frame reordering), so a frame in does not always give a packet
+out at once: :meth:`VideoEncoder.flush` returns the rest at the end.
+
+Timestamps are integer nanoseconds throughout. A :class:`Packet` carries the presentation
+timestamp (``pts``) of the frame it shows, the decoding timestamp (``dts``), whether decoding can
+start at it (``keyframe``) and a CRC-32 of its data, which decoders check, so damaged packets
+raise :class:`~pcdcodec.DecodeError` instead of decoding into wrong pixels.
+"""
+
+from __future__ import annotations
+
+import zlib
+from abc import ABC, abstractmethod
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .._validate import check_color
+from ..codec import ColorCodec
+from ..errors import DecodeError, InputError, InputTypeError
+
+__all__ = [
+    "DecodedFrame",
+    "Packet",
+    "StreamCodec",
+    "VideoDecoder",
+    "VideoEncoder",
+    "decode_packets",
+    "encode_frames",
+]
+
+
+@dataclass(frozen=True)
+class Packet:
+    """One encoded unit of a color stream.
+
+    ``data`` is the codec's own bitstream (Annex B for H.264/H.265, a JPEG for MJPEG, …);
+    ``pts`` and ``dts`` are nanoseconds; ``checksum`` is the CRC-32 of ``data``, or ``None``
+    for packets from elsewhere (then only the decoder library can notice damage).
+    """
+
+    data: bytes
+    pts: int
+    dts: int
+    keyframe: bool
+    checksum: int | None = None
+
+    @classmethod
+    def create(cls, data: bytes, pts: int, dts: int, keyframe: bool) -> Packet:
+        """A packet with its checksum filled in."""
+        return cls(data, pts, dts, keyframe, zlib.crc32(data))
+
+    def verify(self) -> None:
+        """Raise :class:`~pcdcodec.DecodeError` when ``data`` does not match ``checksum``."""
+        if self.checksum is not None and zlib.crc32(self.data) != self.checksum:
+            raise DecodeError(
+                f"color packet at pts {self.pts} ns is corrupt: CRC-32 of its {len(self.data)} "
+                f"bytes is {zlib.crc32(self.data):#010x}, expected {self.checksum:#010x}"
+            )
+
+
+@dataclass(frozen=True)
+class DecodedFrame:
+    """A decoded RGB frame (H×W×3 uint8) and its timestamp in nanoseconds."""
+
+    rgb: npt.NDArray[np.uint8]
+    timestamp: int
+
+    def __iter__(self) -> Any:
+        return iter((self.rgb, self.timestamp))
+
+
+def _check_size(width: Any, height: Any) -> tuple[int, int]:
+    for name, value in (("width", width), ("height", height)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise InputTypeError(f"{name} must be an int, got {type(value).__name__}")
+        if not 1 <= value <= 16384:
+            raise InputError(f"{name} must be in 1..16384 pixels, got {value}")
+    return int(width), int(height)
+
+
+class VideoEncoder(ABC):
+    """Turns RGB frames of one size into packets. Use one encoder per stream."""
+
+    def __init__(self, codec: StreamCodec, width: int, height: int, fps: float) -> None:
+        self.codec = codec
+        self.width, self.height = _check_size(width, height)
+        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 1000:
+            raise InputError(f"fps must be a number in (0, 1000], got {fps!r}")
+        self.fps = float(fps)
+        self.frames_in = 0
+        self._last_timestamp: int | None = None
+        self._flushed = False
+
+    @property
+    def extradata(self) -> bytes | None:
+        """Codec set-up bytes a decoder needs (some lossless codecs), or ``None``."""
+        return None
+
+    def encode(self, rgb: npt.ArrayLike, timestamp: int) -> list[Packet]:
+        """Encode one H×W×3 uint8 RGB frame shown at ``timestamp`` ns; return ready packets.
+
+        Timestamps must increase. Raises :class:`~pcdcodec.InputError` for a frame of another
+        size, RGBA or gray input, a non-uint8 dtype, or a timestamp that does not increase.
+        """
+        if self._flushed:
+            raise InputError("encoder was flushed; start a new encoder for a new stream")
+        frame = check_color(rgb, name="color frame")
+        if frame.shape[:2] != (self.height, self.width):
+            raise InputError(
+                f"color frame is {frame.shape[1]}x{frame.shape[0]}, but this stream is "
+                f"{self.width}x{self.height} (width x height); the size cannot change mid-stream"
+            )
+        if isinstance(timestamp, bool) or not isinstance(timestamp, (int, np.integer)):
+            raise InputTypeError(f"timestamp must be an int (ns), got {type(timestamp).__name__}")
+        timestamp = int(timestamp)
+        if self._last_timestamp is not None and timestamp <= self._last_timestamp:
+            raise InputError(
+                f"timestamp {timestamp} ns does not increase (previous frame: "
+                f"{self._last_timestamp} ns)"
+            )
+        self._last_timestamp = timestamp
+        packets = self._encode(frame, timestamp)
+        self.frames_in += 1
+        return packets
+
+    def flush(self) -> list[Packet]:
+        """End the stream and return the packets still held by the encoder."""
+        if self._flushed:
+            return []
+        self._flushed = True
+        return self._flush()
+
+    @abstractmethod
+    def _encode(self, rgb: npt.NDArray[np.uint8], timestamp: int) -> list[Packet]: ...
+
+    @abstractmethod
+    def _flush(self) -> list[Packet]: ...
+
+
+class VideoDecoder(ABC):
+    """Turns packets back into RGB frames in display order."""
+
+    def __init__(
+        self, codec: StreamCodec, width: int, height: int, extradata: bytes | None = None
+    ) -> None:
+        self.codec = codec
+        self.width, self.height = _check_size(width, height)
+        self.extradata = extradata
+
+    def decode(self, packet: Packet) -> list[DecodedFrame]:
+        """Decode one packet; return the frames that became ready, in display order.
+
+        Raises :class:`~pcdcodec.DecodeError` for a damaged packet or a stream the codec
+        cannot decode.
+        """
+        if not isinstance(packet, Packet):
+            raise InputTypeError(f"decode expects a Packet, got {type(packet).__name__}")
+        packet.verify()
+        return self._decode(packet)
+
+    def flush(self) -> list[DecodedFrame]:
+        """Return the frames still held by the decoder at the end of the stream."""
+        return self._flush()
+
+    @abstractmethod
+    def _decode(self, packet: Packet) -> list[DecodedFrame]: ...
+
+    @abstractmethod
+    def _flush(self) -> list[DecodedFrame]: ...
+
+
+class StreamCodec(ColorCodec):
+    """A color codec whose streams are packets (as opposed to whole video files)."""
+
+    @abstractmethod
+    def encoder(self, width: int, height: int, fps: float = 30.0) -> VideoEncoder:
+        """Start a stream of ``width`` × ``height`` RGB frames at about ``fps`` frames/s."""
+
+    @abstractmethod
+    def decoder(self, width: int, height: int, extradata: bytes | None = None) -> VideoDecoder:
+        """Start decoding a stream of ``width`` × ``height`` frames written by :meth:`encoder`."""
+
+
+def encode_frames(
+    codec: StreamCodec,
+    frames: Iterable[npt.ArrayLike],
+    timestamps: Iterable[int] | None = None,
+    fps: float = 30.0,
+) -> tuple[list[Packet], bytes | None]:
+    """Encode a whole sequence of RGB frames; return its packets and the decoder's extradata.
+
+    Without ``timestamps``, frame ``i`` is shown at ``i / fps`` seconds.
+    """
+    encoder: VideoEncoder | None = None
+    packets: list[Packet] = []
+    stamps = iter(timestamps) if timestamps is not None else None
+    for i, frame in enumerate(frames):
+        rgb = check_color(frame, name=f"color frame {i}")
+        if encoder is None:
+            encoder = codec.encoder(rgb.shape[1], rgb.shape[0], fps)
+        stamp = next(stamps, None) if stamps is not None else round(i * 1e9 / fps)
+        if stamp is None:
+            raise InputError(f"fewer timestamps than frames: none left for frame {i}")
+        packets += encoder.encode(rgb, stamp)
+    if encoder is None:
+        raise InputError("no frames to encode")
+    packets += encoder.flush()
+    return packets, encoder.extradata
+
+
+def decode_packets(
+    codec: StreamCodec,
+    packets: Sequence[Packet],
+    width: int,
+    height: int,
+    extradata: bytes | None = None,
+) -> list[DecodedFrame]:
+    """Decode a sequence of packets (from a keyframe on) into frames in display order."""
+    decoder = codec.decoder(width, height, extradata)
+    frames: list[DecodedFrame] = []
+    for packet in packets:
+        frames += decoder.decode(packet)
+    frames += decoder.flush()
+    return frames
