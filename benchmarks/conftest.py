@@ -1,4 +1,4 @@
-"""After a timed benchmark run, print the depth codec table: ratio, encode and decode ms."""
+"""After a timed benchmark run, print summary tables: the codecs' ratios, quality and speed."""
 
 from __future__ import annotations
 
@@ -8,27 +8,59 @@ from typing import Any
 import pytest
 
 
+def _collect(session: Any, kind: str) -> dict[tuple[str, str], dict[str, Any]]:
+    rows: dict[tuple[str, str], dict[str, Any]] = defaultdict(dict)
+    for bench in session.benchmarks:
+        info = bench.extra_info
+        if info.get("kind") != kind or bench.stats is None:
+            continue
+        row = rows[(info["sequence"], info["codec"])]
+        row.update(info)
+        per_frame = bench.stats.median * 1000 / (info["frames"] if kind == "color" else 1)
+        row[info["op"]] = per_frame
+    return rows
+
+
+def _ms(row: dict[str, Any], op: str) -> str:
+    return f"{row[op]:9.2f}" if op in row else f"{'':9}"
+
+
+def _psnr(value: Any) -> str:
+    return f"{value:7.2f}" if isinstance(value, float) else f"{value!s:>7}"
+
+
 @pytest.hookimpl(trylast=True)
 def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pytest.Config) -> None:
     session = getattr(config, "_benchmarksession", None)
     if session is None or getattr(session, "disabled", False):
         return
-    rows: dict[tuple[str, str], dict[str, Any]] = defaultdict(dict)
-    for bench in session.benchmarks:
-        info = bench.extra_info
-        if "codec" not in info or bench.stats is None:
-            continue
-        row = rows[(info["sequence"], info["codec"])]
-        row["ratio"] = info["ratio"]
-        row[info["op"]] = bench.stats.median * 1000
-    if not rows:
-        return
     write = terminalreporter.write_line
-    write("")
-    write("depth codecs: ratio against raw uint16, median ms per 640x480 frame")
-    write(f"| {'sequence':18} | {'codec':7} | {'ratio':>6} | {'encode ms':>9} | {'decode ms':>9} |")
-    write(f"|{'-' * 20}|{'-' * 9}|{'-' * 8}|{'-' * 11}|{'-' * 11}|")
-    for (sequence, codec), row in sorted(rows.items()):
-        enc = f"{row['encode']:9.2f}" if "encode" in row else f"{'':9}"
-        dec = f"{row['decode']:9.2f}" if "decode" in row else f"{'':9}"
-        write(f"| {sequence:18} | {codec:7} | {row['ratio']:6.2f} | {enc} | {dec} |")
+    depth = _collect(session, "depth")
+    if depth:
+        write("")
+        write("depth codecs: ratio against raw uint16, median ms per frame")
+        write(
+            f"| {'sequence':18} | {'codec':7} | {'ratio':>6} | {'encode ms':>9} "
+            f"| {'decode ms':>9} |"
+        )
+        write(f"|{'-' * 20}|{'-' * 9}|{'-' * 8}|{'-' * 11}|{'-' * 11}|")
+        for (sequence, codec), row in sorted(depth.items()):
+            write(
+                f"| {sequence:18} | {codec:7} | {row['ratio']:6.2f} | {_ms(row, 'encode')} "
+                f"| {_ms(row, 'decode')} |"
+            )
+    color = _collect(session, "color")
+    if color:
+        write("")
+        write("color codecs: size, ratio against raw RGB24, mean PSNR, median ms per frame")
+        write(
+            f"| {'sequence':18} | {'codec':13} | {'KiB/frame':>9} | {'ratio':>6} | {'PSNR dB':>7} "
+            f"| {'encode ms':>9} | {'decode ms':>9} |"
+        )
+        write(f"|{'-' * 20}|{'-' * 15}|{'-' * 11}|{'-' * 8}|{'-' * 9}|{'-' * 11}|{'-' * 11}|")
+        for (sequence, codec), row in sorted(color.items()):
+            write(
+                f"| {sequence:18} | {codec:13} | {row['bytes_per_frame'] / 1024:9.1f} "
+                f"| {row['ratio']:6.1f} | {_psnr(row['psnr'])} | {_ms(row, 'encode')} "
+                f"| {_ms(row, 'decode')} |"
+            )

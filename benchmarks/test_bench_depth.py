@@ -38,7 +38,7 @@ def setup(name: str, sequence: str) -> tuple[FrameCodec, list[Any], list[bytes],
 def test_encode(benchmark: Any, name: str, sequence: str) -> None:
     benchmark.group = f"depth encode {sequence}"
     codec, depths, encoded, info = setup(name, sequence)
-    benchmark.extra_info.update(info, codec=name, sequence=sequence, op="encode")
+    benchmark.extra_info.update(info, codec=name, sequence=sequence, kind="depth", op="encode")
     frame = depths[len(depths) // 2]
     result = benchmark(codec.encode, frame)
     assert len(result) == len(encoded[len(depths) // 2])
@@ -49,7 +49,7 @@ def test_encode(benchmark: Any, name: str, sequence: str) -> None:
 def test_decode(benchmark: Any, name: str, sequence: str) -> None:
     benchmark.group = f"depth decode {sequence}"
     codec, depths, encoded, info = setup(name, sequence)
-    benchmark.extra_info.update(info, codec=name, sequence=sequence, op="decode")
+    benchmark.extra_info.update(info, codec=name, sequence=sequence, kind="depth", op="decode")
     index = len(depths) // 2
     result = benchmark(codec.decode, encoded[index])
     np.testing.assert_array_equal(result, depths[index])

@@ -314,7 +314,7 @@ class H264(PyAVCodec):
     def __init__(
         self,
         *,
-        crf: float = 20,
+        crf: float = 18,
         preset: str = "veryfast",
         tune: str | None = None,
         gop: int | None = None,
