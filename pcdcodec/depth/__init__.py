@@ -12,6 +12,7 @@ from .base import FORMAT_VERSION, FrameCodec, FrameHeader, read_header
 from .jpegxl import JPEGXL
 from .lz4 import LZ4
 from .png16 import PNG16
+from .rvl import RVL
 from .zstd import Zstd
 
 __all__ = [
@@ -20,6 +21,7 @@ __all__ = [
     "JPEGXL",
     "LZ4",
     "PNG16",
+    "RVL",
     "FrameCodec",
     "FrameHeader",
     "Zstd",
@@ -30,7 +32,7 @@ __all__ = [
 #: The depth codec used when none is named.
 DEFAULT_DEPTH_CODEC = "jpegxl"
 
-for _cls in (LZ4, Zstd, PNG16, JPEGXL):
+for _cls in (LZ4, Zstd, PNG16, RVL, JPEGXL):
     register_codec(_cls)
 
 
