@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from ._validate import as_uint16_depth
 from ._version import __version__
+from .camera import CameraIntrinsics
 from .codec import KINDS, Codec, ColorCodec
 from .color import DEFAULT_COLOR_CODEC
 from .datasets import RGBDFrame, RGBDSequence, load_folder, load_sample
@@ -29,12 +30,14 @@ from .errors import (
     PcdcodecError,
     UnknownCodecError,
 )
+from .projector import Projector, Reprojection
 from .registry import codec_class, get_codec, list_codecs, register_codec
 
 __all__ = [
     "DEFAULT_COLOR_CODEC",
     "DEFAULT_DEPTH_CODEC",
     "KINDS",
+    "CameraIntrinsics",
     "Codec",
     "CodecUnavailableError",
     "ColorCodec",
@@ -43,8 +46,10 @@ __all__ = [
     "InputError",
     "InputTypeError",
     "PcdcodecError",
+    "Projector",
     "RGBDFrame",
     "RGBDSequence",
+    "Reprojection",
     "UnknownCodecError",
     "__version__",
     "as_uint16_depth",

@@ -33,7 +33,8 @@ class Zstd(FrameCodec):
     def _encode_body(self, image: npt.NDArray[Any]) -> bytes:
         import zstandard
 
-        return zstandard.ZstdCompressor(level=self.level, write_content_size=True).compress(image.data)
+        compressor = zstandard.ZstdCompressor(level=self.level, write_content_size=True)
+        return compressor.compress(image.data)
 
     def _decode_body(
         self, body: memoryview, shape: tuple[int, int], dtype: np.dtype[Any]

@@ -1,0 +1,240 @@
+"""Pinhole camera intrinsics and their conversions.
+
+:class:`CameraIntrinsics` holds the image size in pixels and the focal lengths and principal
+point in pixels, the model Open3D's ``PinholeCameraIntrinsic`` uses (no distortion, zero skew).
+It converts to and from Open3D, a 3 × 3 camera matrix ``K``, a ROS ``sensor_msgs/CameraInfo``
+dict and a plain JSON dict. Open3D is imported only by :meth:`CameraIntrinsics.to_open3d`.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import operator
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import InputError, InputTypeError
+
+__all__ = ["CameraIntrinsics"]
+
+_DICT_KEYS = ("width", "height", "fx", "fy", "cx", "cy")
+
+
+def _as_size(value: Any, name: str) -> int:
+    if isinstance(value, (bool, np.bool_)):
+        raise InputTypeError(f"{name} must be an int (pixels), got {value!r}")
+    try:
+        size = operator.index(value)
+    except TypeError:
+        raise InputTypeError(
+            f"{name} must be an int (pixels), got {type(value).__name__} {value!r}"
+        ) from None
+    if size <= 0:
+        raise InputError(f"{name} must be a positive number of pixels, got {size}")
+    return size
+
+
+def _as_real(value: Any, name: str) -> float:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise InputTypeError(
+            f"{name} must be a real number (pixels), got {type(value).__name__} {value!r}"
+        )
+    real = float(value)
+    if not math.isfinite(real):
+        raise InputError(f"{name} must be finite, got {real!r}")
+    return real
+
+
+@dataclass(frozen=True)
+class CameraIntrinsics:
+    """Pinhole intrinsics of a camera without distortion, all in pixels.
+
+    ``width`` and ``height`` are the image size, ``fx`` and ``fy`` the focal lengths and
+    ``(cx, cy)`` the principal point, with pixel ``(u, v) = (0, 0)`` the centre of the top-left
+    pixel (the Open3D and OpenCV convention). Values are normalised to ``int`` and ``float``.
+
+    Raises :class:`~pcdcodec.InputTypeError` for a non-numeric value and
+    :class:`~pcdcodec.InputError` for a non-positive size, a focal length that is not positive and
+    finite, or a principal point outside ``[0, width] × [0, height]``.
+    """
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    def __post_init__(self) -> None:
+        width = _as_size(self.width, "width")
+        height = _as_size(self.height, "height")
+        values = {name: _as_real(getattr(self, name), name) for name in ("fx", "fy", "cx", "cy")}
+        for name in ("fx", "fy"):
+            if values[name] <= 0:
+                raise InputError(f"{name} must be a positive focal length, got {values[name]!r}")
+        if not 0 <= values["cx"] <= width:
+            raise InputError(
+                f"cx must lie in the image, 0 <= cx <= width={width}, got {values['cx']!r}"
+            )
+        if not 0 <= values["cy"] <= height:
+            raise InputError(
+                f"cy must lie in the image, 0 <= cy <= height={height}, got {values['cy']!r}"
+            )
+        # The dataclass is frozen; normalise numpy scalars and ints to plain int/float.
+        object.__setattr__(self, "width", width)
+        object.__setattr__(self, "height", height)
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(height, width)``: the shape of a depth image taken with this camera."""
+        return (self.height, self.width)
+
+    # -- camera matrix -----------------------------------------------------------------
+
+    @property
+    def K(self) -> npt.NDArray[np.float64]:  # noqa: N802  (the usual name of the camera matrix)
+        """The camera matrix ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` (new 3 × 3 float64)."""
+        return np.array(
+            [[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]], dtype=np.float64
+        )
+
+    @classmethod
+    def from_K(cls, K: Any, width: int, height: int) -> CameraIntrinsics:  # noqa: N802, N803
+        """Build intrinsics from a 3 × 3 camera matrix ``K`` and the image size in pixels.
+
+        Raises :class:`~pcdcodec.InputError` when ``K`` is not 3 × 3, is not finite, has a
+        non-zero skew ``K[0, 1]`` or ``K[1, 0]``, or its last row is not ``[0, 0, 1]``.
+        """
+        try:
+            k = np.asarray(K, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InputTypeError(f"K must be a 3x3 array of numbers, got {K!r}") from None
+        if k.shape != (3, 3):
+            raise InputError(f"K must have shape (3, 3), got {k.shape}")
+        if not np.isfinite(k).all():
+            raise InputError(f"K must be finite, got {k.tolist()}")
+        if k[0, 1] != 0 or k[1, 0] != 0:
+            raise InputError(
+                "K must have zero skew (K[0, 1] == K[1, 0] == 0), got "
+                f"K[0, 1]={float(k[0, 1])!r}, K[1, 0]={float(k[1, 0])!r}"
+            )
+        if k[2].tolist() != [0.0, 0.0, 1.0]:
+            raise InputError(f"the last row of K must be [0, 0, 1], got {k[2].tolist()}")
+        return cls(width, height, k[0, 0], k[1, 1], k[0, 2], k[1, 2])
+
+    # -- Open3D ------------------------------------------------------------------------
+
+    def to_open3d(self) -> Any:
+        """An ``open3d.camera.PinholeCameraIntrinsic`` with these values (imports open3d)."""
+        import open3d as o3d
+
+        return o3d.camera.PinholeCameraIntrinsic(
+            self.width, self.height, self.fx, self.fy, self.cx, self.cy
+        )
+
+    @classmethod
+    def from_open3d(cls, pinhole: Any) -> CameraIntrinsics:
+        """Build intrinsics from an ``open3d.camera.PinholeCameraIntrinsic``.
+
+        Raises :class:`~pcdcodec.InputTypeError` for another kind of object and
+        :class:`~pcdcodec.InputError` for a non-zero skew or invalid values.
+        """
+        try:
+            width, height, matrix = pinhole.width, pinhole.height, pinhole.intrinsic_matrix
+        except AttributeError:
+            raise InputTypeError(
+                "pinhole must be an open3d.camera.PinholeCameraIntrinsic, "
+                f"got {type(pinhole).__name__}"
+            ) from None
+        return cls.from_K(matrix, width, height)
+
+    # -- ROS CameraInfo -----------------------------------------------------------------
+
+    def to_camera_info(self) -> dict[str, Any]:
+        """A dict shaped like ROS ``sensor_msgs/CameraInfo`` (ROS 1 upper-case field names).
+
+        Holds ``width``, ``height``, ``distortion_model`` ``"plumb_bob"``, ``D`` (five zeros),
+        ``K`` (9 floats, row-major), ``R`` (identity, 9 floats) and ``P`` (12 floats, row-major).
+        """
+        fx, fy, cx, cy = self.fx, self.fy, self.cx, self.cy
+        return {
+            "width": self.width,
+            "height": self.height,
+            "distortion_model": "plumb_bob",
+            "D": [0.0] * 5,
+            "K": [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+            "R": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            "P": [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+        }
+
+    @classmethod
+    def from_camera_info(cls, info: Mapping[str, Any]) -> CameraIntrinsics:
+        """Build intrinsics from a ROS ``sensor_msgs/CameraInfo``-style dict.
+
+        Reads ``width``, ``height`` and ``K`` (9 floats, row-major); the ROS 2 lower-case ``k``
+        and ``d`` are accepted too. The model has no distortion, so a non-zero ``D`` raises
+        :class:`~pcdcodec.InputError` (rectify the images first) rather than giving points in
+        the wrong place. A missing key raises :class:`~pcdcodec.InputError` naming it.
+        """
+        if not isinstance(info, Mapping):
+            raise InputTypeError(f"camera info must be a mapping, got {type(info).__name__}")
+
+        def get(key: str, required: bool = True) -> Any:
+            for k in (key, key.lower()):
+                if k in info:
+                    return info[k]
+            if required:
+                raise InputError(
+                    f"camera info is missing the key {key!r}; it has keys {sorted(info)}"
+                )
+            return None
+
+        width, height, k = get("width"), get("height"), get("K")
+        if isinstance(k, (str, bytes)) or not isinstance(k, (Sequence, np.ndarray)) or len(k) != 9:
+            raise InputError(f"camera info K must be a sequence of 9 numbers, got {k!r}")
+        d = get("D", required=False)
+        try:
+            distortion = np.asarray([] if d is None else d, dtype=np.float64).ravel()
+        except (TypeError, ValueError):
+            raise InputError(f"camera info D must be a sequence of numbers, got {d!r}") from None
+        if np.any(distortion != 0):
+            raise InputError(
+                f"camera info has distortion D={distortion.tolist()}; CameraIntrinsics models an "
+                "undistorted pinhole camera: rectify the images and use D = zeros"
+            )
+        return cls.from_K(np.reshape(np.asarray(k, dtype=np.float64), (3, 3)), width, height)
+
+    # -- plain dict ---------------------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-serialisable dict with the keys ``width, height, fx, fy, cx, cy``."""
+        return {name: getattr(self, name) for name in _DICT_KEYS}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> CameraIntrinsics:
+        """Build intrinsics from a dict made by :meth:`to_dict`.
+
+        Raises :class:`~pcdcodec.InputError` for a missing or an unknown key, naming it.
+        """
+        if not isinstance(data, Mapping):
+            raise InputTypeError(f"intrinsics dict must be a mapping, got {type(data).__name__}")
+        missing = [k for k in _DICT_KEYS if k not in data]
+        if missing:
+            raise InputError(
+                f"intrinsics dict is missing the key {missing[0]!r}; expected keys "
+                f"{list(_DICT_KEYS)}"
+            )
+        unknown = sorted(str(k) for k in data if k not in _DICT_KEYS)
+        if unknown:
+            raise InputError(
+                f"intrinsics dict has an unknown key {unknown[0]!r}; expected keys "
+                f"{list(_DICT_KEYS)}"
+            )
+        return cls(**{k: data[k] for k in _DICT_KEYS})
