@@ -64,3 +64,17 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
                 f"| {row['ratio']:6.1f} | {_psnr(row['psnr'])} | {_ms(row, 'encode')} "
                 f"| {_ms(row, 'decode')} |"
             )
+
+    projector = [
+        (b.extra_info["path"], b.stats.median * 1000)
+        for b in session.benchmarks
+        if b.extra_info.get("kind") == "projector" and b.stats is not None
+    ]
+    reference = dict(projector).get("open3d-tensor-create_from_rgbd_image")
+    if projector and reference:
+        write("")
+        write("depth to colored points, 640x480: median ms and ratio to Open3D's tensor API")
+        write(f"| {'path':38} | {'ms':>6} | {'x o3d.t':>7} |")
+        write(f"|{'-' * 40}|{'-' * 8}|{'-' * 9}|")
+        for path, ms in sorted(projector, key=lambda item: item[1]):
+            write(f"| {path:38} | {ms:6.2f} | {ms / reference:7.2f} |")

@@ -108,6 +108,6 @@ PATHS = {
 def test_depth_to_points_640x480(benchmark: Any, frame: Frame, path: str) -> None:
     run, count = PATHS[path](frame)
     assert count(run()) == (frame.valid, True)
-    benchmark.extra_info["points"] = frame.valid
+    benchmark.extra_info.update(points=frame.valid, kind="projector", path=path)
     result = benchmark(run)
     assert count(result) == (frame.valid, True)
