@@ -15,6 +15,7 @@ Importing pcdcodec does not import open3d, av or cv2; they are imported where th
 
 from __future__ import annotations
 
+from . import metrics
 from ._validate import as_uint16_depth
 from ._version import __version__
 from .camera import CameraIntrinsics
@@ -59,5 +60,6 @@ __all__ = [
     "list_codecs",
     "load_folder",
     "load_sample",
+    "metrics",
     "register_codec",
 ]
