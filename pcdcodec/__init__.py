@@ -32,6 +32,7 @@ from .errors import (
     UnknownCodecError,
 )
 from .projector import Projector, Reprojection
+from .recording import Frame, Recording, RecordingWriter, open
 from .registry import codec_class, get_codec, list_codecs, register_codec
 
 __all__ = [
@@ -43,6 +44,7 @@ __all__ = [
     "CodecUnavailableError",
     "ColorCodec",
     "DecodeError",
+    "Frame",
     "FrameCodec",
     "InputError",
     "InputTypeError",
@@ -50,6 +52,8 @@ __all__ = [
     "Projector",
     "RGBDFrame",
     "RGBDSequence",
+    "Recording",
+    "RecordingWriter",
     "Reprojection",
     "UnknownCodecError",
     "__version__",
@@ -61,5 +65,6 @@ __all__ = [
     "load_folder",
     "load_sample",
     "metrics",
+    "open",
     "register_codec",
 ]

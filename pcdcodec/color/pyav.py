@@ -105,6 +105,8 @@ class PyAVCodec(StreamCodec):
     #: libavcodec encoder and decoder names.
     encoder_name: ClassVar[str]
     decoder_name: ClassVar[str]
+    #: The format name of Foxglove's CompressedVideo schema for this bitstream, if it has one.
+    video_format: ClassVar[str | None] = None
     #: Pixel formats the codec may be asked for; the first is the default.
     pix_fmts: ClassVar[tuple[str, ...]] = ("yuv420p",)
     install_hint: ClassVar[str] = _INSTALL
@@ -306,6 +308,7 @@ class H264(PyAVCodec):
     ``pix_fmt`` ``yuv420p`` (most compatible) or ``yuv444p`` (full chroma).
     """
 
+    video_format: ClassVar[str | None] = "h264"
     name: ClassVar[str] = "h264"
     encoder_name: ClassVar[str] = "libx264"
     decoder_name: ClassVar[str] = "h264"
@@ -357,6 +360,7 @@ class H264(PyAVCodec):
 class H265(PyAVCodec):
     """H.265/HEVC through libx265: smaller than H.264 at equal quality, slower to encode."""
 
+    video_format: ClassVar[str | None] = "h265"
     name: ClassVar[str] = "h265"
     encoder_name: ClassVar[str] = "libx265"
     decoder_name: ClassVar[str] = "hevc"
@@ -393,6 +397,7 @@ class H265(PyAVCodec):
 class AV1(PyAVCodec):
     """AV1 through SVT-AV1 (decoded by dav1d): the smallest lossy files; ``preset`` 0–13."""
 
+    video_format: ClassVar[str | None] = "av1"
     name: ClassVar[str] = "av1"
     encoder_name: ClassVar[str] = "libsvtav1"
     decoder_name: ClassVar[str] = "libdav1d"
@@ -426,6 +431,7 @@ class AV1(PyAVCodec):
 class VP9(PyAVCodec):
     """VP9 through libvpx in constant-quality mode; ``speed`` is libvpx's cpu-used (0–8)."""
 
+    video_format: ClassVar[str | None] = "vp9"
     name: ClassVar[str] = "vp9"
     encoder_name: ClassVar[str] = "libvpx-vp9"
     decoder_name: ClassVar[str] = "vp9"
@@ -564,6 +570,7 @@ class FFVHuff(HuffYUV):
 class H264Lossless(PyAVCodec):
     """Lossless H.264 on RGB through libx264rgb at qp 0: bit-exact, and inter-frame coded."""
 
+    video_format: ClassVar[str | None] = "h264"
     name: ClassVar[str] = "h264-lossless"
     encoder_name: ClassVar[str] = "libx264rgb"
     decoder_name: ClassVar[str] = "h264"
@@ -590,6 +597,7 @@ class H264NVENC(PyAVCodec):
     """H.264 on an NVIDIA GPU (NVENC), decoded on the CPU. Needs an NVIDIA GPU and driver;
     ``cq`` is the constant-quality level (0–51), ``preset`` p1 (fastest) to p7."""
 
+    video_format: ClassVar[str | None] = "h264"
     name: ClassVar[str] = "h264-nvenc"
     encoder_name: ClassVar[str] = "h264_nvenc"
     decoder_name: ClassVar[str] = "h264"
@@ -628,6 +636,7 @@ class H264NVENC(PyAVCodec):
 class HEVCNVENC(H264NVENC):
     """H.265/HEVC on an NVIDIA GPU (NVENC), decoded on the CPU."""
 
+    video_format: ClassVar[str | None] = "h265"
     name: ClassVar[str] = "h265-nvenc"
     encoder_name: ClassVar[str] = "hevc_nvenc"
     decoder_name: ClassVar[str] = "hevc"

@@ -1,0 +1,51 @@
+"""Recordings: one ``.pcdc`` file (MCAP) holding a color stream, a depth stream and the camera.
+
+See ``docs/format.md`` for the layout and :func:`open` for use.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Literal, overload
+
+from ..errors import InputError
+from ._index import FORMAT_VERSION
+from .reader import Frame, Recording, VerifyReport
+from .writer import RecordingWriter
+
+__all__ = ["FORMAT_VERSION", "Frame", "Recording", "RecordingWriter", "VerifyReport", "open"]
+
+
+@overload
+def open(path: str | os.PathLike[str], mode: Literal["r"] = "r") -> Recording: ...
+@overload
+def open(path: str | os.PathLike[str], mode: Literal["w"], **options: Any) -> RecordingWriter: ...
+
+
+def open(path: str | os.PathLike[str], mode: str = "r", **options: Any) -> Any:
+    """Open a ``.pcdc`` recording for reading (``"r"``) or writing (``"w"``).
+
+    Writing::
+
+        with pcdcodec.open("run.pcdc", "w", intrinsics=cam, depth_scale=1000.0,
+                           color="h264", depth="jpegxl") as rec:
+            rec.write(rgb, depth, timestamp_ns)
+
+    Options for ``"w"``: ``intrinsics`` (required), ``depth_scale`` (depth units per metre),
+    ``color`` and ``depth`` (codec names, configs or codecs; ``color=None`` records depth only),
+    ``fps`` (nominal frame rate), ``metadata`` (a dict of your own), ``overwrite``,
+    ``in_flight`` (frames encoded ahead, bounding memory).
+
+    Reading::
+
+        with pcdcodec.open("run.pcdc") as rec:
+            for frame in rec:
+                cloud = frame.to_point_cloud()
+    """
+    if mode == "r":
+        if options:
+            raise InputError(f"reading takes no options, got {sorted(options)}")
+        return Recording(path)
+    if mode == "w":
+        return RecordingWriter(path, **options)
+    raise InputError(f"mode must be 'r' or 'w', got {mode!r}")

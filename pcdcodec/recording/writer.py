@@ -1,0 +1,406 @@
+"""Writing a ``.pcdc`` recording: color and depth encoded in parallel, written as they finish."""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+from collections import deque
+from collections.abc import Callable, Iterable
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .._validate import check_color, check_depth
+from .._version import __version__
+from ..camera import CameraIntrinsics
+from ..codec import Codec
+from ..color.base import Packet, StreamCodec, VideoEncoder
+from ..depth.base import FrameCodec
+from ..errors import InputError, InputTypeError
+from ..registry import get_codec
+from . import _index as fmt
+from ._ros import (
+    CAMERA_CALIBRATION,
+    CAMERA_CALIBRATION_SCHEMA,
+    COMPRESSED_VIDEO,
+    COMPRESSED_VIDEO_SCHEMA,
+    CameraCalibration,
+    CompressedVideo,
+)
+
+__all__ = ["RecordingWriter"]
+
+_NS = 1_000_000_000
+
+
+def _codec(spec: Any, kind: str) -> Codec:
+    if isinstance(spec, Codec):
+        if spec.kind != kind:
+            raise InputError(f"{spec.name!r} is a {spec.kind} codec, expected a {kind} codec")
+        return spec
+    if isinstance(spec, (str, dict)):
+        return get_codec(spec, kind=kind)
+    raise InputTypeError(
+        f"{kind} codec must be a name, a config dict or a codec, got {type(spec).__name__}"
+    )
+
+
+def _intrinsics(value: Any) -> CameraIntrinsics:
+    if value is None:
+        raise InputError(
+            "intrinsics are required to write a recording: pass "
+            "intrinsics=pcdcodec.CameraIntrinsics(width, height, fx, fy, cx, cy)"
+        )
+    if isinstance(value, CameraIntrinsics):
+        return value
+    if isinstance(value, dict):
+        return CameraIntrinsics.from_dict(value)
+    if type(value).__name__ == "PinholeCameraIntrinsic":
+        return CameraIntrinsics.from_open3d(value)
+    raise InputTypeError(
+        f"intrinsics must be a CameraIntrinsics, a dict or an Open3D PinholeCameraIntrinsic, "
+        f"got {type(value).__name__}"
+    )
+
+
+class RecordingWriter:
+    """Writes RGB-D frames into a ``.pcdc`` file (an MCAP file; see ``docs/format.md``).
+
+    Use :func:`pcdcodec.open` with mode ``"w"`` rather than this class directly. Color and depth
+    of each frame are encoded on two threads while the caller prepares the next frame; at most
+    ``in_flight`` frames wait in memory, so memory stays bounded however long the recording.
+    Each message is written and flushed as soon as it is encoded: if the process dies, every
+    frame whose messages were written can be read back, and ``pcdcodec recover`` rewrites the
+    file with an index.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        intrinsics: Any,
+        depth_scale: float = 1000.0,
+        color: Any = "h264",
+        depth: Any = "jpegxl",
+        fps: float = 30.0,
+        metadata: dict[str, Any] | None = None,
+        overwrite: bool = False,
+        in_flight: int = 4,
+        frame_id: str = "camera",
+    ) -> None:
+        self.path = Path(path)
+        self.intrinsics = _intrinsics(intrinsics)
+        if isinstance(depth_scale, bool) or not isinstance(depth_scale, (int, float)):
+            raise InputTypeError(f"depth_scale must be a number, got {type(depth_scale).__name__}")
+        if not (np.isfinite(depth_scale) and depth_scale > 0):
+            raise InputError(f"depth_scale must be positive and finite, got {depth_scale}")
+        self.depth_scale = float(depth_scale)
+        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 1000:
+            raise InputError(f"fps must be a number in (0, 1000], got {fps!r}")
+        self.fps = float(fps)
+        if not isinstance(in_flight, int) or in_flight < 1:
+            raise InputError(f"in_flight must be a positive int, got {in_flight!r}")
+        self.in_flight = in_flight
+        self.frame_id = frame_id
+        depth_codec = _codec(depth, "depth")
+        if not isinstance(depth_codec, FrameCodec):
+            raise InputTypeError(f"depth codec {depth_codec.name!r} is not a frame codec")
+        self.depth_codec = depth_codec
+        self.color_codec: StreamCodec | None = None
+        if color is not None:
+            color_codec = _codec(color, "color")
+            if not isinstance(color_codec, StreamCodec):
+                raise InputError(
+                    f"color codec {color_codec.name!r} writes whole video files, not packets; "
+                    "recordings need a stream codec such as 'h264' or 'ffv1'"
+                )
+            color_codec._require_available()
+            self.color_codec = color_codec
+        self.depth_codec._require_available()
+        user = {
+            str(k): v if isinstance(v, str) else json.dumps(v) for k, v in (metadata or {}).items()
+        }
+
+        if self.path.exists() and not overwrite:
+            raise InputError(
+                f"{str(self.path)!r} already exists; pass overwrite=True to replace it"
+            )
+        if self.path.is_dir():
+            raise InputError(f"{str(self.path)!r} is a folder, not a file")
+        # Replacing a file: write beside it and swap at the end, so the old one survives
+        # until the new one is complete.
+        self._target = self.path
+        self._writing = (
+            self.path.with_name(f".{self.path.name}.partial-{os.getpid()}")
+            if self.path.exists()
+            else self.path
+        )
+        from mcap.writer import CompressionType, Writer
+
+        mode = "xb" if self._writing == self.path else "wb"
+        self._file: IO[bytes] = open(self._writing, mode)  # noqa: SIM115 - closed by close()
+        # One chunk per message: each is on disk (with its CRC) as soon as it is written, and
+        # MCAP's chunk index then gives every message's time and offset directly.
+        self._mcap = Writer(self._file, chunk_size=0, compression=CompressionType.NONE)
+        self._mcap.start(profile=fmt.PROFILE, library=f"pcdcodec {__version__}")
+        self._mcap.add_metadata(
+            fmt.METADATA_NAME,
+            {
+                "format_version": str(fmt.FORMAT_VERSION),
+                "library": f"pcdcodec {__version__}",
+                "intrinsics": json.dumps(self.intrinsics.to_dict()),
+                "depth_scale": repr(self.depth_scale),
+                "fps": repr(self.fps),
+                "depth_codec": json.dumps(self.depth_codec.get_config()),
+                "color_codec": json.dumps(self.color_codec.get_config())
+                if self.color_codec
+                else "",
+                "frame_id": frame_id,
+            },
+        )
+        if user:
+            self._mcap.add_metadata(fmt.USER_METADATA_NAME, user)
+        self._file.flush()
+
+        self._encoder: VideoEncoder | None = None
+        self._shape: tuple[int, int] | None = None
+        self._last_ts: int | None = None
+        self._pending: deque[tuple[int, Future[list[Packet]] | None, Future[bytes]]] = deque()
+        self._color_pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-color")
+        self._depth_pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-depth")
+        self._channels: dict[str, int] = {}
+        self._sequence = 0
+        self.frames_written = 0
+        self.bytes_color = 0
+        self.bytes_depth = 0
+        self._closed = False
+
+    # -- writing -----------------------------------------------------------------------
+
+    def _start_stream(self, height: int, width: int, timestamp: int) -> None:
+        if (width, height) != (self.intrinsics.width, self.intrinsics.height):
+            raise InputError(
+                f"frames are {width}x{height}, but the intrinsics are for "
+                f"{self.intrinsics.width}x{self.intrinsics.height} (width x height)"
+            )
+        mcap = self._mcap
+        size = {"width": str(width), "height": str(height)}
+        if self.color_codec is not None:
+            self._encoder = self.color_codec.encoder(width, height, self.fps)
+            extradata = self._encoder.extradata
+            meta = {
+                **size,
+                "codec": json.dumps(self.color_codec.get_config()),
+                "extradata": base64.b64encode(extradata).decode() if extradata else "",
+            }
+            video_format = getattr(self.color_codec, "video_format", None)
+            if video_format:
+                sid = mcap.register_schema(COMPRESSED_VIDEO, "ros2msg", COMPRESSED_VIDEO_SCHEMA)
+                meta["format"] = video_format
+                self._channels["color"] = mcap.register_channel(fmt.TOPIC_COLOR, "cdr", sid, meta)
+            else:
+                self._channels["color"] = mcap.register_channel(
+                    fmt.TOPIC_COLOR, fmt.ENCODING_COLOR, 0, meta
+                )
+            self._channels["key"] = mcap.register_channel(
+                fmt.TOPIC_KEYFRAMES, fmt.ENCODING_KEYFRAME, 0, {}
+            )
+        self._channels["depth"] = mcap.register_channel(
+            fmt.TOPIC_DEPTH,
+            fmt.ENCODING_DEPTH,
+            0,
+            {
+                **size,
+                "codec": json.dumps(self.depth_codec.get_config()),
+                "depth_scale": repr(self.depth_scale),
+            },
+        )
+        sid = mcap.register_schema(CAMERA_CALIBRATION, "ros2msg", CAMERA_CALIBRATION_SCHEMA)
+        cal = self._channels["cal"] = mcap.register_channel(fmt.TOPIC_CALIBRATION, "cdr", sid, {})
+        info = self.intrinsics.to_camera_info()
+        msg = CameraCalibration(
+            timestamp,
+            self.frame_id,
+            width,
+            height,
+            info["distortion_model"],
+            [float(v) for v in info["D"]],
+            [float(v) for v in info["K"]],
+            [float(v) for v in info["R"]],
+            [float(v) for v in info["P"]],
+        )
+        mcap.add_message(cal, timestamp, msg.encode(), timestamp)
+        self._shape = (height, width)
+
+    def write(self, color: Any, depth: Any, timestamp: int | None = None) -> None:
+        """Add one frame: ``color`` H×W×3 uint8 RGB (``None`` when recording depth only) and
+        ``depth`` H×W uint16 depth units (or float32 metres where the depth codec takes it).
+
+        ``timestamp`` is in nanoseconds and must increase; without it, frames are spaced at
+        ``1/fps`` from 0. Raises :class:`~pcdcodec.InputError` for frames of another size than
+        the first, color and depth of different sizes, timestamps that do not increase, or
+        bad arrays; the frames already written stay intact.
+        """
+        self._check_open()
+        if timestamp is None:
+            timestamp = 0 if self._last_ts is None else self._last_ts + round(_NS / self.fps)
+        if isinstance(timestamp, bool) or not isinstance(timestamp, (int, np.integer)):
+            raise InputTypeError(f"timestamp must be an int (ns), got {type(timestamp).__name__}")
+        timestamp = int(timestamp)
+        if timestamp < 0:
+            raise InputError(f"timestamp must not be negative, got {timestamp}")
+        if self._last_ts is not None and timestamp <= self._last_ts:
+            raise InputError(
+                f"timestamp {timestamp} ns does not increase (previous frame: {self._last_ts} ns)"
+            )
+        d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
+        rgb: npt.NDArray[np.uint8] | None = None
+        if self.color_codec is not None:
+            if color is None:
+                raise InputError("this recording has color: pass a color image with each frame")
+            rgb = check_color(color, d.shape, name="color")
+        if self._shape is None:
+            self._start_stream(d.shape[0], d.shape[1], timestamp)
+        elif d.shape != self._shape:
+            raise InputError(
+                f"depth is {d.shape[1]}x{d.shape[0]}, but this recording's frames are "
+                f"{self._shape[1]}x{self._shape[0]} (width x height)"
+            )
+        self._last_ts = timestamp
+        # Copies: the caller may reuse its buffers while the threads encode.
+        fut_color = (
+            self._color_pool.submit(self._encode_color, rgb.copy(), timestamp)
+            if rgb is not None
+            else None
+        )
+        fut_depth = self._depth_pool.submit(self.depth_codec.encode, d.copy())
+        self._pending.append((timestamp, fut_color, fut_depth))
+        while len(self._pending) > self.in_flight:
+            self._drain_one()
+
+    def _encode_color(self, rgb: npt.NDArray[np.uint8], timestamp: int) -> list[Packet]:
+        assert self._encoder is not None
+        return self._encoder.encode(rgb, timestamp)
+
+    def write_rgbd(self, rgbd: Any, timestamp: int | None = None) -> None:
+        """Add an ``open3d.geometry.RGBDImage`` made with ``convert_rgb_to_intensity=False``.
+
+        Open3D keeps depth as float32 metres; it is turned back into depth units with this
+        recording's ``depth_scale`` and must come out as whole numbers (it does when the
+        RGBDImage was made from uint16 depth with the same scale).
+        """
+        color = np.asarray(rgbd.color)
+        metres = np.asarray(rgbd.depth)
+        if color.dtype != np.uint8 or color.ndim != 3:
+            raise InputError(
+                f"RGBDImage color is {color.dtype} {color.shape}; make it with "
+                "convert_rgb_to_intensity=False to keep 8-bit RGB"
+            )
+        units = metres.astype(np.float64) * self.depth_scale
+        rounded = np.rint(units)
+        if not np.allclose(units, rounded, atol=1e-3) or rounded.max(initial=0) > 65535:
+            raise InputError(
+                f"RGBDImage depth times depth_scale {self.depth_scale} is not whole depth units; "
+                "use write() with the original depth instead"
+            )
+        self.write(color, rounded.astype(np.uint16), timestamp)
+
+    def write_frames(
+        self,
+        frames: Iterable[Any],
+        *,
+        progress: Callable[[int], None] | None = None,
+    ) -> int:
+        """Write every frame of an iterable and return how many were written.
+
+        Items may be :class:`~pcdcodec.RGBDFrame` objects (as from :func:`pcdcodec.load_folder`),
+        ``(color, depth)`` or ``(color, depth, timestamp)`` tuples, or Open3D ``RGBDImage``
+        objects. ``progress`` is called with the number of frames written so far.
+        """
+        count = 0
+        for item in frames:
+            if hasattr(item, "depth") and hasattr(item, "timestamp_ns"):
+                self.write(item.color, item.depth, item.timestamp_ns)
+            elif type(item).__name__ == "RGBDImage":
+                self.write_rgbd(item)
+            elif isinstance(item, tuple) and len(item) in (2, 3):
+                self.write(*item)
+            else:
+                raise InputTypeError(
+                    f"frame {count} is a {type(item).__name__}; expected an RGBDFrame, an "
+                    "RGBDImage or a (color, depth[, timestamp]) tuple"
+                )
+            count += 1
+            if progress is not None:
+                progress(count)
+        return count
+
+    def _write_packets(self, packets: list[Packet]) -> None:
+        mcap = self._mcap
+        video_format = getattr(self.color_codec, "video_format", None)
+        for packet in packets:
+            if packet.keyframe:
+                mcap.add_message(self._channels["key"], packet.pts, b"", packet.dts, self._sequence)
+            if video_format:
+                data = CompressedVideo(
+                    packet.pts, self.frame_id, packet.data, video_format
+                ).encode()
+            else:
+                data = packet.data
+            mcap.add_message(self._channels["color"], packet.pts, data, packet.dts, self._sequence)
+            self._sequence += 1
+            self.bytes_color += len(packet.data)
+
+    def _drain_one(self) -> None:
+        timestamp, fut_color, fut_depth = self._pending.popleft()
+        if fut_color is not None:
+            self._write_packets(fut_color.result())
+        data = fut_depth.result()
+        self._mcap.add_message(
+            self._channels["depth"], timestamp, data, timestamp, self.frames_written
+        )
+        self.bytes_depth += len(data)
+        self.frames_written += 1
+        self._file.flush()
+
+    # -- closing -------------------------------------------------------------------------
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise InputError(f"recording {str(self.path)!r} is closed")
+
+    def close(self) -> None:
+        """Write what is still pending, the index and the summary, and close the file."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            while self._pending:
+                self._drain_one()
+            if self._encoder is not None:
+                self._write_packets(self._encoder.flush())
+            self._mcap.finish()  # type: ignore[no-untyped-call]
+        finally:
+            self._color_pool.shutdown(wait=True)
+            self._depth_pool.shutdown(wait=True)
+            self._file.close()
+        if self._writing != self._target:
+            os.replace(self._writing, self._target)
+
+    def abort(self) -> None:
+        """Stop without finishing: what was written stays readable, as after a crash."""
+        self._closed = True
+        self._color_pool.shutdown(wait=False, cancel_futures=True)
+        self._depth_pool.shutdown(wait=False, cancel_futures=True)
+        self._file.close()
+
+    def __enter__(self) -> RecordingWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        # On an error inside the block the frames written so far are still closed properly.
+        self.close()
