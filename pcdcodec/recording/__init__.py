@@ -11,9 +11,18 @@ from typing import Any, Literal, overload
 from ..errors import InputError
 from ._index import FORMAT_VERSION
 from .reader import Frame, Recording, VerifyReport
+from .recover import recover
 from .writer import RecordingWriter
 
-__all__ = ["FORMAT_VERSION", "Frame", "Recording", "RecordingWriter", "VerifyReport", "open"]
+__all__ = [
+    "FORMAT_VERSION",
+    "Frame",
+    "Recording",
+    "RecordingWriter",
+    "VerifyReport",
+    "open",
+    "recover",
+]
 
 
 @overload

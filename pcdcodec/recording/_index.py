@@ -55,6 +55,8 @@ class FileIndex:
     channels: dict[int, ChannelInfo] = field(default_factory=dict)
     #: schema id -> (name, encoding, data)
     schemas: dict[int, tuple[str, str, bytes]] = field(default_factory=dict)
+    #: channel id -> schema id
+    channel_schema: dict[int, int] = field(default_factory=dict)
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     #: per topic: (log times, chunk offsets) in file order
     times: dict[str, list[int]] = field(default_factory=dict)
@@ -136,6 +138,7 @@ def from_summary(f: IO[bytes]) -> FileIndex | None:
     index.schemas = {sid: (s.name, s.encoding, bytes(s.data)) for sid, s in summary.schemas.items()}
     for cid, channel in summary.channels.items():
         index.channels[cid] = _channel_info(channel, schemas)
+        index.channel_schema[cid] = channel.schema_id
     for meta in reader.iter_metadata():
         index.metadata[meta.name] = dict(meta.metadata)
     for ci in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
@@ -191,6 +194,7 @@ def scan(f: IO[bytes]) -> FileIndex:
                     index.schemas[record.id] = (record.name, record.encoding, bytes(record.data))
                 elif isinstance(record, Channel):
                     index.channels[record.id] = _channel_info(record, schemas)
+                    index.channel_schema[record.id] = record.schema_id
             for message in messages:
                 index.add(message.channel_id, message.log_time, pos)
         elif opcode in (_OP_FOOTER, _OP_DATA_END):
@@ -206,6 +210,7 @@ def scan(f: IO[bytes]) -> FileIndex:
             elif opcode == _OP_CHANNEL:
                 channel = Channel.read(_stream(content))
                 index.channels[channel.id] = _channel_info(channel, schemas)
+                index.channel_schema[channel.id] = channel.schema_id
             elif opcode == _OP_METADATA:
                 meta = Metadata.read(_stream(content))
                 index.metadata[meta.name] = dict(meta.metadata)

@@ -278,14 +278,15 @@ class Recording:
                 self._decoded.clear()
             while ts not in self._decoded:
                 if self._next_packet < len(self._packet_pts):
-                    packet = self._packet(self._next_packet)
+                    j_next = self._next_packet
                     self._next_packet += 1
                     try:
-                        out = self._decoder.decode(packet)
+                        out = self._decoder.decode(self._packet(j_next))
                     except DecodeError as exc:
+                        self._decoder = None  # its state is unknown now: start afresh next time
                         raise DecodeError(
                             f"frame {i} (t={ts} ns): color packet at byte offset "
-                            f"{int(self._packet_offsets[self._next_packet - 1])}: {exc}"
+                            f"{int(self._packet_offsets[j_next])}: {exc}"
                         ) from exc
                 else:
                     out = self._decoder.flush()

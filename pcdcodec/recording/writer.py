@@ -74,8 +74,10 @@ class RecordingWriter:
     of each frame are encoded on two threads while the caller prepares the next frame; at most
     ``in_flight`` frames wait in memory, so memory stays bounded however long the recording.
     Each message is written and flushed as soon as it is encoded: if the process dies, every
-    frame whose messages were written can be read back, and ``pcdcodec recover`` rewrites the
-    file with an index.
+    frame whose messages were written (``frames_complete``) can be read back, and
+    ``pcdcodec recover`` rewrites the file with an index. Frames still in flight are lost: the
+    ``in_flight`` queue plus the frames a video encoder holds back (x264 at its defaults keeps
+    about a dozen for its lookahead and threads).
     """
 
     def __init__(
@@ -174,6 +176,10 @@ class RecordingWriter:
         self._depth_pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-depth")
         self._channels: dict[str, int] = {}
         self._sequence = 0
+        # Frames count as complete once their depth and their color packet are both written.
+        self._depth_written: deque[int] = deque()
+        self._color_written: set[int] = set()
+        self.frames_complete = 0
         self.frames_written = 0
         self.bytes_color = 0
         self.bytes_depth = 0
@@ -354,6 +360,15 @@ class RecordingWriter:
             mcap.add_message(self._channels["color"], packet.pts, data, packet.dts, self._sequence)
             self._sequence += 1
             self.bytes_color += len(packet.data)
+            self._color_written.add(packet.pts)
+        self._count_complete()
+
+    def _count_complete(self) -> None:
+        while self._depth_written and (
+            self.color_codec is None or self._depth_written[0] in self._color_written
+        ):
+            self._color_written.discard(self._depth_written.popleft())
+            self.frames_complete += 1
 
     def _drain_one(self) -> None:
         timestamp, fut_color, fut_depth = self._pending.popleft()
@@ -365,6 +380,8 @@ class RecordingWriter:
         )
         self.bytes_depth += len(data)
         self.frames_written += 1
+        self._depth_written.append(timestamp)
+        self._count_complete()
         self._file.flush()
 
     # -- closing -------------------------------------------------------------------------
