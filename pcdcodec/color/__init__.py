@@ -1,7 +1,9 @@
 """Color codecs: video, one module per backend.
 
 Stream codecs (:class:`StreamCodec`) turn RGB frames into packets and back; the PyAV backend
-provides them. Adding a codec means adding a class and one registration line below.
+provides them. File codecs (:class:`FileVideoCodec`) write and read whole video files: the
+OpenCV backend, the path of the original method. Adding a codec means adding a class and one
+registration line below.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from .base import (
     decode_packets,
     encode_frames,
 )
+from .opencv import FileVideoCodec, OpenCVVideo, VideoFileReader, VideoFileWriter
 from .pyav import (
     AV1,
     FFV1,
@@ -45,13 +48,17 @@ __all__ = [
     "VP9",
     "DecodedFrame",
     "FFVHuff",
+    "FileVideoCodec",
     "H264Lossless",
     "HuffYUV",
+    "OpenCVVideo",
     "Packet",
     "PyAVCodec",
     "StreamCodec",
     "VideoDecoder",
     "VideoEncoder",
+    "VideoFileReader",
+    "VideoFileWriter",
     "decode_packets",
     "encode_frames",
 ]
@@ -72,5 +79,6 @@ for _cls in (
     H264Lossless,
     H264NVENC,
     HEVCNVENC,
+    OpenCVVideo,
 ):
     register_codec(_cls)
