@@ -28,7 +28,15 @@ from .errors import InputError
 if TYPE_CHECKING:
     from .camera import CameraIntrinsics
 
-__all__ = ["RGBDFrame", "RGBDSequence", "load_folder", "load_sample", "sample_dir"]
+__all__ = [
+    "FolderSource",
+    "RGBDFrame",
+    "RGBDSequence",
+    "load_folder",
+    "load_sample",
+    "open_folder",
+    "sample_dir",
+]
 
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
 _NS_PER_S = 1_000_000_000
@@ -133,17 +141,12 @@ def _tum_pairs(root: Path, max_dt_ns: int) -> list[tuple[int, Path, Path]]:
     assoc = root / "associations.txt"
     if assoc.exists():
         return [(_seconds_to_ns(r[0]), root / r[1], root / r[3]) for r in _read_list(assoc, 4)]
+    from .sync import associate
+
     rgb = [(_seconds_to_ns(t), root / p) for t, p in _read_list(root / "rgb.txt", 2)]
     depth = [(_seconds_to_ns(t), root / p) for t, p in _read_list(root / "depth.txt", 2)]
-    if not depth:
-        return []
-    dts = np.array([t for t, _ in depth], dtype=np.int64)
-    pairs = []
-    for t, p in rgb:
-        j = int(np.argmin(np.abs(dts - t)))
-        if abs(int(dts[j]) - t) <= max_dt_ns:
-            pairs.append((t, p, depth[j][1]))
-    return pairs
+    pairs = associate([t for t, _ in rgb], [t for t, _ in depth], max_difference=max_dt_ns)
+    return [(rgb[i][0], rgb[i][1], depth[j][1]) for i, j in pairs]
 
 
 def _folder_pairs(root: Path, fps: float) -> list[tuple[int, Path, Path]]:
@@ -167,7 +170,38 @@ def _folder_pairs(root: Path, fps: float) -> list[tuple[int, Path, Path]]:
     return [(round(i * step), c, d) for i, (c, d) in enumerate(zip(colors, depths, strict=True))]
 
 
-def load_folder(
+@dataclass
+class FolderSource:
+    """An RGB-D folder opened without reading its images: they load one frame at a time."""
+
+    root: Path
+    pairs: list[tuple[int, Path, Path]]
+    intrinsics: CameraIntrinsics | None
+    depth_scale: float
+
+    def __len__(self) -> int:
+        return len(self.pairs)
+
+    def __iter__(self) -> Iterator[RGBDFrame]:
+        shape: tuple[int, ...] | None = None
+        for t, c, d in self.pairs:
+            frame = RGBDFrame(_read_color(c), _read_depth(d), t)
+            if frame.color.shape[:2] != frame.depth.shape:
+                raise InputError(
+                    f"{str(c)!r} is {frame.color.shape[1]}x{frame.color.shape[0]} but "
+                    f"{str(d)!r} is {frame.depth.shape[1]}x{frame.depth.shape[0]}"
+                )
+            if shape is not None and frame.depth.shape != shape:
+                raise InputError(
+                    f"frames in {str(self.root)!r} have different sizes: {str(d)!r} is "
+                    f"{frame.depth.shape[1]}x{frame.depth.shape[0]}, earlier frames "
+                    f"{shape[1]}x{shape[0]}"
+                )
+            shape = frame.depth.shape
+            yield frame
+
+
+def open_folder(
     path: str | Path,
     *,
     max_frames: int | None = None,
@@ -176,13 +210,10 @@ def load_folder(
     layout: str = "auto",
     fps: float = 30.0,
     max_dt: float = 0.02,
-) -> RGBDSequence:
-    """Load an RGB-D sequence from a folder (see the module docstring for the layouts).
+) -> FolderSource:
+    """Find the color/depth pairs of an RGB-D folder without reading the images.
 
-    ``layout`` is ``"auto"``, ``"tum"`` or ``"folders"``; ``max_dt`` is the largest color/depth
-    time difference in seconds accepted when pairing TUM lists without ``associations.txt``.
-    Raises :class:`~pcdcodec.InputError` for a missing folder, an unknown layout, an empty
-    sequence or unreadable images.
+    Arguments as :func:`load_folder`; iterate the result to read the frames one at a time.
     """
     from .camera import CameraIntrinsics
 
@@ -210,15 +241,40 @@ def load_folder(
         intrinsics = CameraIntrinsics.from_dict({k: meta[k] for k in keys if k in meta})
     if depth_scale is None:
         depth_scale = float(meta.get("depth_scale", 1000.0))
+    return FolderSource(root, pairs, intrinsics, depth_scale)
 
-    frames = [RGBDFrame(_read_color(c), _read_depth(d), t) for t, c, d in pairs]
-    shapes = {f.depth.shape for f in frames} | {f.color.shape[:2] for f in frames}
-    if len(shapes) != 1:
-        raise InputError(f"frames in {str(root)!r} have different sizes: {sorted(shapes)}")
-    return RGBDSequence(
-        frames,
+
+def load_folder(
+    path: str | Path,
+    *,
+    max_frames: int | None = None,
+    intrinsics: CameraIntrinsics | None = None,
+    depth_scale: float | None = None,
+    layout: str = "auto",
+    fps: float = 30.0,
+    max_dt: float = 0.02,
+) -> RGBDSequence:
+    """Load an RGB-D sequence from a folder (see the module docstring for the layouts).
+
+    ``layout`` is ``"auto"``, ``"tum"`` or ``"folders"``; ``max_dt`` is the largest color/depth
+    time difference in seconds accepted when pairing TUM lists without ``associations.txt``.
+    Intrinsics and depth scale default to the folder's ``camera.json`` (depth scale 1000
+    without one). Raises :class:`~pcdcodec.InputError` for a missing folder, an unknown
+    layout, an empty sequence, unreadable images or frames of different sizes.
+    """
+    source = open_folder(
+        path,
+        max_frames=max_frames,
         intrinsics=intrinsics,
         depth_scale=depth_scale,
-        name=root.name,
-        paths=[(c, d) for _, c, d in pairs],
+        layout=layout,
+        fps=fps,
+        max_dt=max_dt,
+    )
+    return RGBDSequence(
+        list(source),
+        intrinsics=source.intrinsics,
+        depth_scale=source.depth_scale,
+        name=source.root.name,
+        paths=[(c, d) for _, c, d in source.pairs],
     )

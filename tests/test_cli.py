@@ -1,17 +1,38 @@
-"""The command-line tool, run as a user runs it."""
+"""The command-line tool, run as a user runs it: a subprocess per command."""
 
 from __future__ import annotations
 
+import json
+import shutil
 import subprocess
 import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
 
 import pcdcodec
+from pcdcodec.datasets import load_sample, sample_dir
 
 
-def run(*args: str) -> subprocess.CompletedProcess[str]:
+def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "pcdcodec", *args], capture_output=True, text=True, check=False
+        [sys.executable, "-m", "pcdcodec", *args],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=cwd,
+        timeout=600,
     )
+
+
+@pytest.fixture(scope="module")
+def encoded(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("cli") / "sample.pcdc"
+    result = run("encode", str(sample_dir()), "-o", str(out), "--max-frames", "6")
+    assert result.returncode == 0, result.stderr
+    assert "wrote 6 frames" in result.stdout
+    return out
 
 
 def test_codecs_lists_every_codec_with_its_defaults() -> None:
@@ -21,13 +42,9 @@ def test_codecs_lists_every_codec_with_its_defaults() -> None:
         assert f"  {name} " in out.stdout
     assert "effort=2" in out.stdout
     assert "crf=18" in out.stdout
-
-
-def test_codecs_of_one_kind() -> None:
-    out = run("codecs", "--kind", "depth")
-    assert out.returncode == 0
-    assert "jpegxl" in out.stdout
-    assert "h264" not in out.stdout
+    depth_only = run("codecs", "--kind", "depth")
+    assert "jpegxl" in depth_only.stdout
+    assert "h264" not in depth_only.stdout
 
 
 def test_bad_arguments_exit_non_zero_with_a_message() -> None:
@@ -35,9 +52,170 @@ def test_bad_arguments_exit_non_zero_with_a_message() -> None:
     assert out.returncode == 2
     assert "invalid choice: 'video'" in out.stderr
     assert run().returncode == 2
+    version = run("--version")
+    assert version.returncode == 0
+    assert pcdcodec.__version__ in version.stdout
 
 
-def test_version() -> None:
-    out = run("--version")
-    assert out.returncode == 0
-    assert pcdcodec.__version__ in out.stdout
+def test_demo(tmp_path: Path) -> None:
+    out = run("demo", "--frames", "5", "-o", str(tmp_path / "demo"))
+    assert out.returncode == 0, out.stderr
+    assert "depth bit-exact:                yes" in out.stdout
+    assert "ratio against PointCloud2" in out.stdout
+    ply = tmp_path / "demo" / "frame0000.ply"
+    assert ply.exists()
+    assert ply.stat().st_size > 100_000
+
+
+def test_encode_info_verify(encoded: Path) -> None:
+    info = run("info", str(encoded), "--json")
+    assert info.returncode == 0, info.stderr
+    data = json.loads(info.stdout)
+    assert data["frames"] == 6
+    assert data["codecs"]["depth"]["id"] == "jpegxl"
+    assert data["intrinsics"]["fx"] == 525.0
+    assert data["depth_scale"] == 5000.0
+    text = run("info", str(encoded))
+    assert "6 over" in text.stdout
+    verify = run("verify", str(encoded))
+    assert verify.returncode == 0
+    assert "6 frames checked, OK" in verify.stdout
+
+
+def test_encode_with_codec_options_and_explicit_camera(tmp_path: Path) -> None:
+    src = tmp_path / "plain"
+    (src / "rgb").mkdir(parents=True)
+    (src / "depth").mkdir()
+    seq = load_sample(max_frames=3)
+    for i, (c, d) in enumerate(seq.paths):
+        shutil.copy(c, src / "rgb" / f"{i}.png")
+        shutil.copy(d, src / "depth" / f"{i}.png")
+    out = tmp_path / "x.pcdc"
+    missing = run("encode", str(src), "-o", str(out))
+    assert missing.returncode == 1
+    assert "no intrinsics" in missing.stderr
+    assert not out.exists()
+    partial = run("encode", str(src), "-o", str(out), "--fx", "525")
+    assert partial.returncode == 1
+    assert "--fy" in partial.stderr
+    ok = run(
+        "encode",
+        str(src),
+        "-o",
+        str(out),
+        "--fx",
+        "525",
+        "--fy",
+        "525",
+        "--cx",
+        "319.5",
+        "--cy",
+        "239.5",
+        "--depth-scale",
+        "5000",
+        "--color",
+        "ffv1",
+        "--depth",
+        "zstd:level=9",
+    )
+    assert ok.returncode == 0, ok.stderr
+    with pcdcodec.open(out) as rec:
+        assert rec.codecs["depth"] == {"id": "zstd", "level": 9}
+        assert rec.codecs["color"]["id"] == "ffv1"  # type: ignore[index]
+        np.testing.assert_array_equal(rec[2].color, seq[2].color)
+        np.testing.assert_array_equal(rec[2].depth, seq[2].depth)
+    again = run(
+        "encode", str(src), "-o", str(out), "--fx", "1", "--fy", "1", "--cx", "1", "--cy", "1"
+    )
+    assert again.returncode == 1
+    assert "overwrite" in again.stderr
+
+
+def test_encode_errors(tmp_path: Path) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    out = run("encode", str(empty), "-o", str(tmp_path / "e.pcdc"))
+    assert out.returncode == 1
+    assert "not an RGB-D folder" in out.stderr
+    bad_codec = run("encode", str(sample_dir()), "-o", str(tmp_path / "b.pcdc"), "--color", "h263")
+    assert bad_codec.returncode == 1
+    assert "unknown codec 'h263'" in bad_codec.stderr
+    bad_opt = run("encode", str(sample_dir()), "-o", str(tmp_path / "c.pcdc"), "--depth", "zstd:9")
+    assert bad_opt.returncode == 1
+    assert "key=value" in bad_opt.stderr
+
+
+def test_decode_writes_a_tum_folder_that_encodes_again(encoded: Path, tmp_path: Path) -> None:
+    out = tmp_path / "decoded"
+    result = run("decode", str(encoded), "-o", str(out), "--ply")
+    assert result.returncode == 0, result.stderr
+    assert len(list((out / "rgb").glob("*.png"))) == 6
+    assert len(list((out / "clouds").glob("*.ply"))) == 6
+    seq = load_sample(max_frames=6)
+    again = pcdcodec.load_folder(out)
+    assert again.intrinsics == seq.intrinsics
+    for a, b in zip(again, seq, strict=True):
+        np.testing.assert_array_equal(a.depth, b.depth)
+        assert a.timestamp_ns == b.timestamp_ns
+    refused = run("decode", str(encoded), "-o", str(out))
+    assert refused.returncode == 1
+    assert "not empty" in refused.stderr
+
+
+def test_verify_and_recover_a_damaged_file(tmp_path: Path) -> None:
+    # zerolatency: x264 emits each frame's packet at once, so a cut file keeps frames.
+    encoded = tmp_path / "z.pcdc"
+    made = run(
+        "encode",
+        str(sample_dir()),
+        "-o",
+        str(encoded),
+        "--max-frames",
+        "6",
+        "--color",
+        "h264:tune=zerolatency",
+    )
+    assert made.returncode == 0, made.stderr
+    data = encoded.read_bytes()
+    cut = tmp_path / "cut.pcdc"
+    cut.write_bytes(data[: 3 * len(data) // 4])
+    verify = run("verify", str(cut))
+    assert verify.returncode == 1
+    assert "cut short" in verify.stdout
+    fixed = tmp_path / "fixed.pcdc"
+    recover = run("recover", str(cut), "-o", str(fixed))
+    assert recover.returncode == 0, recover.stderr
+    assert run("verify", str(fixed)).returncode == 0
+    info = json.loads(run("info", str(fixed), "--json").stdout)
+    assert info["indexed"] is True
+    assert 0 < info["frames"] <= 6
+
+
+def test_not_a_recording(tmp_path: Path) -> None:
+    junk = tmp_path / "junk.pcdc"
+    junk.write_bytes(b"hello world")
+    for command in ("info", "verify"):
+        out = run(command, str(junk))
+        assert out.returncode == 1
+        assert out.stderr.startswith("error:")
+        assert "not a pcdcodec recording" in out.stderr
+    missing = run("info", str(tmp_path / "missing.pcdc"))
+    assert missing.returncode == 1
+    assert "does not exist" in missing.stderr
+
+
+def test_export_and_import_the_paper_layout(encoded: Path, tmp_path: Path) -> None:
+    out = tmp_path / "paper"
+    exported = run("export", str(encoded), str(out), "--layout", "paper")
+    assert exported.returncode == 0, exported.stderr
+    assert (out / "depth.lz4").exists()
+    back = tmp_path / "back.pcdc"
+    imported = run("import", str(out), "-o", str(back))
+    assert imported.returncode == 0, imported.stderr
+    with pcdcodec.open(back) as a, pcdcodec.open(encoded) as b:
+        assert len(a) == len(b)
+        np.testing.assert_array_equal(a[3].depth, b[3].depth)
+        np.testing.assert_array_equal(a[3].color, b[3].color)
+    unknown = run("export", str(encoded), str(tmp_path / "p2"), "--layout", "ros1")
+    assert unknown.returncode == 1
+    assert "unknown layout 'ros1'" in unknown.stderr

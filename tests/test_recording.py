@@ -510,3 +510,30 @@ def test_rewritten_file_still_reads(tmp_path: Path, default_file: Path) -> None:
         np.testing.assert_array_equal(a[7].depth, b[7].depth)
     with path.open("rb") as f:
         assert make_reader(f).get_summary() is not None
+
+
+def test_separate_color_and_depth_streams_are_synchronized(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    path = tmp_path / "sync.pcdc"
+    frames = sample.frames[:8]
+    with pcdcodec.open(path, "w", intrinsics=sample.intrinsics, depth_scale=5000.0) as rec:
+        for i, frame in enumerate(frames):
+            t = 1_000_000_000 + i * 33_000_000
+            rec.write_color(frame.color, t + 3_000_000)  # color 3 ms after depth
+            if i != 5:  # one depth image lost on the way
+                rec.write_depth(frame.depth, t)
+        # A color image far from any depth finds no partner.
+        rec.write_color(frames[0].color, 1_000_000_000 + 9 * 33_000_000)
+    assert rec.unpaired["color"] == [
+        1_000_000_000 + 5 * 33_000_000 + 3_000_000,
+        1_000_000_000 + 9 * 33_000_000,
+    ]
+    assert rec.unpaired["depth"] == []
+    with pcdcodec.open(path) as out:
+        kept = [i for i in range(8) if i != 5]
+        assert len(out) == len(kept)
+        assert out.timestamps.tolist() == [1_000_000_000 + i * 33_000_000 for i in kept]
+        for frame, i in zip(out, kept, strict=True):
+            np.testing.assert_array_equal(frame.depth, frames[i].depth)
+            assert psnr(frame.color, frames[i].color) > 32  # type: ignore[arg-type]

@@ -183,6 +183,7 @@ class RecordingWriter:
         self.frames_written = 0
         self.bytes_color = 0
         self.bytes_depth = 0
+        self._sync: Any = None
         self._closed = False
 
     # -- writing -----------------------------------------------------------------------
@@ -345,6 +346,39 @@ class RecordingWriter:
                 progress(count)
         return count
 
+    def _synchronizer(self) -> Any:
+        if self._sync is None:
+            from ..sync import Synchronizer
+
+            self._sync = Synchronizer(max_difference=self.max_sync_difference)
+        return self._sync
+
+    #: Largest color/depth time difference (ns) that :meth:`write_color`/:meth:`write_depth`
+    #: pair into one frame, as TUM's associate.py (20 ms).
+    max_sync_difference: int = 20_000_000
+
+    def write_color(self, color: Any, timestamp: int) -> None:
+        """Add a color image that arrives on its own; it is paired with the depth image nearest
+        in time (within :attr:`max_sync_difference`) and written as one frame at the depth's
+        timestamp. Images that find no partner are dropped and counted in :attr:`unpaired`.
+        """
+        self._check_open()
+        for _, rgb, depth_ts, depth in self._synchronizer().add_color(timestamp, color):
+            self.write(rgb, depth, depth_ts)
+
+    def write_depth(self, depth: Any, timestamp: int) -> None:
+        """Add a depth image that arrives on its own (see :meth:`write_color`)."""
+        self._check_open()
+        for _, rgb, depth_ts, d in self._synchronizer().add_depth(timestamp, depth):
+            self.write(rgb, d, depth_ts)
+
+    @property
+    def unpaired(self) -> dict[str, list[int]]:
+        """Timestamps (ns) of the separately written images that found no partner."""
+        if self._sync is None:
+            return {"color": [], "depth": []}
+        return {"color": list(self._sync.dropped_color), "depth": list(self._sync.dropped_depth)}
+
     def _write_packets(self, packets: list[Packet]) -> None:
         mcap = self._mcap
         video_format = getattr(self.color_codec, "video_format", None)
@@ -394,7 +428,12 @@ class RecordingWriter:
         """Write what is still pending, the index and the summary, and close the file."""
         if self._closed:
             return
-        self._closed = True
+        try:
+            if self._sync is not None:
+                for _, rgb, depth_ts, depth in self._sync.flush():
+                    self.write(rgb, depth, depth_ts)
+        finally:
+            self._closed = True
         try:
             while self._pending:
                 self._drain_one()
