@@ -124,12 +124,14 @@ def _cmd_demo(args: argparse.Namespace) -> int:
             import open3d as o3d
 
             ply = out_dir / "frame0000.ply"
-            o3d.io.write_point_cloud(str(ply), rec[0].to_point_cloud())
+            o3d.io.write_point_cloud(ply, rec[0].to_point_cloud())
     raw = n * h * w * (3 + 2)
+    color_id = str((codecs["color"] or {}).get("id", "none"))
+    depth_id = str((codecs["depth"] or {}).get("id"))
     pc2 = n * h * w * 32
     rows = [
-        ("color stream", writer.bytes_color, f"{codecs['color']['id']}"),  # type: ignore[index]
-        ("depth stream", writer.bytes_depth, f"{codecs['depth']['id']}"),
+        ("color stream", writer.bytes_color, color_id),
+        ("depth stream", writer.bytes_depth, depth_id),
         ("whole .pcdc file", size, "container, index, camera"),
         ("raw RGB-D (RGB24 + uint16)", raw, ""),
         ("PointCloud2 XYZRGB, 32 B/point", pc2, "organized, as ROS publishes it"),
@@ -227,7 +229,7 @@ def _cmd_decode(args: argparse.Namespace) -> int:
                     cloud = frame.to_point_cloud()
                     for flag, ext in ((args.ply, "ply"), (args.pcd, "pcd")):
                         if flag:
-                            o3d.io.write_point_cloud(str(out / "clouds" / f"{name}.{ext}"), cloud)
+                            o3d.io.write_point_cloud(out / "clouds" / f"{name}.{ext}", cloud)
                 bar.update(frame.index + 1)
         (out / "rgb.txt").write_text("\n".join(rgb_list) + "\n")
         (out / "depth.txt").write_text("\n".join(depth_list) + "\n")
