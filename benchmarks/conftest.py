@@ -78,3 +78,21 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
         write(f"|{'-' * 40}|{'-' * 8}|{'-' * 9}|")
         for path, ms in sorted(projector, key=lambda item: item[1]):
             write(f"| {path:38} | {ms:6.2f} | {ms / reference:7.2f} |")
+
+    recording = [
+        (b.extra_info, b.stats.median)
+        for b in session.benchmarks
+        if b.extra_info.get("kind") == "recording" and b.stats is not None
+    ]
+    if recording:
+        write("")
+        write("recordings, 640x480, default codecs: frames per second")
+        write(f"| {'sequence':18} | {'what':44} | {'fps':>7} |")
+        write(f"|{'-' * 20}|{'-' * 46}|{'-' * 9}|")
+        labels = {
+            "write": "record (color + depth threads, 2 cores)",
+            "play": "decode + point cloud (1 core)",
+        }
+        for info, median in sorted(recording, key=lambda r: (r[0]["sequence"], r[0]["op"])):
+            fps = info["frames"] / median
+            write(f"| {info['sequence']:18} | {labels[info['op']]:44} | {fps:7.1f} |")

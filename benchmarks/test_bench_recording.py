@@ -1,0 +1,101 @@
+"""Writing and reading recordings: frames per second with the default codecs.
+
+Targets: a 640×480 stream records at ≥ 30 fps on two cores (color and depth are encoded on two
+threads), and decoding plus rebuilding the point cloud plays back at ≥ 60 fps on one core
+(the playback benchmark pins the process to a single CPU while it runs).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import pcdcodec
+from pcdcodec.datasets import RGBDSequence, load_folder, load_sample
+from tests.conftest import SEQUENCES
+
+FRAMES = 30
+PRESENT = [name for name in ("sample", "tum_fr1_rpy", "realsense_d435") if SEQUENCES[name].present]
+
+
+def sequence(name: str) -> RGBDSequence:
+    if name == "sample":
+        return load_sample()
+    seq = load_folder(
+        SEQUENCES[name].root,
+        max_frames=FRAMES,
+        layout="folders" if name == "realsense_d435" else "auto",
+        depth_scale=SEQUENCES[name].depth_scale,
+    )
+    if seq.intrinsics is None:
+        h, w = seq[0].depth.shape
+        seq.intrinsics = pcdcodec.CameraIntrinsics(w, h, 615.0, 615.0, w / 2, h / 2)
+    return seq
+
+
+_cache: dict[str, RGBDSequence] = {}
+
+
+def cached(name: str) -> RGBDSequence:
+    if name not in _cache:
+        _cache[name] = sequence(name)
+    return _cache[name]
+
+
+def write(seq: RGBDSequence, path: Path) -> Path:
+    with pcdcodec.open(
+        path, "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale, overwrite=True
+    ) as rec:
+        rec.write_frames(seq)
+    return path
+
+
+@contextmanager
+def one_core() -> Iterator[None]:
+    """Pin this process (all its threads) to one CPU while the block runs."""
+    if not hasattr(os, "sched_setaffinity"):
+        yield
+        return
+    before = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, {min(before)})
+    try:
+        yield
+    finally:
+        os.sched_setaffinity(0, before)
+
+
+@pytest.mark.parametrize("name", PRESENT)
+def test_record(benchmark: Any, tmp_path: Path, name: str) -> None:
+    seq = cached(name)
+    path = tmp_path / "bench.pcdc"
+    benchmark.group = "recording: write with the default codecs (h264 + jpegxl), two threads"
+    benchmark.extra_info.update(kind="recording", op="write", sequence=name, frames=len(seq))
+    benchmark.pedantic(write, args=(seq, path), rounds=3, iterations=1, warmup_rounds=1)
+    with pcdcodec.open(path) as rec:
+        assert len(rec) == len(seq)  # correct, not just fast
+        assert (rec[len(seq) // 2].depth == seq[len(seq) // 2].depth).all()
+
+
+def play(path: Path) -> int:
+    points = 0
+    with pcdcodec.open(path) as rec:
+        for frame in rec:
+            points += frame.to_point_cloud(tensor=True).point.positions.shape[0]
+    return points
+
+
+@pytest.mark.parametrize("name", PRESENT)
+def test_playback_with_point_clouds_one_core(benchmark: Any, tmp_path: Path, name: str) -> None:
+    seq = cached(name)
+    path = write(seq, tmp_path / "play.pcdc")
+    expected = sum(int((f.depth > 0).sum()) for f in seq)
+    benchmark.group = "recording: decode + point cloud (tensor), one core"
+    benchmark.extra_info.update(kind="recording", op="play", sequence=name, frames=len(seq))
+    with one_core():
+        points = benchmark.pedantic(play, args=(path,), rounds=3, iterations=1, warmup_rounds=1)
+    assert points == expected
