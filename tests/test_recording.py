@@ -537,3 +537,25 @@ def test_separate_color_and_depth_streams_are_synchronized(
         for frame, i in zip(out, kept, strict=True):
             np.testing.assert_array_equal(frame.depth, frames[i].depth)
             assert psnr(frame.color, frames[i].color) > 32  # type: ignore[arg-type]
+
+
+def test_b_frames_with_timestamps_from_zero(tmp_path: Path, sample: RGBDSequence) -> None:
+    path = tmp_path / "zero.pcdc"
+    with pcdcodec.open(
+        path, "w", intrinsics=sample.intrinsics, color={"id": "h264", "bframes": 2}
+    ) as rec:
+        for frame in sample.frames[:6]:
+            rec.write(frame.color, frame.depth)  # 0, 33 ms, ...: the first dts are negative
+    with pcdcodec.open(path) as rec:
+        assert rec.timestamps.tolist()[:2] == [0, 33_333_333]
+        assert all(f.color is not None for f in rec)
+
+
+@pytest.mark.parametrize("color", ["mpeg4", "h264"])
+def test_decoding_is_repeatable(tmp_path: Path, sample: RGBDSequence, color: str) -> None:
+    path = record(tmp_path / "rep.pcdc", sample, color=color)
+    results = []
+    for _ in range(4):
+        with pcdcodec.open(path) as rec:
+            results.append([f.color.tobytes() for f in rec])  # type: ignore[union-attr]
+    assert all(r == results[0] for r in results)

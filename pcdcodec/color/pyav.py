@@ -125,6 +125,9 @@ class PyAVCodec(StreamCodec):
     def _options(self) -> dict[str, str]:
         return {}
 
+    def _decoder_options(self) -> dict[str, str]:
+        return {}
+
     def _gop(self, fps: float) -> int:
         gop = getattr(self, "gop", None)
         return int(gop) if gop is not None else max(1, round(fps))
@@ -242,7 +245,11 @@ class _PyAVDecoder(VideoDecoder):
         ctx.width, ctx.height = self._pw, self._ph
         if extradata:
             ctx.extradata = extradata
+        # Slice threads only: frame threading delays output by a frame per thread, which costs
+        # random access, and made MPEG-4 output vary between runs.
+        ctx.thread_type = "SLICE"
         ctx.thread_count = codec.threads
+        ctx.options = codec._decoder_options()
         self._ctx = ctx
 
     def _frames(self, av_frames: list[Any]) -> list[DecodedFrame]:
@@ -510,6 +517,11 @@ class MPEG4(PyAVCodec):
 
     def _options(self) -> dict[str, str]:
         return {"qmin": str(self.qscale), "qmax": str(self.qscale)}
+
+    def _decoder_options(self) -> dict[str, str]:
+        # With FFmpeg's defaults the decoded frames of one stream varied between runs in one
+        # process (after other native libraries ran); bit-exact mode keeps them identical.
+        return {"idct": "simple", "flags": "+bitexact", "ec": "0"}
 
 
 # -- lossless codecs ---------------------------------------------------------------------------

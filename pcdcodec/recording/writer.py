@@ -384,14 +384,19 @@ class RecordingWriter:
         video_format = getattr(self.color_codec, "video_format", None)
         for packet in packets:
             if packet.keyframe:
-                mcap.add_message(self._channels["key"], packet.pts, b"", packet.dts, self._sequence)
+                mcap.add_message(
+                    self._channels["key"], packet.pts, b"", max(packet.dts, 0), self._sequence
+                )
             if video_format:
                 data = CompressedVideo(
                     packet.pts, self.frame_id, packet.data, video_format
                 ).encode()
             else:
                 data = packet.data
-            mcap.add_message(self._channels["color"], packet.pts, data, packet.dts, self._sequence)
+            # B-frames give the first packets decoding times before the first frame; MCAP times
+            # are unsigned, so those are stored as 0 (decoders only need the order).
+            dts = max(packet.dts, 0)
+            mcap.add_message(self._channels["color"], packet.pts, data, dts, self._sequence)
             self._sequence += 1
             self.bytes_color += len(packet.data)
             self._color_written.add(packet.pts)
