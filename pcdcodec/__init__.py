@@ -31,6 +31,7 @@ from .errors import (
     PcdcodecError,
     UnknownCodecError,
 )
+from .evaluation import Evaluation, evaluate
 from .projector import Projector, Reprojection
 from .recording import Frame, Recording, RecordingWriter, open
 from .registry import codec_class, get_codec, list_codecs, register_codec
@@ -44,6 +45,7 @@ __all__ = [
     "CodecUnavailableError",
     "ColorCodec",
     "DecodeError",
+    "Evaluation",
     "Frame",
     "FrameCodec",
     "InputError",
@@ -60,6 +62,7 @@ __all__ = [
     "as_uint16_depth",
     "codec_class",
     "decode_depth",
+    "evaluate",
     "get_codec",
     "list_codecs",
     "load_folder",

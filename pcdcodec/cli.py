@@ -330,6 +330,42 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from .evaluation import evaluate, parse_list
+
+    frames = args.frames
+    source: Any = args.src
+    intrinsics = None
+    if any(getattr(args, k) is not None for k in ("fx", "fy", "cx", "cy")):
+        from .datasets import open_folder
+
+        first = next(iter(open_folder(args.src, max_frames=1)))
+        h, w = first.depth.shape
+        intrinsics = _intrinsics_from_args(args, w, h)
+    quiet = args.quiet or not sys.stderr.isatty()
+
+    def say(step: str) -> None:
+        if not quiet:
+            print(f"  {step}", file=sys.stderr, flush=True)
+
+    result = evaluate(
+        source,
+        depth=parse_list(args.depth) if args.depth else None,
+        color=parse_list(args.color),
+        frames=frames,
+        intrinsics=intrinsics,
+        depth_scale=args.depth_scale,
+        rd=not args.no_rd,
+        peers=args.peers,
+        progress=say,
+    )
+    print(result.to_markdown())
+    if args.output:
+        written = result.write(args.output, plots=not args.no_plots)
+        print(f"wrote {', '.join(p.name for p in written)} to {args.output}")
+    return 0
+
+
 def _cmd_import(args: argparse.Namespace) -> int:
     from .recording.paper import import_paper
 
@@ -410,6 +446,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--depth", default="jpegxl", help="depth codec for the new file")
     p.add_argument("--overwrite", action="store_true")
     p.set_defaults(func=_cmd_import)
+
+    p = sub.add_parser("bench", help="compare codecs on a recording or an RGB-D folder")
+    p.add_argument("src", help="a .pcdc recording or a folder that `encode` accepts")
+    p.add_argument("--depth", default=None, help="depth codecs, comma-separated (default: all)")
+    p.add_argument("--color", default="h264", help="color codecs, comma-separated")
+    p.add_argument("--frames", type=int, default=30, help="frames to use (default: %(default)s)")
+    p.add_argument("-o", "--output", default=None, help="folder for report, CSV, JSON and plots")
+    p.add_argument("--no-rd", action="store_true", help="skip the color quality sweep")
+    p.add_argument("--no-plots", action="store_true", help="write no PNG plots")
+    p.add_argument("--peers", action="store_true", help="add peer rows (pcdcodec[peers])")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    _add_camera_options(p)
+    p.set_defaults(func=_cmd_bench)
 
     p = sub.add_parser("codecs", help="list the registered codecs and their defaults")
     p.add_argument("--kind", choices=KINDS, help="only codecs of this kind")

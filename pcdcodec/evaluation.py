@@ -1,0 +1,521 @@
+"""Comparing codecs on a sequence: sizes, ratios, speeds and quality, as tables and plots.
+
+:func:`evaluate` encodes and decodes a sequence with each chosen depth and color codec and
+returns an :class:`Evaluation`, which writes a Markdown report laid out like the tables of the
+compressed point cloud streams paper, CSV and JSON files, and PNG plots (matplotlib, from the
+``bench`` extra). ``pcdcodec bench`` is its command-line front.
+
+Reference sizes per 640×480 frame: RGB24 color 900 KiB, uint16 depth 600 KiB, float32 depth
+(ROS 32FC1, what the paper stored) 1200 KiB, and an organized PointCloud2 XYZRGB cloud at
+32 bytes per point 9600 KiB.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import statistics
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .camera import CameraIntrinsics
+from .color.base import StreamCodec, decode_packets, encode_frames
+from .datasets import RGBDFrame, RGBDSequence, open_folder
+from .depth.base import FrameCodec
+from .errors import InputError
+from .registry import codec_class, get_codec, list_codecs
+
+__all__ = [
+    "RD_SETTINGS",
+    "ColorRow",
+    "DepthRow",
+    "Evaluation",
+    "RDPoint",
+    "StreamRow",
+    "evaluate",
+]
+
+#: Bytes per point of a PointCloud2 with float32 x, y, z, packed RGB and padding, as ROS
+#: publishes RGB-D clouds (organized: one point per pixel).
+POINTCLOUD2_BYTES_PER_POINT = 32
+
+#: Quality settings swept for the color rate-distortion curves.
+RD_SETTINGS: dict[str, tuple[str, tuple[int, ...]]] = {
+    "h264": ("crf", (14, 18, 23, 28, 33)),
+    "h265": ("crf", (16, 22, 28, 34)),
+    "av1": ("crf", (20, 30, 40, 50)),
+    "vp9": ("crf", (20, 32, 44, 56)),
+    "mjpeg": ("quality", (2, 4, 8, 16)),
+    "mpeg4": ("qscale", (2, 4, 8, 16)),
+}
+
+
+@dataclass(frozen=True)
+class DepthRow:
+    """One depth codec on the sequence. Sizes in bytes, times in ms per frame."""
+
+    codec: str
+    config: dict[str, Any]
+    frames: int
+    bytes_per_frame: float
+    ratio_uint16: float
+    ratio_float32: float
+    ratio_float32_input: float | None
+    encode_ms: float
+    decode_ms: float
+    exact: bool
+    exact_fraction: float
+    rmse_m: float
+    max_error_m: float
+    edge_rmse_m: float
+    interior_rmse_m: float
+    cloud_rmse_m: float
+
+
+@dataclass(frozen=True)
+class ColorRow:
+    """One color codec on the sequence."""
+
+    codec: str
+    config: dict[str, Any]
+    frames: int
+    bytes_per_frame: float
+    bits_per_pixel: float
+    ratio_rgb24: float
+    encode_ms: float
+    decode_ms: float
+    psnr: float
+    ssim: float
+    lossless: bool
+
+
+@dataclass(frozen=True)
+class StreamRow:
+    """A color and a depth codec together: the whole stream."""
+
+    color: str
+    depth: str
+    bytes_per_frame: float
+    ratio_raw: float
+    ratio_pointcloud2: float
+    lossless: bool
+
+
+@dataclass(frozen=True)
+class RDPoint:
+    """One point of a color rate-distortion curve."""
+
+    codec: str
+    setting: str
+    bits_per_pixel: float
+    psnr: float
+
+
+@dataclass
+class Evaluation:
+    """What :func:`evaluate` measured; write it out with :meth:`write`."""
+
+    name: str
+    frames: int
+    width: int
+    height: int
+    depth: list[DepthRow] = field(default_factory=list)
+    color: list[ColorRow] = field(default_factory=list)
+    streams: list[StreamRow] = field(default_factory=list)
+    rd: list[RDPoint] = field(default_factory=list)
+    peers: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def pointcloud2_bytes_per_frame(self) -> int:
+        return self.width * self.height * POINTCLOUD2_BYTES_PER_POINT
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "frames": self.frames,
+            "width": self.width,
+            "height": self.height,
+            "pointcloud2_bytes_per_frame": self.pointcloud2_bytes_per_frame,
+            "depth": [asdict(r) for r in self.depth],
+            "color": [asdict(r) for r in self.color],
+            "streams": [asdict(r) for r in self.streams],
+            "rd": [asdict(r) for r in self.rd],
+            "peers": self.peers,
+        }
+
+    def to_markdown(self) -> str:
+        """The report: the paper's four tables, per codec, measured on this sequence."""
+        kib = 1024.0
+        lines = [
+            f"# Codec comparison: {self.name}",
+            "",
+            f"{self.frames} frames of {self.width}x{self.height}. Raw sizes per frame: RGB24 "
+            f"{self.width * self.height * 3 / kib:.0f} KiB, uint16 depth "
+            f"{self.width * self.height * 2 / kib:.0f} KiB, float32 depth "
+            f"{self.width * self.height * 4 / kib:.0f} KiB, PointCloud2 XYZRGB "
+            f"{self.pointcloud2_bytes_per_frame / kib:.0f} KiB (32 B/point, organized). "
+            "Times are medians per frame on this machine.",
+            "",
+        ]
+        if self.color:
+            lines += [
+                "## Table I: color codecs",
+                "",
+                "| codec | KiB/frame | bits/pixel | ratio vs RGB24 | PSNR dB | SSIM | "
+                "encode ms | decode ms |",
+                "|---|---|---|---|---|---|---|---|",
+            ]
+            for c in self.color:
+                lines.append(
+                    f"| {_label(c.config)} | {c.bytes_per_frame / kib:.1f} | "
+                    f"{c.bits_per_pixel:.3f} | {c.ratio_rgb24:.1f} | {_db(c.psnr)} | "
+                    f"{c.ssim:.4f} | {c.encode_ms:.2f} | {c.decode_ms:.2f} |"
+                )
+            lines.append("")
+        if self.depth:
+            lines += [
+                "## Table II: depth codecs",
+                "",
+                "| codec | KiB/frame | ratio vs uint16 | ratio vs float32 | float32 input | "
+                "encode ms | decode ms | exact | RMSE mm (edge / interior) | cloud RMSE mm |",
+                "|---|---|---|---|---|---|---|---|---|---|",
+            ]
+            for d in self.depth:
+                f32 = f"{d.ratio_float32_input:.2f}" if d.ratio_float32_input else "-"
+                lines.append(
+                    f"| {_label(d.config)} | {d.bytes_per_frame / kib:.1f} | "
+                    f"{d.ratio_uint16:.2f} | {d.ratio_float32:.2f} | {f32} | "
+                    f"{d.encode_ms:.2f} | {d.decode_ms:.2f} | {'yes' if d.exact else 'no'} | "
+                    f"{1000 * d.rmse_m:.3f} ({1000 * d.edge_rmse_m:.3f} / "
+                    f"{1000 * d.interior_rmse_m:.3f}) | {1000 * d.cloud_rmse_m:.3f} |"
+                )
+            lines.append("")
+        for title, rows in (
+            ("Table III: whole stream, lossy color", [s for s in self.streams if not s.lossless]),
+            ("Table IV: whole stream, fully lossless", [s for s in self.streams if s.lossless]),
+        ):
+            if not rows:
+                continue
+            lines += [
+                f"## {title}",
+                "",
+                "| color | depth | KiB/frame | ratio vs raw RGB-D | ratio vs PointCloud2 |",
+                "|---|---|---|---|---|",
+            ]
+            for s in rows:
+                lines.append(
+                    f"| {s.color} | {s.depth} | {s.bytes_per_frame / kib:.1f} | "
+                    f"{s.ratio_raw:.1f} | {s.ratio_pointcloud2:.1f} |"
+                )
+            lines.append("")
+        if self.peers:
+            lines += ["## Peers", "", "| peer | kind | KiB/frame | encode ms | decode ms | notes |"]
+            lines.append("|---|---|---|---|---|---|")
+            for p in self.peers:
+                lines.append(
+                    f"| {p.get('name')} | {p.get('kind')} | "
+                    f"{float(p.get('bytes_per_frame', 0)) / kib:.1f} | "
+                    f"{float(p.get('encode_ms', 0)):.2f} | {float(p.get('decode_ms', 0)):.2f} | "
+                    f"{p.get('notes', '')} |"
+                )
+            lines.append("")
+        return "\n".join(lines)
+
+    def write_csv(self, out_dir: Path) -> list[Path]:
+        written = []
+        for name, rows in (
+            ("depth", self.depth),
+            ("color", self.color),
+            ("streams", self.streams),
+            ("rd", self.rd),
+        ):
+            if not rows:
+                continue
+            path = out_dir / f"{name}.csv"
+            dicts = [asdict(r) for r in rows]
+            with path.open("w", newline="") as f:
+                writer = csv.DictWriter(f, fieldnames=list(dicts[0]))
+                writer.writeheader()
+                for d in dicts:
+                    writer.writerow(
+                        {k: json.dumps(v) if isinstance(v, dict) else v for k, v in d.items()}
+                    )
+            written.append(path)
+        return written
+
+    def plot(self, out_dir: Path) -> list[Path]:
+        """Write the PNG plots; needs matplotlib (``pip install "pcdcodec[bench]"``)."""
+        from ._plots import plot_all
+
+        return plot_all(self, out_dir)
+
+    def write(self, out_dir: str | os.PathLike[str], *, plots: bool = True) -> list[Path]:
+        """Write ``report.md``, ``results.json``, the CSV files and (optionally) the plots."""
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        report = out / "report.md"
+        report.write_text(self.to_markdown() + "\n")
+        results = out / "results.json"
+        results.write_text(json.dumps(self.to_dict(), indent=2, default=_json_default) + "\n")
+        written = [report, results, *self.write_csv(out)]
+        if plots:
+            written += self.plot(out)
+        return written
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, float) and not np.isfinite(value):
+        return str(value)
+    return str(value)
+
+
+def _db(value: float) -> str:
+    return "inf" if value == float("inf") else f"{value:.2f}"
+
+
+def _label(config: dict[str, Any]) -> str:
+    name = str(config["id"])
+    cls = codec_class(name)
+    defaults = cls().get_config() if cls.is_available() else {}
+    changed = [f"{k}={v}" for k, v in config.items() if k != "id" and defaults.get(k) != v]
+    return f"{name} ({', '.join(changed)})" if changed else name
+
+
+def _median_ms(times: list[float]) -> float:
+    return 1000.0 * statistics.median(times) if times else float("nan")
+
+
+def _psnr(a: npt.NDArray[Any], b: npt.NDArray[Any]) -> float:
+    from .metrics import psnr
+
+    return psnr(a, b)
+
+
+def _frames_of(
+    source: Any,
+    frames: int | None,
+    intrinsics: CameraIntrinsics | None,
+    depth_scale: float | None,
+) -> tuple[str, list[RGBDFrame], CameraIntrinsics | None, float]:
+    if isinstance(source, RGBDSequence):
+        seq = source.frames[:frames] if frames else source.frames
+        return (
+            source.name or "sequence",
+            list(seq),
+            intrinsics or source.intrinsics,
+            (depth_scale or source.depth_scale),
+        )
+    path = Path(source)
+    if path.is_file():
+        from .recording import open as open_recording
+
+        with open_recording(path) as rec:
+            count = min(len(rec), frames) if frames else len(rec)
+            out = []
+            for i in range(count):
+                f = rec[i]
+                if f.color is None:
+                    raise InputError(f"{str(path)!r} has no color stream to compare codecs on")
+                out.append(RGBDFrame(f.color, f.depth, f.timestamp))
+            return path.stem, out, intrinsics or rec.intrinsics, depth_scale or rec.depth_scale
+    folder = open_folder(path, max_frames=frames, intrinsics=intrinsics, depth_scale=depth_scale)
+    return path.name, list(folder), folder.intrinsics, folder.depth_scale
+
+
+def evaluate(
+    source: Any,
+    *,
+    depth: Sequence[str | dict[str, Any]] | None = None,
+    color: Sequence[str | dict[str, Any]] = ("h264",),
+    frames: int | None = 30,
+    intrinsics: CameraIntrinsics | None = None,
+    depth_scale: float | None = None,
+    rd: bool = True,
+    peers: bool = False,
+    progress: Callable[[str], None] | None = None,
+) -> Evaluation:
+    """Measure depth and color codecs on a sequence.
+
+    ``source`` is an :class:`~pcdcodec.RGBDSequence`, an RGB-D folder (as ``pcdcodec encode``
+    reads) or a ``.pcdc`` recording (its decoded frames are the reference). ``depth`` and
+    ``color`` name codecs or give configs (default: every available depth codec, and
+    ``h264``). ``frames`` limits the frames used (``None`` for all). ``rd`` adds the color
+    rate-distortion sweep (:data:`RD_SETTINGS`); ``peers`` adds the optional peer rows
+    (:mod:`pcdcodec.peers`, when installed). ``progress`` is called with a short description of
+    each step. Raises :class:`~pcdcodec.InputError` for an empty source or unknown codecs.
+    """
+    say = progress or (lambda _msg: None)
+    name, items, cam, scale = _frames_of(source, frames, intrinsics, depth_scale)
+    if not items:
+        raise InputError(f"{source!r} holds no frames to evaluate")
+    height, width = items[0].depth.shape
+    if items[0].depth.dtype != np.uint16:
+        raise InputError("evaluate compares codecs on uint16 depth; this sequence is float32")
+    result = Evaluation(name, len(items), width, height)
+    depths = [f.depth for f in items]
+    colors = [f.color for f in items]
+    depth_specs = list(depth) if depth is not None else list_codecs("depth", available_only=True)
+    depth_codecs = [
+        get_codec(s, kind="depth") if isinstance(s, (str, dict)) else s for s in depth_specs
+    ]
+    color_codecs = [get_codec(s, kind="color") if isinstance(s, (str, dict)) else s for s in color]
+    for codec in depth_codecs:
+        assert isinstance(codec, FrameCodec)
+        say(f"depth {codec.name}")
+        result.depth.append(_depth_row(codec, depths, scale, cam))
+    for codec in color_codecs:
+        if not isinstance(codec, StreamCodec):
+            raise InputError(f"color codec {codec.name!r} is not a stream codec")
+        say(f"color {codec.name}")
+        result.color.append(_color_row(codec, colors))
+        if rd and codec.name in RD_SETTINGS and not codec.lossless:
+            key, values = RD_SETTINGS[codec.name]
+            for value in values:
+                say(f"color {codec.name} {key}={value}")
+                variant = get_codec({**codec.get_config(), key: value})
+                assert isinstance(variant, StreamCodec)
+                row = _color_row(variant, colors[: min(len(colors), 10)], quality=False)
+                result.rd.append(
+                    RDPoint(codec.name, f"{key}={value}", row.bits_per_pixel, row.psnr)
+                )
+    raw_rgbd = width * height * 5
+    pc2 = result.pointcloud2_bytes_per_frame
+    for c in result.color:
+        for d in result.depth:
+            total = c.bytes_per_frame + d.bytes_per_frame
+            result.streams.append(
+                StreamRow(
+                    c.codec, d.codec, total, raw_rgbd / total, pc2 / total, c.lossless and d.exact
+                )
+            )
+    if peers:
+        import importlib
+
+        peer_module: Any = importlib.import_module("pcdcodec.peers")
+        result.peers = peer_module.evaluate_peers(items, cam, scale)
+    return result
+
+
+def _depth_row(
+    codec: FrameCodec,
+    depths: list[npt.NDArray[Any]],
+    scale: float,
+    cam: CameraIntrinsics | None,
+) -> DepthRow:
+    from .metrics import depth_error, point_to_point
+
+    enc_times, dec_times, sizes = [], [], []
+    exact = True
+    worst: Any = None
+    for d in depths:
+        t0 = time.perf_counter()
+        data = codec.encode(d)
+        t1 = time.perf_counter()
+        back = codec.decode(data)
+        t2 = time.perf_counter()
+        enc_times.append(t1 - t0)
+        dec_times.append(t2 - t1)
+        sizes.append(len(data))
+        same = bool(np.array_equal(back, d))
+        exact &= same
+        if not same or worst is None:
+            err = depth_error(d, back, depth_scale=scale)
+            if worst is None or err.rmse > worst.rmse:
+                worst = err
+    f32_ratio = None
+    if "float32" in codec.dtypes:
+        raw = 0
+        packed = 0
+        for d in depths:
+            metres = (d / scale).astype(np.float32)
+            metres[d == 0] = np.nan
+            raw += metres.nbytes
+            packed += len(codec.encode(metres))
+        f32_ratio = raw / packed
+    cloud_rmse = 0.0
+    if not exact and cam is not None:
+        # Exact depth rebuilds identical clouds; otherwise compare the middle frame's clouds.
+        from .projector import Projector
+
+        proj = Projector(cam, depth_scale=scale)
+        mid = depths[len(depths) // 2]
+        decoded = codec.decode(codec.encode(mid))
+        cloud_rmse = point_to_point(proj.to_points(mid)[0], proj.to_points(decoded)[0]).rmse
+    size = float(np.mean(sizes))
+    pixels = depths[0].size
+    return DepthRow(
+        codec=codec.name,
+        config=codec.get_config(),
+        frames=len(depths),
+        bytes_per_frame=size,
+        ratio_uint16=pixels * 2 / size,
+        ratio_float32=pixels * 4 / size,
+        ratio_float32_input=f32_ratio,
+        encode_ms=_median_ms(enc_times),
+        decode_ms=_median_ms(dec_times),
+        exact=exact,
+        exact_fraction=worst.exact_fraction if worst is not None else 1.0,
+        rmse_m=_units_to_m(worst, "rmse", scale),
+        max_error_m=_units_to_m(worst, "max_abs_error", scale),
+        edge_rmse_m=_units_to_m(worst, "edge_rmse", scale),
+        interior_rmse_m=_units_to_m(worst, "interior_rmse", scale),
+        cloud_rmse_m=float(cloud_rmse),
+    )
+
+
+def _units_to_m(err: Any, field_name: str, scale: float) -> float:
+    """A depth error statistic in metres (0 where no pixel was compared)."""
+    if err is None:
+        return 0.0
+    value = float(getattr(err, field_name))
+    return 0.0 if not np.isfinite(value) else value / scale
+
+
+def _color_row(
+    codec: StreamCodec, colors: list[npt.NDArray[np.uint8]], *, quality: bool = True
+) -> ColorRow:
+    from .metrics import ssim
+
+    height, width = colors[0].shape[:2]
+    t0 = time.perf_counter()
+    packets, extradata = encode_frames(codec, colors)
+    t1 = time.perf_counter()
+    decoded = decode_packets(codec, packets, width, height, extradata)
+    t2 = time.perf_counter()
+    if len(decoded) != len(colors):
+        raise InputError(f"{codec.name} gave back {len(decoded)} frames of {len(colors)}")
+    size = sum(len(p.data) for p in packets) / len(colors)
+    psnrs = [_psnr(o, d.rgb) for o, d in zip(colors, decoded, strict=True)]
+    finite = [p for p in psnrs if np.isfinite(p)]
+    mean_psnr = float(np.mean(finite)) if finite else float("inf")
+    ssim_value = float("nan")
+    if quality:
+        step = max(1, len(colors) // 8)  # SSIM is slow: eight frames spread over the run
+        ssim_value = float(
+            np.mean([ssim(colors[i], decoded[i].rgb) for i in range(0, len(colors), step)])
+        )
+    return ColorRow(
+        codec=codec.name,
+        config=codec.get_config(),
+        frames=len(colors),
+        bytes_per_frame=size,
+        bits_per_pixel=8 * size / (width * height),
+        ratio_rgb24=width * height * 3 / size,
+        encode_ms=1000 * (t1 - t0) / len(colors),
+        decode_ms=1000 * (t2 - t1) / len(colors),
+        psnr=mean_psnr,
+        ssim=ssim_value,
+        lossless=bool(codec.lossless),
+    )
+
+
+def parse_list(text: str) -> list[str]:
+    """``"lz4,jpegxl"`` to ``["lz4", "jpegxl"]`` (the CLI's codec lists)."""
+    return [item.strip() for item in text.split(",") if item.strip()]

@@ -1,0 +1,165 @@
+"""pcdcodec.evaluate and `pcdcodec bench`: a tiny sequence, end to end."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pcdcodec
+from pcdcodec.datasets import RGBDSequence, load_sample, sample_dir
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def tiny() -> RGBDSequence:
+    return load_sample(max_frames=4)
+
+
+@pytest.fixture(scope="module")
+def evaluation(tiny: RGBDSequence) -> pcdcodec.Evaluation:
+    return pcdcodec.evaluate(tiny, depth=["lz4", "jpegxl"], color=["h264", "ffv1"], frames=4)
+
+
+def test_rows_and_ratios_are_consistent(evaluation: pcdcodec.Evaluation) -> None:
+    ev = evaluation
+    assert (ev.frames, ev.width, ev.height) == (4, 640, 480)
+    assert [d.codec for d in ev.depth] == ["lz4", "jpegxl"]
+    for d in ev.depth:
+        assert d.exact
+        assert d.exact_fraction == 1.0
+        assert d.cloud_rmse_m == 0.0
+        assert d.ratio_uint16 == pytest.approx(640 * 480 * 2 / d.bytes_per_frame)
+        assert d.ratio_float32 == pytest.approx(2 * d.ratio_uint16)
+        assert d.ratio_float32_input is not None
+        assert d.encode_ms > 0
+        assert d.decode_ms > 0
+    lz4, jxl = ev.depth
+    assert jxl.ratio_uint16 > 3 * lz4.ratio_uint16  # JPEG XL's lead on real depth
+    h264, ffv1 = ev.color
+    assert ffv1.lossless
+    assert ffv1.psnr == float("inf")
+    assert ffv1.ssim == pytest.approx(1.0)
+    assert 30 < h264.psnr < 60
+    assert 0.8 < h264.ssim < 1.0
+    assert h264.bits_per_pixel == pytest.approx(8 * h264.bytes_per_frame / (640 * 480))
+    assert len(ev.streams) == 4
+    for s in ev.streams:
+        c = next(r for r in ev.color if r.codec == s.color)
+        d = next(r for r in ev.depth if r.codec == s.depth)
+        assert s.bytes_per_frame == pytest.approx(c.bytes_per_frame + d.bytes_per_frame)
+        assert s.ratio_pointcloud2 == pytest.approx(640 * 480 * 32 / s.bytes_per_frame)
+        assert s.lossless == (s.color == "ffv1")
+    # The rate-distortion sweep: more bits, better quality.
+    rd = [p for p in ev.rd if p.codec == "h264"]
+    assert len(rd) == 5
+    rd.sort(key=lambda p: p.bits_per_pixel)
+    assert rd[-1].psnr > rd[0].psnr
+
+
+def test_report_tables(evaluation: pcdcodec.Evaluation) -> None:
+    md = evaluation.to_markdown()
+    for title in ("Table I", "Table II", "Table III", "Table IV"):
+        assert title in md
+    assert "| h264 | jpegxl |" in md
+    assert "| ffv1 | lz4 |" in md
+
+
+def test_written_files(evaluation: pcdcodec.Evaluation, tmp_path: Path) -> None:
+    import imagecodecs
+
+    written = evaluation.write(tmp_path)
+    names = {p.name for p in written}
+    assert {
+        "report.md",
+        "results.json",
+        "depth.csv",
+        "color.csv",
+        "streams.csv",
+        "rd.csv",
+        "color_rd.png",
+        "depth_ratio_speed.png",
+        "stream_sizes.png",
+    } <= names
+    data = json.loads((tmp_path / "results.json").read_text())
+    assert data["frames"] == 4
+    assert [d["codec"] for d in data["depth"]] == ["lz4", "jpegxl"]
+    with (tmp_path / "streams.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 4
+    assert float(rows[0]["ratio_pointcloud2"]) > 1
+    for png in ("color_rd.png", "depth_ratio_speed.png", "stream_sizes.png"):
+        raw = (tmp_path / png).read_bytes()
+        assert raw.startswith(PNG_MAGIC)
+        image = np.asarray(imagecodecs.png_decode(raw))
+        assert image.ndim == 3
+        assert image.shape[0] > 200
+        assert image.shape[1] > 300
+        assert image.std() > 10  # not a blank canvas
+
+
+def test_evaluate_a_recording(tmp_path: Path, tiny: RGBDSequence) -> None:
+    path = tmp_path / "t.pcdc"
+    with pcdcodec.open(path, "w", intrinsics=tiny.intrinsics, depth_scale=5000.0) as rec:
+        rec.write_frames(tiny)
+    ev = pcdcodec.evaluate(path, depth=["zstd"], color=["mjpeg"], rd=False)
+    assert ev.frames == 4
+    assert ev.depth[0].exact
+    assert ev.rd == []
+
+
+def test_bad_requests(tmp_path: Path, tiny: RGBDSequence) -> None:
+    with pytest.raises(pcdcodec.UnknownCodecError, match="'lz5'"):
+        pcdcodec.evaluate(tiny, depth=["lz5"])
+    with pytest.raises(pcdcodec.UnknownCodecError, match="depth codec"):
+        pcdcodec.evaluate(tiny, depth=["h264"])
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(pcdcodec.InputError, match="not an RGB-D folder"):
+        pcdcodec.evaluate(empty)
+
+
+def test_cli_bench_on_the_bundled_sample(tmp_path: Path) -> None:
+    out = tmp_path / "bench"
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pcdcodec",
+            "bench",
+            str(sample_dir()),
+            "--frames",
+            "3",
+            "--depth",
+            "lz4,rvl",
+            "--color",
+            "h264",
+            "--no-rd",
+            "-o",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "Table II" in result.stdout
+    assert "| rvl |" in result.stdout
+    assert (out / "stream_sizes.png").read_bytes().startswith(PNG_MAGIC)
+    assert not (out / "color_rd.png").exists()  # --no-rd: no sweep, no curve
+    bad = subprocess.run(
+        [sys.executable, "-m", "pcdcodec", "bench", str(sample_dir()), "--color", "h263"],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=600,
+    )
+    assert bad.returncode == 1
+    assert "unknown codec 'h263'" in bad.stderr
