@@ -65,18 +65,20 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
                 f"| {_ms(row, 'decode')} |"
             )
 
-    projector = [
-        (b.extra_info["path"], b.stats.median * 1000)
-        for b in session.benchmarks
-        if b.extra_info.get("kind") == "projector" and b.stats is not None
-    ]
-    reference = dict(projector).get("open3d-tensor-create_from_rgbd_image")
-    if projector and reference:
+    projector: dict[str, dict[str, float]] = defaultdict(dict)
+    for b in session.benchmarks:
+        if b.extra_info.get("kind") == "projector" and b.stats is not None:
+            info = b.extra_info
+            projector[info.get("sequence", "")][info["path"]] = b.stats.median * 1000
+    for sequence, paths in sorted(projector.items()):
+        reference = paths.get("open3d-tensor-create_from_rgbd_image")
+        if not reference:
+            continue
         write("")
-        write("depth to colored points, 640x480: median ms and ratio to Open3D's tensor API")
+        write(f"depth to colored points, {sequence}: median ms and ratio to Open3D's tensor API")
         write(f"| {'path':38} | {'ms':>6} | {'x o3d.t':>7} |")
         write(f"|{'-' * 40}|{'-' * 8}|{'-' * 9}|")
-        for path, ms in sorted(projector, key=lambda item: item[1]):
+        for path, ms in sorted(paths.items(), key=lambda item: item[1]):
             write(f"| {path:38} | {ms:6.2f} | {ms / reference:7.2f} |")
 
     recording = [

@@ -1,4 +1,6 @@
-"""Depth to point cloud on a real 640×480 TUM frame: pcdcodec's Projector against Open3D.
+"""Depth to point cloud on real 640×480 frames: pcdcodec's Projector against Open3D.
+
+Each path runs on the first frame of every sequence present (the bundled sample always).
 
 Run with ``pytest benchmarks/test_bench_projector.py --benchmark-only``; with
 ``--benchmark-disable`` each path runs once and is still checked.
@@ -7,10 +9,8 @@ Run with ``pytest benchmarks/test_bench_projector.py --benchmark-only``; with
 from __future__ import annotations
 
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
-import imagecodecs
 import numpy as np
 import numpy.typing as npt
 import open3d as o3d
@@ -18,38 +18,46 @@ import pytest
 
 from pcdcodec.camera import CameraIntrinsics
 from pcdcodec.projector import Projector
+from tests.conftest import SEQUENCES, load_colors, load_depths
 
-TUM_DIR = Path(__file__).resolve().parents[1] / "pcdcodec" / "data" / "tum_fr1_rpy"
-TUM_SCALE = 5000.0
-TUM = CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
+#: Intrinsics per sequence (TUM's recommended values; typical D435 and 7-Scenes values).
+CAMERAS = {
+    "sample": CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5),
+    "tum_fr1_rpy": CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5),
+    "realsense_d435": CameraIntrinsics(640, 480, 615.0, 615.0, 320.0, 240.0),
+    "7scenes_redkitchen": CameraIntrinsics(640, 480, 585.0, 585.0, 320.0, 240.0),
+}
+PRESENT = [name for name in CAMERAS if SEQUENCES[name].present]
 
 
 class Frame:
-    """One TUM frame and every input the benchmarked paths need, prepared outside the timing."""
+    """A sequence's first frame and every input the benchmarked paths need, made untimed."""
 
-    def __init__(self) -> None:
-        _, rgb, _, depth = (TUM_DIR / "associations.txt").read_text().split("\n")[0].split()
-        self.color: npt.NDArray[np.uint8] = imagecodecs.png_decode((TUM_DIR / rgb).read_bytes())
-        self.depth: npt.NDArray[np.uint16] = imagecodecs.png_decode((TUM_DIR / depth).read_bytes())
+    def __init__(self, name: str) -> None:
+        cam = CAMERAS[name]
+        self.name = name
+        self.scale = SEQUENCES[name].depth_scale
+        self.color: npt.NDArray[np.uint8] = load_colors(name, 1)[0]
+        self.depth: npt.NDArray[np.uint16] = load_depths(name, 1)[0]
         self.valid = int(np.count_nonzero(self.depth))
-        self.projector = Projector(TUM, depth_scale=TUM_SCALE)
-        self.pinhole = TUM.to_open3d()
+        self.projector = Projector(cam, depth_scale=self.scale)
+        self.pinhole = cam.to_open3d()
         self.rgbd = o3d.geometry.RGBDImage.create_from_color_and_depth(
             o3d.geometry.Image(self.color),
             o3d.geometry.Image(self.depth),
-            depth_scale=TUM_SCALE,
+            depth_scale=self.scale,
             depth_trunc=1000.0,  # keep everything, as the Projector does
             convert_rgb_to_intensity=False,
         )
         self.t_rgbd = o3d.t.geometry.RGBDImage(
             o3d.t.geometry.Image(self.color), o3d.t.geometry.Image(self.depth)
         )
-        self.t_K = o3d.core.Tensor(TUM.K)
+        self.t_K = o3d.core.Tensor(cam.K)
 
 
-@pytest.fixture(scope="module")
-def frame() -> Frame:
-    return Frame()
+@pytest.fixture(scope="module", params=PRESENT)
+def frame(request: pytest.FixtureRequest) -> Frame:
+    return Frame(request.param)
 
 
 def _ours_to_points(f: Frame) -> tuple[Callable[[], Any], Callable[[Any], tuple[int, bool]]]:
@@ -77,7 +85,7 @@ def _open3d_legacy(f: Frame) -> tuple[Callable[[], Any], Callable[[Any], tuple[i
 def _open3d_tensor(f: Frame) -> tuple[Callable[[], Any], Callable[[Any], tuple[int, bool]]]:
     def run() -> Any:
         return o3d.t.geometry.PointCloud.create_from_rgbd_image(
-            f.t_rgbd, f.t_K, depth_scale=TUM_SCALE, depth_max=1000.0
+            f.t_rgbd, f.t_K, depth_scale=f.scale, depth_max=1000.0
         )
 
     return run, _tensor_count
@@ -103,11 +111,14 @@ PATHS = {
 
 # Warm-up matters: the first calls of a path in a process page-fault fresh memory until the
 # allocator settles, which would penalise whichever path runs first.
-@pytest.mark.benchmark(group="depth to colored points, TUM 640x480", warmup=True)
+@pytest.mark.benchmark(warmup=True)
 @pytest.mark.parametrize("path", list(PATHS), ids=list(PATHS))
 def test_depth_to_points_640x480(benchmark: Any, frame: Frame, path: str) -> None:
     run, count = PATHS[path](frame)
     assert count(run()) == (frame.valid, True)
-    benchmark.extra_info.update(points=frame.valid, kind="projector", path=path)
+    benchmark.group = f"depth to colored points, {frame.name} 640x480"
+    benchmark.extra_info.update(
+        points=frame.valid, kind="projector", path=path, sequence=frame.name
+    )
     result = benchmark(run)
     assert count(result) == (frame.valid, True)
