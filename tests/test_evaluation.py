@@ -163,3 +163,17 @@ def test_cli_bench_on_the_bundled_sample(tmp_path: Path) -> None:
     )
     assert bad.returncode == 1
     assert "unknown codec 'h263'" in bad.stderr
+
+
+def test_peer_rows(tiny: RGBDSequence) -> None:
+    pytest.importorskip("DracoPy")
+    pytest.importorskip("rvl")
+    ev = pcdcodec.evaluate(tiny, depth=["rvl"], color=["h264"], frames=2, rd=False, peers=True)
+    names = [p["name"] for p in ev.peers]
+    assert names.count("draco") == 2
+    assert "rvl-pypi" in names
+    rvl_peer = next(p for p in ev.peers if p["name"] == "rvl-pypi")
+    assert rvl_peer["lossless"] is True
+    # The peer RVL writes our bitstream plus a 4-byte pixel count.
+    assert rvl_peer["bytes_per_frame"] > ev.depth[0].bytes_per_frame - 200
+    assert "## Peers" in ev.to_markdown()
