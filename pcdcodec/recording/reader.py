@@ -152,6 +152,8 @@ class Recording:
         order = np.argsort(d_times, kind="stable")
         d_times, d_offsets = d_times[order], d_offsets[order]
         self._extradata: bytes | None = None
+        self._keyframes: list[int] = []
+        self._keyframe_set: set[int] = set()
         if color_codec is not None:
             c_pts, c_offsets = index.arrays(fmt.TOPIC_COLOR)
             k_times, _ = index.arrays(fmt.TOPIC_KEYFRAMES)
@@ -160,6 +162,7 @@ class Recording:
             self._packet_of_pts = {int(t): i for i, t in enumerate(c_pts)}
             keyset = set(k_times.tolist())
             self._keyframes = [i for i, t in enumerate(c_pts.tolist()) if t in keyset]
+            self._keyframe_set = set(self._keyframes)
             channel = index.channel(fmt.TOPIC_COLOR)
             if channel is not None and channel.metadata.get("extradata"):
                 self._extradata = base64.b64decode(channel.metadata["extradata"])
@@ -253,13 +256,6 @@ class Recording:
                 keyframe = j in self._keyframe_set
                 return Packet(data, pts, int(m.publish_time), keyframe)
         raise DecodeError(f"color packet {j}: no color message at byte offset {offset}")
-
-    @property
-    def _keyframe_set(self) -> set[int]:
-        cached: set[int] | None = getattr(self, "_keyset_cache", None)
-        if cached is None:
-            cached = self._keyset_cache = set(self._keyframes)
-        return cached
 
     def _color(self, i: int) -> npt.NDArray[np.uint8] | None:
         if self.color_codec is None:
