@@ -25,13 +25,9 @@ import numpy as np
 import pcdcodec
 from pcdcodec.color import StreamCodec, decode_packets, encode_frames
 from pcdcodec.color.opencv import FOURCCS, OpenCVVideo
+from pcdcodec.metrics import psnr
 
 SAMPLE_RGB = Path(pcdcodec.__file__).resolve().parent / "data" / "tum_fr1_rpy" / "rgb"
-
-
-def psnr(a: np.ndarray[Any, Any], b: np.ndarray[Any, Any]) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return float("inf") if mse == 0 else 10 * np.log10(255.0**2 / mse)
 
 
 def mean_psnr(decoded: list[np.ndarray[Any, Any]], frames: list[np.ndarray[Any, Any]]) -> float:

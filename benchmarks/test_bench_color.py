@@ -15,6 +15,7 @@ import pytest
 
 import pcdcodec
 from pcdcodec.color import StreamCodec, decode_packets, encode_frames
+from pcdcodec.metrics import psnr
 from tests.conftest import SEQUENCES, load_colors
 
 COLOR_CODECS = [
@@ -24,11 +25,6 @@ COLOR_CODECS = [
 ]
 PRESENT = [name for name in ("sample", "tum_fr1_rpy", "realsense_d435") if SEQUENCES[name].present]
 FRAMES = 15
-
-
-def psnr(a: np.ndarray[Any, Any], b: np.ndarray[Any, Any]) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return float("inf") if mse == 0 else 10 * np.log10(255.0**2 / mse)
 
 
 def prepare(name: str, sequence: str) -> tuple[StreamCodec, list[Any], Any, dict[str, Any]]:

@@ -13,7 +13,14 @@ import numpy.typing as npt
 
 from .errors import InputError, InputTypeError
 
-__all__ = ["as_uint16_depth", "check_color", "check_depth"]
+__all__ = [
+    "as_uint16_depth",
+    "check_choice",
+    "check_color",
+    "check_depth",
+    "check_int",
+    "check_number",
+]
 
 _DEPTH_DTYPES: dict[str, np.dtype[Any]] = {"uint16": np.dtype("<u2"), "float32": np.dtype("<f4")}
 
@@ -114,3 +121,29 @@ def as_uint16_depth(values: Any, *, name: str = "depth") -> npt.NDArray[np.uint1
     if hi > 65535:
         raise InputError(f"{name} has a value {hi!r} above 65535, the uint16 maximum")
     return arr.astype(np.uint16)
+
+
+def check_int(
+    owner: str, name: str, value: Any, lo: int, hi: int, *, none_ok: bool = False
+) -> None:
+    """Check a codec parameter is an int in ``lo..hi`` (or ``None`` when ``none_ok``)."""
+    if value is None and none_ok:
+        return
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise InputTypeError(f"{owner} {name} must be an int, got {type(value).__name__}")
+    if not lo <= value <= hi:
+        raise InputError(f"{owner} {name} must be in {lo}..{hi}, got {value}")
+
+
+def check_number(owner: str, name: str, value: Any, lo: float, hi: float) -> None:
+    """Check a codec parameter is a number in ``lo..hi``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputTypeError(f"{owner} {name} must be a number, got {type(value).__name__}")
+    if not lo <= value <= hi:
+        raise InputError(f"{owner} {name} must be in {lo}..{hi}, got {value}")
+
+
+def check_choice(owner: str, name: str, value: Any, choices: tuple[Any, ...]) -> None:
+    """Check a codec parameter is one of ``choices``."""
+    if value not in choices:
+        raise InputError(f"{owner} {name} must be one of {list(choices)}, got {value!r}")

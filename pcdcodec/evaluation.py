@@ -292,12 +292,6 @@ def _median_ms(times: list[float]) -> float:
     return 1000.0 * statistics.median(times) if times else float("nan")
 
 
-def _psnr(a: npt.NDArray[Any], b: npt.NDArray[Any]) -> float:
-    from .metrics import psnr
-
-    return psnr(a, b)
-
-
 def _frames_of(
     source: Any,
     frames: int | None,
@@ -481,7 +475,7 @@ def _units_to_m(err: Any, field_name: str, scale: float) -> float:
 def _color_row(
     codec: StreamCodec, colors: list[npt.NDArray[np.uint8]], *, quality: bool = True
 ) -> ColorRow:
-    from .metrics import ssim
+    from .metrics import psnr, ssim
 
     height, width = colors[0].shape[:2]
     t0 = time.perf_counter()
@@ -492,7 +486,7 @@ def _color_row(
     if len(decoded) != len(colors):
         raise InputError(f"{codec.name} gave back {len(decoded)} frames of {len(colors)}")
     size = sum(len(p.data) for p in packets) / len(colors)
-    psnrs = [_psnr(o, d.rgb) for o, d in zip(colors, decoded, strict=True)]
+    psnrs = [psnr(o, d.rgb) for o, d in zip(colors, decoded, strict=True)]
     finite = [p for p in psnrs if np.isfinite(p)]
     mean_psnr = float(np.mean(finite)) if finite else float("inf")
     ssim_value = float("nan")

@@ -11,6 +11,7 @@ import pytest
 import pcdcodec
 from pcdcodec.color import Packet, StreamCodec, decode_packets, encode_frames
 from pcdcodec.datasets import load_sample
+from pcdcodec.metrics import psnr
 
 from .conftest import SHARED_SEQUENCES, load_colors
 
@@ -33,11 +34,6 @@ def make(name: str, **params: Any) -> StreamCodec:
     codec = pcdcodec.get_codec(name, kind="color", **params)
     assert isinstance(codec, StreamCodec)
     return codec
-
-
-def psnr(a: np.ndarray[Any, Any], b: np.ndarray[Any, Any]) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return float("inf") if mse == 0 else 10 * np.log10(255.0**2 / mse)
 
 
 @pytest.fixture(scope="module")

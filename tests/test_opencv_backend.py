@@ -13,6 +13,7 @@ import pytest
 
 import pcdcodec
 from pcdcodec.color.opencv import FOURCCS, FileVideoCodec, OpenCVVideo
+from pcdcodec.metrics import psnr
 
 pytest.importorskip("cv2")
 
@@ -27,11 +28,6 @@ LOSSY = [f for f in OPEN if not OpenCVVideo(fourcc=f).lossless]
 #: opencv-python-headless 5.0 (MJPG 36.06, mp4v and XVID 34.44; docs/opencv-backend.md).
 PSNR_FLOOR = {"MJPG": 34.5, "mp4v": 33.0, "XVID": 33.0}
 SHARED = sorted(p.parent.name for p in SHARED_DATA.glob("*/rgb") if any(p.iterdir()))
-
-
-def psnr(a: np.ndarray[Any, Any], b: np.ndarray[Any, Any]) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return float("inf") if mse == 0 else 10 * np.log10(255.0**2 / mse)
 
 
 @pytest.fixture(scope="module")

@@ -17,6 +17,7 @@ import pytest
 
 import pcdcodec
 from pcdcodec.datasets import RGBDSequence, load_sample
+from pcdcodec.metrics import psnr
 
 from .conftest import SEQUENCES, SHARED_SEQUENCES, load_colors, load_depths
 
@@ -24,11 +25,6 @@ from .conftest import SEQUENCES, SHARED_SEQUENCES, load_colors, load_depths
 @pytest.fixture(scope="module")
 def sample() -> RGBDSequence:
     return load_sample()
-
-
-def psnr(a: np.ndarray[Any, Any], b: np.ndarray[Any, Any]) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return float("inf") if mse == 0 else 10 * np.log10(255.0**2 / mse)
 
 
 def record(path: Path, seq: RGBDSequence, **options: Any) -> Path:

@@ -21,7 +21,8 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import CodecUnavailableError, DecodeError, InputError, InputTypeError
+from .._validate import check_choice, check_int, check_number
+from ..errors import CodecUnavailableError, DecodeError
 from .base import DecodedFrame, Packet, StreamCodec, VideoDecoder, VideoEncoder
 
 __all__ = [
@@ -45,27 +46,6 @@ _INSTALL = "install PyAV with FFmpeg codecs (pip install av)"
 # SVT-AV1 prints a banner to stderr for every encoder unless told otherwise; it reads this
 # variable once, so it is set before the library is first used. A value set by the user wins.
 os.environ.setdefault("SVT_LOG", "1")
-
-
-def _int(codec: str, name: str, value: Any, lo: int, hi: int, *, none_ok: bool = False) -> None:
-    if value is None and none_ok:
-        return
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise InputTypeError(f"{codec} {name} must be an int, got {type(value).__name__}")
-    if not lo <= value <= hi:
-        raise InputError(f"{codec} {name} must be in {lo}..{hi}, got {value}")
-
-
-def _number(codec: str, name: str, value: Any, lo: float, hi: float) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputTypeError(f"{codec} {name} must be a number, got {type(value).__name__}")
-    if not lo <= value <= hi:
-        raise InputError(f"{codec} {name} must be in {lo}..{hi}, got {value}")
-
-
-def _choice(codec: str, name: str, value: Any, choices: tuple[Any, ...]) -> None:
-    if value not in choices:
-        raise InputError(f"{codec} {name} must be one of {list(choices)}, got {value!r}")
 
 
 def _context(name: str, mode: Literal["r", "w"]) -> Any:
@@ -332,9 +312,9 @@ class H264(PyAVCodec):
         pix_fmt: str = "yuv420p",
         threads: int = 0,
     ) -> None:
-        _number(self.name, "crf", crf, 0, 51)
-        _choice(self.name, "preset", preset, _X26X_PRESETS)
-        _choice(
+        check_number(self.name, "crf", crf, 0, 51)
+        check_choice(self.name, "preset", preset, _X26X_PRESETS)
+        check_choice(
             self.name,
             "tune",
             tune,
@@ -350,10 +330,10 @@ class H264(PyAVCodec):
                 "zerolatency",
             ),
         )
-        _int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        _int(self.name, "bframes", bframes, 0, 16)
-        _choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
-        _int(self.name, "threads", threads, 0, 64)
+        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
+        check_int(self.name, "bframes", bframes, 0, 16)
+        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
+        check_int(self.name, "threads", threads, 0, 64)
         self.crf, self.preset, self.tune = crf, preset, tune
         self.gop, self.bframes, self.pix_fmt, self.threads = gop, bframes, pix_fmt, threads
 
@@ -384,12 +364,12 @@ class H265(PyAVCodec):
         pix_fmt: str = "yuv420p",
         threads: int = 0,
     ) -> None:
-        _number(self.name, "crf", crf, 0, 51)
-        _choice(self.name, "preset", preset, _X26X_PRESETS)
-        _int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        _int(self.name, "bframes", bframes, 0, 16)
-        _choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
-        _int(self.name, "threads", threads, 0, 64)
+        check_number(self.name, "crf", crf, 0, 51)
+        check_choice(self.name, "preset", preset, _X26X_PRESETS)
+        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
+        check_int(self.name, "bframes", bframes, 0, 16)
+        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
+        check_int(self.name, "threads", threads, 0, 64)
         self.crf, self.preset, self.gop, self.bframes = crf, preset, gop, bframes
         self.pix_fmt, self.threads = pix_fmt, threads
 
@@ -418,11 +398,11 @@ class AV1(PyAVCodec):
         pix_fmt: str = "yuv420p",
         threads: int = 0,
     ) -> None:
-        _int(self.name, "crf", crf, 1, 63)
-        _int(self.name, "preset", preset, 0, 13)
-        _int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        _choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
-        _int(self.name, "threads", threads, 0, 64)
+        check_int(self.name, "crf", crf, 1, 63)
+        check_int(self.name, "preset", preset, 0, 13)
+        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
+        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
+        check_int(self.name, "threads", threads, 0, 64)
         self.crf, self.preset, self.gop, self.pix_fmt, self.threads = (
             crf,
             preset,
@@ -453,11 +433,11 @@ class VP9(PyAVCodec):
         pix_fmt: str = "yuv420p",
         threads: int = 0,
     ) -> None:
-        _int(self.name, "crf", crf, 0, 63)
-        _int(self.name, "speed", speed, 0, 8)
-        _int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        _choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
-        _int(self.name, "threads", threads, 0, 64)
+        check_int(self.name, "crf", crf, 0, 63)
+        check_int(self.name, "speed", speed, 0, 8)
+        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
+        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
+        check_int(self.name, "threads", threads, 0, 64)
         self.crf, self.speed, self.gop, self.pix_fmt, self.threads = (
             crf,
             speed,
@@ -486,9 +466,9 @@ class MJPEG(PyAVCodec):
     pix_fmts: ClassVar[tuple[str, ...]] = ("yuvj420p", "yuvj444p")
 
     def __init__(self, *, quality: int = 3, pix_fmt: str = "yuvj420p", threads: int = 0) -> None:
-        _int(self.name, "quality", quality, 2, 31)
-        _choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
-        _int(self.name, "threads", threads, 0, 64)
+        check_int(self.name, "quality", quality, 2, 31)
+        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
+        check_int(self.name, "threads", threads, 0, 64)
         self.quality, self.pix_fmt, self.threads = quality, pix_fmt, threads
 
     def _gop(self, fps: float) -> int:
@@ -508,10 +488,10 @@ class MPEG4(PyAVCodec):
     def __init__(
         self, *, qscale: int = 3, gop: int | None = None, bframes: int = 0, threads: int = 0
     ) -> None:
-        _int(self.name, "qscale", qscale, 2, 31)
-        _int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        _int(self.name, "bframes", bframes, 0, 16)
-        _int(self.name, "threads", threads, 0, 64)
+        check_int(self.name, "qscale", qscale, 2, 31)
+        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
+        check_int(self.name, "bframes", bframes, 0, 16)
+        check_int(self.name, "threads", threads, 0, 64)
         self.qscale, self.gop, self.bframes, self.threads = qscale, gop, bframes, threads
         self.pix_fmt = "yuv420p"
 
@@ -540,9 +520,9 @@ class FFV1(PyAVCodec):
     lossless: ClassVar[bool] = True
 
     def __init__(self, *, level: int = 3, gop: int | None = None, threads: int = 0) -> None:
-        _choice(self.name, "level", level, (1, 3))
-        _int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        _int(self.name, "threads", threads, 0, 64)
+        check_choice(self.name, "level", level, (1, 3))
+        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
+        check_int(self.name, "threads", threads, 0, 64)
         self.level, self.gop, self.threads = level, gop, threads
         self.pix_fmt = "bgr0"
 
@@ -563,7 +543,7 @@ class HuffYUV(PyAVCodec):
     lossless: ClassVar[bool] = True
 
     def __init__(self, *, threads: int = 0) -> None:
-        _int(self.name, "threads", threads, 0, 64)
+        check_int(self.name, "threads", threads, 0, 64)
         self.threads = threads
         self.pix_fmt = "rgb24"
 
@@ -592,9 +572,9 @@ class H264Lossless(PyAVCodec):
     def __init__(
         self, *, preset: str = "veryfast", gop: int | None = None, threads: int = 0
     ) -> None:
-        _choice(self.name, "preset", preset, _X26X_PRESETS)
-        _int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        _int(self.name, "threads", threads, 0, 64)
+        check_choice(self.name, "preset", preset, _X26X_PRESETS)
+        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
+        check_int(self.name, "threads", threads, 0, 64)
         self.preset, self.gop, self.threads = preset, gop, threads
         self.pix_fmt = "rgb24"
 
@@ -627,11 +607,11 @@ class H264NVENC(PyAVCodec):
         bframes: int = 0,
         pix_fmt: str = "yuv420p",
     ) -> None:
-        _int(self.name, "cq", cq, 0, 51)
-        _choice(self.name, "preset", preset, tuple(f"p{i}" for i in range(1, 8)))
-        _int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        _int(self.name, "bframes", bframes, 0, 4)
-        _choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
+        check_int(self.name, "cq", cq, 0, 51)
+        check_choice(self.name, "preset", preset, tuple(f"p{i}" for i in range(1, 8)))
+        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
+        check_int(self.name, "bframes", bframes, 0, 4)
+        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
         self.cq, self.preset, self.gop, self.bframes, self.pix_fmt = (
             cq,
             preset,

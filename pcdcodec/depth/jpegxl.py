@@ -7,7 +7,7 @@ from typing import Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import InputError, InputTypeError
+from .._validate import check_int
 from .base import FrameCodec
 
 
@@ -28,11 +28,8 @@ class JPEGXL(FrameCodec):
     )
 
     def __init__(self, *, effort: int = 2, threads: int = 1) -> None:
-        for pname, value, lo, hi in (("effort", effort, 1, 9), ("threads", threads, 1, 256)):
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise InputTypeError(f"jpegxl {pname} must be an int, got {type(value).__name__}")
-            if not lo <= value <= hi:
-                raise InputError(f"jpegxl {pname} must be in {lo}..{hi}, got {value}")
+        check_int(self.name, "effort", effort, 1, 9)
+        check_int(self.name, "threads", threads, 1, 256)
         self.effort = effort
         self.threads = threads
 

@@ -7,7 +7,7 @@ from typing import Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import InputError, InputTypeError
+from .._validate import check_int
 from .base import FrameCodec, bytes_body
 
 
@@ -25,10 +25,7 @@ class LZ4(FrameCodec):
     native_dtypes: ClassVar[tuple[str, ...]] = ("uint16", "float32")
 
     def __init__(self, *, level: int = 0) -> None:
-        if isinstance(level, bool) or not isinstance(level, int):
-            raise InputTypeError(f"lz4 level must be an int, got {type(level).__name__}")
-        if not 0 <= level <= 16:
-            raise InputError(f"lz4 level must be in 0..16, got {level}")
+        check_int(self.name, "level", level, 0, 16)
         self.level = level
 
     def _encode_body(self, image: npt.NDArray[Any]) -> bytes:

@@ -7,7 +7,7 @@ from typing import Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import InputError, InputTypeError
+from .._validate import check_int
 from .base import FrameCodec
 
 
@@ -22,10 +22,7 @@ class PNG16(FrameCodec):
     install_hint: ClassVar[str] = "install imagecodecs (pip install imagecodecs)"
 
     def __init__(self, *, level: int = 1) -> None:
-        if isinstance(level, bool) or not isinstance(level, int):
-            raise InputTypeError(f"png16 level must be an int, got {type(level).__name__}")
-        if not 0 <= level <= 9:
-            raise InputError(f"png16 level must be in 0..9, got {level}")
+        check_int(self.name, "level", level, 0, 9)
         self.level = level
 
     @classmethod

@@ -7,7 +7,7 @@ from typing import Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import InputError, InputTypeError
+from .._validate import check_int
 from .base import FrameCodec, bytes_body
 
 
@@ -24,10 +24,7 @@ class Zstd(FrameCodec):
     native_dtypes: ClassVar[tuple[str, ...]] = ("uint16", "float32")
 
     def __init__(self, *, level: int = 3) -> None:
-        if isinstance(level, bool) or not isinstance(level, int):
-            raise InputTypeError(f"zstd level must be an int, got {type(level).__name__}")
-        if not -7 <= level <= 22:
-            raise InputError(f"zstd level must be in -7..22, got {level}")
+        check_int(self.name, "level", level, -7, 22)
         self.level = level
 
     def _encode_body(self, image: npt.NDArray[Any]) -> bytes:
