@@ -35,6 +35,7 @@ from .evaluation import Evaluation, evaluate
 from .projector import Projector, Reprojection
 from .recording import Frame, Recording, RecordingWriter, open
 from .registry import codec_class, get_codec, list_codecs, register_codec
+from .sources import Source, open_source
 
 __all__ = [
     "DEFAULT_COLOR_CODEC",
@@ -57,6 +58,7 @@ __all__ = [
     "Recording",
     "RecordingWriter",
     "Reprojection",
+    "Source",
     "UnknownCodecError",
     "__version__",
     "as_uint16_depth",
@@ -69,5 +71,6 @@ __all__ = [
     "load_sample",
     "metrics",
     "open",
+    "open_source",
     "register_codec",
 ]

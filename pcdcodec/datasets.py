@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError
+from .sources.base import Source
 
 if TYPE_CHECKING:
     from .camera import CameraIntrinsics
@@ -171,13 +172,18 @@ def _folder_pairs(root: Path, fps: float) -> list[tuple[int, Path, Path]]:
 
 
 @dataclass
-class FolderSource:
+class FolderSource(Source):
     """An RGB-D folder opened without reading its images: they load one frame at a time."""
 
     root: Path
     pairs: list[tuple[int, Path, Path]]
     intrinsics: CameraIntrinsics | None
     depth_scale: float
+    metadata: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def path(self) -> Path:  # type: ignore[override]
+        return self.root
 
     def __len__(self) -> int:
         return len(self.pairs)

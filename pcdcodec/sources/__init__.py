@@ -1,0 +1,7 @@
+"""Everything that yields RGB-D frames, behind one :class:`Source` protocol."""
+
+from __future__ import annotations
+
+from .base import Source, SourceKind, open_source, register_source, source_kinds
+
+__all__ = ["Source", "SourceKind", "open_source", "register_source", "source_kinds"]

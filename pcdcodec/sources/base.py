@@ -1,0 +1,166 @@
+"""The :class:`Source` protocol: anything that yields timestamped RGB-D frames.
+
+A source knows its camera (the depth camera's intrinsics, and for unregistered sensors the
+color camera and the transform between them), its depth scale, and yields
+:class:`~pcdcodec.RGBDFrame` objects in time order. Folders, ROS bags and camera recordings all
+implement it, and the recording writer consumes it through one path
+(:meth:`pcdcodec.RecordingWriter.write_source`).
+
+:func:`open_source` picks the reader from the content of the path (magic bytes, folder
+layout), never from its name. Readers register themselves with :func:`register_source`.
+"""
+
+from __future__ import annotations
+
+import abc
+import os
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ..errors import InputError
+
+if TYPE_CHECKING:
+    from ..camera import CameraIntrinsics
+    from ..datasets import RGBDFrame
+
+__all__ = ["Source", "SourceKind", "open_source", "register_source", "source_kinds"]
+
+
+class Source(abc.ABC):
+    """Timestamped RGB-D frames with the camera that took them.
+
+    Attributes every source sets:
+
+    * ``path``: where it reads from;
+    * ``intrinsics``: the depth camera (``None`` when the source does not know it);
+    * ``depth_scale``: depth units per metre of uint16 depth (float32 depth is metres);
+    * ``metadata``: strings kept in the recording (device name, serial, topics, ...).
+
+    Iterating yields frames one at a time, so a source of any length runs in bounded memory.
+    A source is a context manager; :meth:`close` releases files it holds.
+    """
+
+    path: Path
+    intrinsics: CameraIntrinsics | None
+    depth_scale: float
+    metadata: dict[str, str]
+
+    @abc.abstractmethod
+    def __iter__(self) -> Iterator[RGBDFrame]:
+        """The frames, in time order."""
+
+    def __len__(self) -> int:
+        """The number of frames; sources that cannot tell cheaply raise ``TypeError``."""
+        raise TypeError(f"{type(self).__name__} does not know its frame count in advance")
+
+    @property
+    def frame_count(self) -> int | None:
+        """The number of frames, or ``None`` where it is not known before reading."""
+        try:
+            return len(self)
+        except TypeError:
+            return None
+
+    def describe(self) -> dict[str, Any]:
+        """What an ``encode`` summary prints: the reader, camera and depth scale used."""
+        return {
+            "source": type(self).__name__,
+            "path": str(self.path),
+            "frames": self.frame_count,
+            "intrinsics": self.intrinsics.to_dict() if self.intrinsics is not None else None,
+            "depth_scale": self.depth_scale,
+        }
+
+    def close(self) -> None:  # noqa: B027 - optional hook, most sources hold nothing open
+        """Release whatever the source holds open."""
+
+    def __enter__(self) -> Source:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@dataclass(frozen=True)
+class SourceKind:
+    """A registered reader: ``probe(path)`` says from the content whether it reads ``path``."""
+
+    name: str
+    probe: Callable[[Path], bool]
+    opener: Callable[..., Source]
+    description: str = ""
+
+
+_KINDS: dict[str, SourceKind] = {}
+
+
+def register_source(
+    name: str,
+    probe: Callable[[Path], bool],
+    opener: Callable[..., Source],
+    description: str = "",
+    *,
+    first: bool = False,
+) -> None:
+    """Register a source reader. Probes run in registration order; ``first`` puts this one
+    ahead of the others (a more specific reader, such as a RealSense bag, before plain ROS 1)."""
+    kind = SourceKind(name, probe, opener, description)
+    _KINDS.pop(name, None)
+    if first:
+        items = [(name, kind), *_KINDS.items()]
+        _KINDS.clear()
+        _KINDS.update(items)
+    else:
+        _KINDS[name] = kind
+
+
+def source_kinds() -> list[SourceKind]:
+    """The registered readers, in the order :func:`open_source` tries them."""
+    _load_builtin()
+    return list(_KINDS.values())
+
+
+def read_magic(path: Path, n: int = 16) -> bytes:
+    """The first ``n`` bytes of a file (empty for folders and unreadable files)."""
+    try:
+        with path.open("rb") as f:
+            return f.read(n)
+    except OSError:
+        return b""
+
+
+def open_source(path: str | os.PathLike[str], *, kind: str | None = None, **options: Any) -> Source:
+    """Open any RGB-D input: a folder, a ROS 1 or ROS 2 bag, a camera recording.
+
+    The reader is chosen from the content of ``path`` (``kind`` names one explicitly);
+    ``options`` go to that reader (for example ``intrinsics``, ``depth_scale``, topics).
+    Raises :class:`~pcdcodec.InputError` when ``path`` does not exist or no reader knows it.
+    """
+    _load_builtin()
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{str(p)!r} does not exist")
+    if kind is not None:
+        if kind not in _KINDS:
+            raise InputError(f"unknown source kind {kind!r}; known: {', '.join(_KINDS)}")
+        return _KINDS[kind].opener(p, **options)
+    for k in _KINDS.values():
+        if k.probe(p):
+            return k.opener(p, **options)
+    raise InputError(
+        f"{str(p)!r} is not an input pcdcodec reads; expected one of: "
+        + "; ".join(f"{k.name} ({k.description})" for k in _KINDS.values())
+    )
+
+
+_loaded = False
+
+
+def _load_builtin() -> None:
+    global _loaded
+    if _loaded:
+        return
+    _loaded = True
+    from . import folder  # noqa: F401 - registers itself
