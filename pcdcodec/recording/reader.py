@@ -22,8 +22,9 @@ from ..depth.base import FrameCodec
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
 from ..projector import Projector
 from ..registry import get_codec
+from ..transform import as_rigid, quaternion_to_matrix
 from . import _index as fmt
-from ._ros import CompressedVideo
+from ._ros import CompressedVideo, FrameTransform
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
 
@@ -32,8 +33,10 @@ __all__ = ["Frame", "Recording", "VerifyReport"]
 class Frame:
     """One decoded frame of a recording.
 
-    ``color`` is H×W×3 uint8 RGB (``None`` for depth-only recordings), ``depth`` the exact
-    depth image that was written, ``timestamp`` nanoseconds.
+    ``color`` is H×W×3 uint8 RGB (``None`` for depth-only recordings; of the color camera's
+    size when it is apart from depth), ``depth`` the exact depth image that was written,
+    ``timestamp`` nanoseconds, ``pose`` the camera-to-world 4 × 4 pose written with the frame
+    (``None`` without one).
     """
 
     index: int
@@ -41,6 +44,7 @@ class Frame:
     color: npt.NDArray[np.uint8] | None = field(repr=False)
     depth: npt.NDArray[Any] = field(repr=False)
     recording: Recording = field(repr=False)
+    pose: npt.NDArray[np.float64] | None = field(default=None, repr=False)
 
     def to_points(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8] | None]:
         """N×3 float32 points in metres and their N×3 uint8 colors (see :class:`Projector`)."""
@@ -50,12 +54,25 @@ class Frame:
         """The frame as an Open3D point cloud (``open3d.t.geometry.PointCloud`` if ``tensor``)."""
         return self.recording.projector.to_point_cloud(self.depth, self.color, tensor=tensor)
 
+    def registered_depth(self, *, footprint: bool = False) -> npt.NDArray[Any]:
+        """Depth registered to the color image (see :meth:`Projector.register_depth`)."""
+        return self.recording.projector.register_depth(
+            self.depth, dtype=self.depth.dtype.name, footprint=footprint
+        )
+
     def to_rgbd(self) -> Any:
-        """The frame as an ``open3d.geometry.RGBDImage`` (depth in metres, RGB colors)."""
+        """The frame as an ``open3d.geometry.RGBDImage`` (depth in metres, RGB colors).
+
+        The image is the depth camera's: with a color camera apart from depth, each depth
+        pixel takes the color of its point (:meth:`Projector.color_for_depth`).
+        """
         import open3d as o3d
 
         geometry: Any = o3d.geometry
-        color = self.color if self.color is not None else np.zeros((*self.depth.shape, 3), np.uint8)
+        if self.color is None:
+            color = np.zeros((*self.depth.shape, 3), np.uint8)
+        else:
+            color = self.recording.projector.color_for_depth(self.depth, self.color)
         return geometry.RGBDImage.create_from_color_and_depth(
             geometry.Image(np.ascontiguousarray(color)),
             geometry.Image(np.ascontiguousarray(self.depth)),
@@ -126,6 +143,18 @@ class Recording:
             )
         self.format_version = version
         self.intrinsics = CameraIntrinsics.from_dict(json.loads(meta["intrinsics"]))
+        #: The color camera when it is apart from the depth camera (format version 2), else None.
+        self.color_intrinsics: CameraIntrinsics | None = None
+        #: The rigid 4 × 4 transform from the depth to the color camera frame, or None.
+        self.depth_to_color: npt.NDArray[np.float64] | None = None
+        if meta.get("color_intrinsics"):
+            try:
+                self.color_intrinsics = CameraIntrinsics.from_dict(
+                    json.loads(meta["color_intrinsics"])
+                )
+                self.depth_to_color = as_rigid(json.loads(meta["depth_to_color"]), "depth_to_color")
+            except (KeyError, ValueError) as exc:
+                raise DecodeError(f"{name!r} has a damaged color camera record: {exc}") from None
         self.depth_scale = float(meta["depth_scale"])
         self.fps = float(meta.get("fps", "30"))
         self.metadata: dict[str, str] = dict(index.metadata.get(fmt.USER_METADATA_NAME, {}))
@@ -179,6 +208,10 @@ class Recording:
             d_times, d_offsets = d_times[keep], d_offsets[keep]
         self._times = d_times
         self._offsets = d_offsets
+        p_times, p_offsets = index.arrays(fmt.TOPIC_POSE)
+        self._pose_at = {
+            int(t): int(o) for t, o in zip(p_times.tolist(), p_offsets.tolist(), strict=True)
+        }
         self._decoder: VideoDecoder | None = None
         self._next_packet = 0
         self._decoded: dict[int, npt.NDArray[np.uint8]] = {}
@@ -209,8 +242,44 @@ class Recording:
     def projector(self) -> Projector:
         """The :class:`~pcdcodec.Projector` for this recording's camera and depth scale."""
         if self._projector is None:
-            self._projector = Projector(self.intrinsics, depth_scale=self.depth_scale)
+            self._projector = Projector(
+                self.intrinsics,
+                depth_scale=self.depth_scale,
+                color_intrinsics=self.color_intrinsics,
+                depth_to_color=self.depth_to_color,
+            )
         return self._projector
+
+    @property
+    def color_shape(self) -> tuple[int, int]:
+        """``(height, width)`` of the color images: the color camera's, else the depth's."""
+        return (self.color_intrinsics or self.intrinsics).shape
+
+    @property
+    def has_poses(self) -> bool:
+        """Whether frames were written with a pose."""
+        return bool(self._pose_at)
+
+    def _pose(self, i: int) -> npt.NDArray[np.float64] | None:
+        ts = int(self._times[i])
+        offset = self._pose_at.get(ts)
+        if offset is None:
+            return None
+        with self._lock:
+            messages = fmt.read_chunk_messages(self._file, offset, what=f"frame {i} pose")
+        channel = self.index.channel(fmt.TOPIC_POSE)
+        for m in messages:
+            if channel is not None and m.channel_id == channel.id and m.log_time == ts:
+                msg = FrameTransform.decode(m.data)
+                pose = np.eye(4)
+                pose[:3, :3] = quaternion_to_matrix(msg.rotation)
+                pose[:3, 3] = msg.translation
+                return pose
+        raise DecodeError(f"frame {i}: no pose message at byte offset {offset}")
+
+    def poses(self) -> list[npt.NDArray[np.float64] | None]:
+        """The pose of every frame (``None`` for frames written without one)."""
+        return [self._pose(i) for i in range(len(self))]
 
     @property
     def duration(self) -> float:
@@ -267,9 +336,8 @@ class Recording:
                 return self._decoded.pop(ts)
             k = self._keyframes[bisect.bisect_right(self._keyframes, j) - 1]
             if self._decoder is None or self._next_packet > j or k > self._next_packet:
-                self._decoder = self.color_codec.decoder(
-                    self.intrinsics.width, self.intrinsics.height, self._extradata
-                )
+                ch, cw = self.color_shape
+                self._decoder = self.color_codec.decoder(cw, ch, self._extradata)
                 self._next_packet = k
                 self._decoded.clear()
             while ts not in self._decoded:
@@ -305,7 +373,7 @@ class Recording:
         if not -n <= i < n:
             raise IndexError(f"frame index {i} is out of range for {n} frames")
         i = int(i) % n
-        return Frame(i, int(self._times[i]), self._color(i), self._depth(i), self)
+        return Frame(i, int(self._times[i]), self._color(i), self._depth(i), self, self._pose(i))
 
     def __getitem__(self, key: int | slice) -> Any:
         if isinstance(key, slice):

@@ -21,15 +21,20 @@ from ..codec import Codec
 from ..color.base import Packet, StreamCodec, VideoEncoder
 from ..depth.base import FrameCodec
 from ..errors import InputError, InputTypeError
+from ..projector import check_color_camera
 from ..registry import get_codec
+from ..transform import as_rigid, matrix_to_quaternion
 from . import _index as fmt
 from ._ros import (
     CAMERA_CALIBRATION,
     CAMERA_CALIBRATION_SCHEMA,
     COMPRESSED_VIDEO,
     COMPRESSED_VIDEO_SCHEMA,
+    FRAME_TRANSFORM,
+    FRAME_TRANSFORM_SCHEMA,
     CameraCalibration,
     CompressedVideo,
+    FrameTransform,
 )
 
 __all__ = ["RecordingWriter"]
@@ -47,6 +52,33 @@ def _codec(spec: Any, kind: str) -> Codec:
     raise InputTypeError(
         f"{kind} codec must be a name, a config dict or a codec, got {type(spec).__name__}"
     )
+
+
+def _calibration(intr: CameraIntrinsics, frame_id: str, timestamp: int) -> bytes:
+    info = intr.to_camera_info()
+    return CameraCalibration(
+        timestamp,
+        frame_id,
+        intr.width,
+        intr.height,
+        info["distortion_model"],
+        [float(v) for v in info["D"]],
+        [float(v) for v in info["K"]],
+        [float(v) for v in info["R"]],
+        [float(v) for v in info["P"]],
+    ).encode()
+
+
+def _transform(matrix: npt.NDArray[np.float64], timestamp: int, parent: str, child: str) -> bytes:
+    q = matrix_to_quaternion(matrix[:3, :3])
+    t = matrix[:3, 3]
+    return FrameTransform(
+        timestamp,
+        parent,
+        child,
+        (float(t[0]), float(t[1]), float(t[2])),
+        (float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+    ).encode()
 
 
 def _intrinsics(value: Any) -> CameraIntrinsics:
@@ -93,9 +125,16 @@ class RecordingWriter:
         overwrite: bool = False,
         in_flight: int = 4,
         frame_id: str = "camera",
+        color_intrinsics: Any = None,
+        depth_to_color: Any = None,
+        world_frame_id: str = "world",
     ) -> None:
         self.path = Path(path)
         self.intrinsics = _intrinsics(intrinsics)
+        self.color_intrinsics, self.depth_to_color = check_color_camera(
+            None if color_intrinsics is None else _intrinsics(color_intrinsics), depth_to_color
+        )
+        self.world_frame_id = world_frame_id
         if isinstance(depth_scale, bool) or not isinstance(depth_scale, (int, float)):
             raise InputTypeError(f"depth_scale must be a number, got {type(depth_scale).__name__}")
         if not (np.isfinite(depth_scale) and depth_scale > 0):
@@ -149,10 +188,20 @@ class RecordingWriter:
         # MCAP's chunk index then gives every message's time and offset directly.
         self._mcap = Writer(self._file, chunk_size=0, compression=CompressionType.NONE)
         self._mcap.start(profile=fmt.PROFILE, library=f"pcdcodec {__version__}")
+        # Version 2 only where a version 1 reader would give wrong clouds: a color camera
+        # apart from depth, or lens distortion. Everything else stays readable by version 1.
+        two_cameras = self.color_intrinsics is not None
+        version = 2 if two_cameras or self.intrinsics.has_distortion else 1
+        cameras: dict[str, str] = {}
+        if self.color_intrinsics is not None and self.depth_to_color is not None:
+            cameras = {
+                "color_intrinsics": json.dumps(self.color_intrinsics.to_dict()),
+                "depth_to_color": json.dumps(self.depth_to_color.tolist()),
+            }
         self._mcap.add_metadata(
             fmt.METADATA_NAME,
             {
-                "format_version": str(fmt.FORMAT_VERSION),
+                "format_version": str(version),
                 "library": f"pcdcodec {__version__}",
                 "intrinsics": json.dumps(self.intrinsics.to_dict()),
                 "depth_scale": repr(self.depth_scale),
@@ -162,6 +211,7 @@ class RecordingWriter:
                 if self.color_codec
                 else "",
                 "frame_id": frame_id,
+                **cameras,
             },
         )
         if user:
@@ -184,9 +234,16 @@ class RecordingWriter:
         self.bytes_color = 0
         self.bytes_depth = 0
         self._sync: Any = None
+        self._poses: dict[int, npt.NDArray[np.float64]] = {}
+        self.poses_written = 0
         self._closed = False
 
     # -- writing -----------------------------------------------------------------------
+
+    @property
+    def color_shape(self) -> tuple[int, int]:
+        """``(height, width)`` of the color images: the color camera's, else the depth's."""
+        return (self.color_intrinsics or self.intrinsics).shape
 
     def _start_stream(self, height: int, width: int, timestamp: int) -> None:
         if (width, height) != (self.intrinsics.width, self.intrinsics.height):
@@ -196,11 +253,13 @@ class RecordingWriter:
             )
         mcap = self._mcap
         size = {"width": str(width), "height": str(height)}
+        ch, cw = self.color_shape
         if self.color_codec is not None:
-            self._encoder = self.color_codec.encoder(width, height, self.fps)
+            self._encoder = self.color_codec.encoder(cw, ch, self.fps)
             extradata = self._encoder.extradata
             meta = {
-                **size,
+                "width": str(cw),
+                "height": str(ch),
                 "codec": json.dumps(self.color_codec.get_config()),
                 "extradata": base64.b64encode(extradata).decode() if extradata else "",
             }
@@ -228,31 +287,51 @@ class RecordingWriter:
         )
         sid = mcap.register_schema(CAMERA_CALIBRATION, "ros2msg", CAMERA_CALIBRATION_SCHEMA)
         cal = self._channels["cal"] = mcap.register_channel(fmt.TOPIC_CALIBRATION, "cdr", sid, {})
-        info = self.intrinsics.to_camera_info()
-        msg = CameraCalibration(
-            timestamp,
-            self.frame_id,
-            width,
-            height,
-            info["distortion_model"],
-            [float(v) for v in info["D"]],
-            [float(v) for v in info["K"]],
-            [float(v) for v in info["R"]],
-            [float(v) for v in info["P"]],
+        mcap.add_message(
+            cal, timestamp, _calibration(self.intrinsics, self.frame_id, timestamp), timestamp
         )
-        mcap.add_message(cal, timestamp, msg.encode(), timestamp)
+        if self.color_intrinsics is not None and self.depth_to_color is not None:
+            color_frame = f"{self.frame_id}_color"
+            ccal = mcap.register_channel(fmt.TOPIC_COLOR_CALIBRATION, "cdr", sid, {})
+            mcap.add_message(
+                ccal,
+                timestamp,
+                _calibration(self.color_intrinsics, color_frame, timestamp),
+                timestamp,
+            )
+            # The color camera's pose in the depth camera's frame: the inverse of depth_to_color.
+            tid = self._transform_schema()
+            ext = mcap.register_channel(fmt.TOPIC_EXTRINSICS, "cdr", tid, {})
+            pose = np.asarray(np.linalg.inv(self.depth_to_color), dtype=np.float64)
+            mcap.add_message(
+                ext, timestamp, _transform(pose, timestamp, self.frame_id, color_frame), timestamp
+            )
         self._shape = (height, width)
 
-    def write(self, color: Any, depth: Any, timestamp: int | None = None) -> None:
+    def _transform_schema(self) -> int:
+        if "transform_schema" not in self._channels:
+            self._channels["transform_schema"] = self._mcap.register_schema(
+                FRAME_TRANSFORM, "ros2msg", FRAME_TRANSFORM_SCHEMA
+            )
+        return self._channels["transform_schema"]
+
+    def write(
+        self, color: Any, depth: Any, timestamp: int | None = None, *, pose: Any = None
+    ) -> None:
         """Add one frame: ``color`` H×W×3 uint8 RGB (``None`` when recording depth only) and
         ``depth`` H×W uint16 depth units (or float32 metres where the depth codec takes it).
+        With a color camera apart from depth, ``color`` is of the color camera's size.
 
         ``timestamp`` is in nanoseconds and must increase; without it, frames are spaced at
-        ``1/fps`` from 0. Raises :class:`~pcdcodec.InputError` for frames of another size than
-        the first, color and depth of different sizes, timestamps that do not increase, or
-        bad arrays; the frames already written stay intact.
+        ``1/fps`` from 0. ``pose`` is the camera-to-world pose of the depth camera at this
+        frame, a rigid 4 × 4 transform in metres, stored as a ``FrameTransform`` from
+        ``world_frame_id`` to ``frame_id`` on ``/camera/pose``. Raises
+        :class:`~pcdcodec.InputError` for frames of another size than the first, color of
+        another size than the color camera's, timestamps that do not increase, a pose that is
+        not a rigid 4 × 4 transform, or bad arrays; the frames already written stay intact.
         """
         self._check_open()
+        rigid = None if pose is None else as_rigid(pose, "pose")
         if timestamp is None:
             timestamp = 0 if self._last_ts is None else self._last_ts + round(_NS / self.fps)
         if isinstance(timestamp, bool) or not isinstance(timestamp, (int, np.integer)):
@@ -269,7 +348,12 @@ class RecordingWriter:
         if self.color_codec is not None:
             if color is None:
                 raise InputError("this recording has color: pass a color image with each frame")
-            rgb = check_color(color, d.shape, name="color")
+            if self.color_intrinsics is None:
+                rgb = check_color(color, d.shape, name="color")
+            else:
+                rgb = check_color(
+                    color, self.color_shape, name="color", expected="the color camera's size"
+                )
         if self._shape is None:
             self._start_stream(d.shape[0], d.shape[1], timestamp)
         elif d.shape != self._shape:
@@ -285,6 +369,8 @@ class RecordingWriter:
             else None
         )
         fut_depth = self._depth_pool.submit(self.depth_codec.encode, d.copy())
+        if rigid is not None:
+            self._poses[timestamp] = rigid
         self._pending.append((timestamp, fut_color, fut_depth))
         while len(self._pending) > self.in_flight:
             self._drain_one()
@@ -331,7 +417,9 @@ class RecordingWriter:
         count = 0
         for item in frames:
             if hasattr(item, "depth") and hasattr(item, "timestamp_ns"):
-                self.write(item.color, item.depth, item.timestamp_ns)
+                self.write(
+                    item.color, item.depth, item.timestamp_ns, pose=getattr(item, "pose", None)
+                )
             elif type(item).__name__ == "RGBDImage":
                 self.write_rgbd(item)
             elif isinstance(item, tuple) and len(item) in (2, 3):
@@ -418,6 +506,15 @@ class RecordingWriter:
             self._channels["depth"], timestamp, data, timestamp, self.frames_written
         )
         self.bytes_depth += len(data)
+        pose = self._poses.pop(timestamp, None)
+        if pose is not None:
+            if "pose" not in self._channels:
+                self._channels["pose"] = self._mcap.register_channel(
+                    fmt.TOPIC_POSE, "cdr", self._transform_schema(), {}
+                )
+            msg = _transform(pose, timestamp, self.world_frame_id, self.frame_id)
+            self._mcap.add_message(self._channels["pose"], timestamp, msg, timestamp)
+            self.poses_written += 1
         self.frames_written += 1
         self._depth_written.append(timestamp)
         self._count_complete()
