@@ -36,7 +36,10 @@ class Source(abc.ABC):
     * ``path``: where it reads from;
     * ``intrinsics``: the depth camera (``None`` when the source does not know it);
     * ``depth_scale``: depth units per metre of uint16 depth (float32 depth is metres);
-    * ``metadata``: strings kept in the recording (device name, serial, topics, ...).
+    * ``metadata``: strings kept in the recording (device name, serial, topics, ...);
+    * ``color_intrinsics`` and ``depth_to_color``: for sensors whose color camera is apart from
+      the depth camera, the color camera and the rigid 4 × 4 transform from the depth to the
+      color camera frame (both ``None`` when color is registered to depth, the default).
 
     Iterating yields frames one at a time, so a source of any length runs in bounded memory.
     A source is a context manager; :meth:`close` releases files it holds.
@@ -46,6 +49,8 @@ class Source(abc.ABC):
     intrinsics: CameraIntrinsics | None
     depth_scale: float
     metadata: dict[str, str]
+    color_intrinsics: CameraIntrinsics | None = None
+    depth_to_color: Any = None
 
     @abc.abstractmethod
     def __iter__(self) -> Iterator[RGBDFrame]:
@@ -71,6 +76,9 @@ class Source(abc.ABC):
             "frames": self.frame_count,
             "intrinsics": self.intrinsics.to_dict() if self.intrinsics is not None else None,
             "depth_scale": self.depth_scale,
+            "color_intrinsics": self.color_intrinsics.to_dict()
+            if self.color_intrinsics is not None
+            else None,
         }
 
     def close(self) -> None:  # noqa: B027 - optional hook, most sources hold nothing open
@@ -163,4 +171,7 @@ def _load_builtin() -> None:
     if _loaded:
         return
     _loaded = True
-    from . import folder  # noqa: F401 - registers itself
+    from . import (
+        folder,  # noqa: F401 - registers itself
+        realsense,  # noqa: F401 - registers itself
+    )
