@@ -172,6 +172,7 @@ def _load_builtin() -> None:
         return
     _loaded = True
     from . import (
+        azure_kinect,  # noqa: F401 - registers itself
         folder,  # noqa: F401 - registers itself
         realsense,  # noqa: F401 - registers itself
     )
