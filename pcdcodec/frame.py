@@ -21,12 +21,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from .errors import InputError
+from .errors import InputError, InputTypeError
 
 if TYPE_CHECKING:
     from .projector import Projector
 
-__all__ = ["Frame", "open3d_rgbd"]
+__all__ = ["OPEN3D_DEPTH_SCALE", "Frame", "from_open3d_rgbd", "open3d_rgbd"]
+
+#: The ``depth_scale`` Open3D assumes when none is given (depth units per metre, millimetres).
+OPEN3D_DEPTH_SCALE = 1000.0
 
 
 def _describe(array: Any) -> str:
@@ -145,6 +148,20 @@ class Frame:
             scale = self.projector.depth_scale
         return open3d_rgbd(self.color, self.depth, scale, tensor=tensor)
 
+    @classmethod
+    def from_open3d_rgbd(
+        cls,
+        rgbd: Any,
+        *,
+        depth_scale: float = OPEN3D_DEPTH_SCALE,
+        timestamp_ns: int = 0,
+        index: int | None = None,
+        pose: npt.NDArray[np.float64] | None = None,
+    ) -> Frame:
+        """A frame from an Open3D RGBDImage, legacy or tensor (see :func:`from_open3d_rgbd`)."""
+        color, depth = from_open3d_rgbd(rgbd, depth_scale=depth_scale)
+        return cls(color, depth, timestamp_ns, index=index, pose=pose)
+
     def to_rgbd(self, tensor: bool = False) -> Any:
         """Deprecated name of :meth:`to_open3d_rgbd`."""
         warnings.warn(
@@ -193,3 +210,86 @@ def open3d_rgbd(
         depth_trunc=float(np.finfo(np.float32).max),
         convert_rgb_to_intensity=False,
     )
+
+
+def _scale(value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputTypeError(f"depth_scale must be a number, got {type(value).__name__}")
+    if not (np.isfinite(value) and value > 0):
+        raise InputError(f"depth_scale must be positive and finite, got {value}")
+    return float(value)
+
+
+def open3d_rgbd_kind(obj: Any) -> str | None:
+    """``"legacy"`` or ``"tensor"`` for an Open3D RGBDImage, else ``None`` (imports nothing)."""
+    cls = type(obj)
+    if cls.__name__ != "RGBDImage" or not cls.__module__.startswith("open3d"):
+        return None
+    return "tensor" if ".t." in cls.__module__ else "legacy"
+
+
+def from_open3d_rgbd(
+    rgbd: Any, *, depth_scale: float = OPEN3D_DEPTH_SCALE
+) -> tuple[npt.NDArray[np.uint8] | None, npt.NDArray[Any]]:
+    """``(color, depth)`` arrays of an Open3D RGBDImage, the depth back in depth units.
+
+    ``depth_scale`` is the one the image was made with, in Open3D's sense (depth units per
+    metre; Open3D's default, :data:`OPEN3D_DEPTH_SCALE`, is 1000):
+
+    * a legacy ``open3d.geometry.RGBDImage`` holds float32 metres (``create_from_color_and_depth``
+      divided the depth by ``depth_scale``); they are multiplied back and must come out as whole
+      uint16 depth units, else :class:`~pcdcodec.InputError` says the scale does not fit;
+    * a tensor ``open3d.t.geometry.RGBDImage`` holds the depth as it was given: uint16 depth
+      units are returned unchanged, float32 depth is divided by ``depth_scale`` into metres
+      (pass ``depth_scale=1.0`` for metres).
+
+    Color must be 8-bit RGB (``convert_rgb_to_intensity=False`` for legacy images); an image
+    without color gives ``None``.
+    """
+    from ._validate import check_depth
+
+    scale = _scale(depth_scale)
+    kind = open3d_rgbd_kind(rgbd)
+    if kind is None:
+        raise InputTypeError(
+            f"expected an open3d.geometry.RGBDImage or open3d.t.geometry.RGBDImage, "
+            f"got {type(rgbd).__name__}"
+        )
+    if kind == "legacy":
+        color = np.asarray(rgbd.color)
+        metres = check_depth(np.asarray(rgbd.depth), allowed=("float32",), name="RGBDImage depth")
+        units = metres.astype(np.float64) * scale
+        units[~np.isfinite(units)] = 0.0
+        rounded = np.rint(units)
+        if float(rounded.max(initial=0.0)) > 65535 or not np.allclose(units, rounded, atol=1e-3):
+            raise InputError(
+                f"RGBDImage depth (metres) times depth_scale={scale:g} is not whole uint16 depth "
+                "units: pass the depth_scale the image was made with (Open3D's default is 1000)"
+            )
+        depth: npt.NDArray[Any] = rounded.astype(np.uint16)
+    else:
+        color = rgbd.color.as_tensor().cpu().numpy()
+        raw = rgbd.depth.as_tensor().cpu().numpy()
+        if raw.ndim == 3 and raw.shape[2] == 1:
+            raw = raw[..., 0]
+        depth = check_depth(raw, name="RGBDImage depth")
+        if depth.dtype == np.float32 and scale != 1.0:
+            depth = (depth / np.float32(scale)).astype(np.float32)
+    if color.ndim == 3 and color.shape[2] == 1:
+        color = color[..., 0]
+    if color.size == 0:
+        return None, depth
+    if color.dtype != np.uint8 or color.ndim != 3 or color.shape[2] != 3:
+        hint = ""
+        if kind == "legacy" and color.ndim == 2:
+            hint = "; make the RGBDImage with convert_rgb_to_intensity=False to keep RGB"
+        raise InputTypeError(
+            f"RGBDImage color must be H×W×3 uint8 RGB, got {color.dtype} with shape "
+            f"{color.shape}{hint}"
+        )
+    if color.shape[:2] != depth.shape:
+        raise InputError(
+            f"RGBDImage color is {color.shape[1]}x{color.shape[0]} but its depth is "
+            f"{depth.shape[1]}x{depth.shape[0]}"
+        )
+    return np.ascontiguousarray(color), depth

@@ -29,6 +29,7 @@ import numpy.typing as npt
 from ._validate import check_color, check_depth
 from .camera import CameraIntrinsics
 from .errors import InputError, InputTypeError
+from .frame import open3d_rgbd_kind
 
 __all__ = ["Projector", "Reprojection"]
 
@@ -376,7 +377,7 @@ class Projector:
         self, depth: Any, color: Any
     ) -> tuple[npt.NDArray[Any], float, npt.NDArray[np.uint8] | None]:
         """Validated (depth, its depth units per metre, color) from arrays or an RGBDImage."""
-        kind = _open3d_rgbd_kind(depth)
+        kind = open3d_rgbd_kind(depth)
         if kind is not None:
             if color is not None:
                 raise InputError("color must be None when depth is an RGBDImage (it has a color)")
@@ -581,14 +582,6 @@ def _output_dtype(dtype: Any) -> np.dtype[Any]:
     if out is None:
         raise InputError(f"dtype must be 'uint16' or 'float32', got {dtype!r}")
     return out
-
-
-def _open3d_rgbd_kind(obj: Any) -> str | None:
-    """``"legacy"`` or ``"tensor"`` for an Open3D RGBDImage, else None (no open3d import)."""
-    cls = type(obj)
-    if cls.__name__ != "RGBDImage" or not cls.__module__.startswith("open3d"):
-        return None
-    return "tensor" if ".t." in cls.__module__ else "legacy"
 
 
 def _split_rgbd(rgbd: Any, kind: str, depth_scale: float) -> tuple[Any, float, Any]:

@@ -152,7 +152,7 @@ def test_write_rgbd_images(tmp_path: Path, sample: RGBDSequence) -> None:
                 depth_trunc=1000.0,
                 convert_rgb_to_intensity=False,
             )
-            rec.write_rgbd(rgbd, frame.timestamp_ns)
+            rec.write_rgbd(rgbd, frame.timestamp_ns, depth_scale=5000.0)
     with pcdcodec.open(path) as rec:
         for frame, original in zip(rec, sample.frames[:3], strict=False):
             np.testing.assert_array_equal(frame.depth, original.depth)
