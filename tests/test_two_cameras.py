@@ -94,7 +94,7 @@ def test_distorted_depth_camera_round_trips_bit_exact() -> None:
     u, v, _ = cam.project(points.astype(np.float64))
     assert np.abs(u - idx % 640).max() < 1e-3
     assert np.abs(v - idx // 640).max() < 1e-3
-    back = proj.to_rgbd(points).depth
+    back = proj.to_rgbd_arrays(points).depth
     assert np.array_equal(back, depth)
 
 

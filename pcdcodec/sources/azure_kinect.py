@@ -260,7 +260,7 @@ class AzureKinectSource(Source):
                         colors[pts] = np.asarray(f.to_ndarray(format="rgb24"), dtype=np.uint8)
                 for t in sorted(set(depths) & set(colors)) if color_stream else sorted(depths):
                     ns = self._start_ns + round(t * tb_ns)
-                    yield RGBDFrame(colors.pop(t) if color_stream else None, depths.pop(t), ns)  # type: ignore[arg-type]
+                    yield RGBDFrame(colors.pop(t) if color_stream else None, depths.pop(t), ns)
                     emitted += 1
                     if self.max_frames is not None and emitted >= self.max_frames:
                         return

@@ -260,7 +260,7 @@ class RealSenseBagSource(Source):
                     rgb = pick(t, after) if self.color_topic is not None else None
                     if rgb is None and self.color_topic is not None:
                         continue
-                    yield RGBDFrame(rgb, depth, t)  # type: ignore[arg-type] # None: depth only
+                    yield RGBDFrame(rgb, depth, t)
                     emitted += 1
                     if self.max_frames is not None and emitted >= self.max_frames:
                         return
