@@ -191,6 +191,8 @@ class FolderSource(Source):
     intrinsics: CameraIntrinsics | None
     depth_scale: float
     metadata: dict[str, str] = field(default_factory=dict)
+    #: Camera-to-world pose per pair (TUM groundtruth.txt, 7-Scenes pose/), or None.
+    poses: list[npt.NDArray[np.float64] | None] | None = None
 
     @property
     def path(self) -> Path:  # type: ignore[override]
@@ -207,7 +209,10 @@ class FolderSource(Source):
 
             projector = Projector(self.intrinsics, self.depth_scale)
         for i, (t, c, d) in enumerate(self.pairs):
-            frame = RGBDFrame(_read_color(c), _read_depth(d), t, index=i, projector=projector)
+            pose = None if self.poses is None else self.poses[i]
+            frame = RGBDFrame(
+                _read_color(c), _read_depth(d), t, index=i, pose=pose, projector=projector
+            )
             assert frame.color is not None
             if frame.color.shape[:2] != frame.depth.shape:
                 raise InputError(
@@ -264,7 +269,10 @@ def open_folder(
         intrinsics = CameraIntrinsics.from_dict({k: meta[k] for k in keys if k in meta})
     if depth_scale is None:
         depth_scale = float(meta.get("depth_scale", 1000.0))
-    return FolderSource(root, pairs, intrinsics, depth_scale)
+    from .sources.poses import folder_poses
+
+    poses = folder_poses(root, pairs, tum=layout == "tum" or (layout == "auto" and is_tum))
+    return FolderSource(root, pairs, intrinsics, depth_scale, poses=poses)
 
 
 def load_folder(
