@@ -172,10 +172,19 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _cmd_encode(args: argparse.Namespace) -> int:
     from .datasets import open_folder
     from .recording import open as open_recording
+    from .sources import Source, open_source
 
-    source = open_folder(
-        args.src, max_frames=args.max_frames, depth_scale=args.depth_scale, fps=args.fps
-    )
+    source: Source
+    if Path(args.src).is_file():
+        # A camera recording (RealSense .bag, Azure Kinect .mkv): its reader knows the cameras.
+        options: dict[str, Any] = {"max_frames": args.max_frames}
+        if args.depth_scale is not None:
+            options["depth_scale"] = args.depth_scale
+        source = open_source(args.src, **options)
+    else:
+        source = open_folder(
+            args.src, max_frames=args.max_frames, depth_scale=args.depth_scale, fps=args.fps
+        )
     first = next(iter(source))
     h, w = first.depth.shape
     intrinsics = _intrinsics_from_args(args, w, h) or source.intrinsics
@@ -194,8 +203,11 @@ def _cmd_encode(args: argparse.Namespace) -> int:
             depth=parse_codec(args.depth, "depth"),
             fps=args.fps,
             overwrite=args.overwrite,
+            color_intrinsics=source.color_intrinsics,
+            depth_to_color=source.depth_to_color,
+            metadata=source.metadata or None,
         ) as writer,
-        Progress(len(source), "encoding", enabled=None if not args.quiet else False) as bar,
+        Progress(source.frame_count, "encoding", enabled=None if not args.quiet else False) as bar,
     ):
         count = writer.write_frames(source, progress=bar.update)
     size = Path(args.output).stat().st_size
@@ -265,6 +277,8 @@ def _info(rec: Any) -> dict[str, Any]:
         "size_bytes": size,
         "bytes_per_frame": round(size / len(rec)) if len(rec) else None,
         "intrinsics": rec.intrinsics.to_dict(),
+        "color_intrinsics": rec.color_intrinsics.to_dict() if rec.color_intrinsics else None,
+        "depth_to_color": rec.depth_to_color.tolist() if rec.depth_to_color is not None else None,
         "depth_scale": rec.depth_scale,
         "codecs": rec.codecs,
         "indexed": rec.indexed,
@@ -292,6 +306,21 @@ def _cmd_info(args: argparse.Namespace) -> int:
         f"  camera     {cam['width']}x{cam['height']}, fx={cam['fx']} fy={cam['fy']} "
         f"cx={cam['cx']} cy={cam['cy']}, depth scale {info['depth_scale']} per metre"
     )
+    if cam.get("distortion_model"):
+        print(f"             lens {cam['distortion_model']} {cam['distortion']}")
+    color_cam = info.get("color_intrinsics")
+    if color_cam:
+        t = [round(v[3] * 1000, 2) for v in info["depth_to_color"][:3]]
+        print(
+            f"  color cam  {color_cam['width']}x{color_cam['height']}, fx={color_cam['fx']} "
+            f"fy={color_cam['fy']} cx={color_cam['cx']} cy={color_cam['cy']}"
+            + (
+                f", lens {color_cam['distortion_model']}"
+                if color_cam.get("distortion_model")
+                else ""
+            )
+            + f"; depth-to-color translation {t} mm"
+        )
     print(f"  color      {json.dumps(info['codecs']['color'])}")
     print(f"  depth      {json.dumps(info['codecs']['depth'])}")
     if info["metadata"]:
@@ -400,8 +429,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=None, help="use only the first N frames")
     p.set_defaults(func=_cmd_demo)
 
-    p = sub.add_parser("encode", help="encode an RGB-D folder (TUM layout or rgb/ + depth/)")
-    p.add_argument("src", help="folder with rgb.txt/depth.txt, or rgb/ and depth/ images")
+    p = sub.add_parser(
+        "encode", help="encode an RGB-D folder, a RealSense .bag or an Azure Kinect .mkv"
+    )
+    p.add_argument(
+        "src",
+        help="folder with rgb.txt/depth.txt, or rgb/ and depth/ images; or a RealSense .bag "
+        "or Azure Kinect .mkv file",
+    )
     p.add_argument("-o", "--output", required=True, help="the .pcdc file to write")
     p.add_argument("--color", default="h264", help="color codec, e.g. h264 or h264:crf=20")
     p.add_argument("--depth", default="jpegxl", help="depth codec, e.g. jpegxl or zstd:level=9")

@@ -82,3 +82,22 @@ def test_no_clusters(tmp_path: Path) -> None:
     path.write_bytes(data[: data.find(b"\x1f\x43\xb6\x75")])
     with pytest.raises(InputError, match="holds no clusters"):
         pcdcodec.open_source(path)
+
+
+def test_cli_encodes_a_camera_recording(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from pcdcodec.cli import main
+
+    out = tmp_path / "ak.pcdc"
+    assert main(["encode", str(MKV), "-o", str(out), "--color", "ffv1", "-q"]) == 0
+    assert main(["info", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out.split("\n", 1)[1])
+    assert info["format_version"] == 2
+    assert info["color_intrinsics"]["width"] == 1280
+    assert info["intrinsics"]["distortion_model"] == "rational_polynomial"
+    assert info["metadata"]["serial"] == "001514394512"
+    with pcdcodec.open(out) as rec, pcdcodec.open_source(MKV) as src:
+        (original,) = list(src)
+        assert np.array_equal(rec[0].depth, original.depth)
+        assert np.array_equal(rec[0].color, original.color)  # ffv1: lossless
