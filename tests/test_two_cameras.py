@@ -253,6 +253,11 @@ def test_recording_with_two_cameras(tmp_path: Path) -> None:
         assert direct[1] is not None
         assert np.array_equal(got[1], direct[1])
         assert frame.registered_depth().shape == (600, 800)
+        rgbd = frame.to_open3d_rgbd(tensor=True)
+        aligned = rgbd.color.as_tensor().numpy()
+        assert aligned.shape == (480, 640, 3)  # the depth camera's image
+        valid = seq[1].depth.reshape(-1) > 0
+        assert np.array_equal(aligned.reshape(-1, 3)[valid], direct[1])
         topics = {c.topic for c in r.index.channels.values()}
         assert {"/camera/color/calibration", "/camera/extrinsics"} <= topics
 
