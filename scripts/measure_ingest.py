@@ -45,9 +45,24 @@ def sources() -> list[tuple[str, Any, int]]:
     if mkv.exists():
         out.append(("Azure Kinect `.mkv`", pcdcodec.open_source(mkv), mkv.stat().st_size))
     folders = [
-        ("TUM fr1_rpy folder", "tum_fr1_rpy", CameraIntrinsics(640, 480, 525, 525, 319.5, 239.5), 5000.0),
-        ("7-Scenes redkitchen folder", "7scenes_redkitchen", CameraIntrinsics(640, 480, 585, 585, 320, 240), 1000.0),
-        ("D435 office folder", "realsense_d435_office", CameraIntrinsics(640, 480, 615, 615, 320, 240), 1000.0),
+        (
+            "TUM fr1_rpy folder",
+            "tum_fr1_rpy",
+            CameraIntrinsics(640, 480, 525, 525, 319.5, 239.5),
+            5000.0,
+        ),
+        (
+            "7-Scenes redkitchen folder",
+            "7scenes_redkitchen",
+            CameraIntrinsics(640, 480, 585, 585, 320, 240),
+            1000.0,
+        ),
+        (
+            "D435 office folder",
+            "realsense_d435_office",
+            CameraIntrinsics(640, 480, 615, 615, 320, 240),
+            1000.0,
+        ),
     ]
     for name, sub, intr, scale in folders:
         root = DATA / sub
@@ -191,6 +206,7 @@ def main() -> int:
     )
     print("|---|---|---|---|---|---|---|---|")
     for name, n, size_in, size_d, size_l, exact, ll, err, _ in rows:
+
         def kib(b: int) -> str:
             return f"{b / 1024:,.0f} KiB"
 
