@@ -33,7 +33,7 @@ from .errors import (
 )
 from .evaluation import Evaluation, evaluate
 from .projector import Projector, Reprojection
-from .recording import Frame, Recording, RecordingWriter, open
+from .recording import Frame, Recording, RecordingWriter, open, recover
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
 
@@ -72,5 +72,6 @@ __all__ = [
     "metrics",
     "open",
     "open_source",
+    "recover",
     "register_codec",
 ]
