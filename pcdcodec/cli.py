@@ -295,7 +295,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
     print(f"  depth      {json.dumps(info['codecs']['depth'])}")
     if info["metadata"]:
         print(f"  metadata   {json.dumps(info['metadata'])}")
-    if not info["indexed"]:
+    problem = rec.index.summary_problem
+    if problem:
+        print(f"  index      unusable ({problem}); frames found by reading the whole file")
+    elif not info["indexed"]:
         print("  index      missing: the writer did not finish; `pcdcodec recover` rewrites it")
     return 0
 

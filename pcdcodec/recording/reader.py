@@ -415,7 +415,14 @@ class Recording:
             raise IndexError(f"frame index {i} is out of range for {n} frames")
         i = int(i) % n
         try:
-            return Frame(i, int(self._times[i]), self._color(i), self._depth(i), self)
+            color = self._color(i)
+            cam = self.intrinsics
+            if color is not None and color.shape != (cam.height, cam.width, 3):
+                raise DecodeError(
+                    f"{str(self.path)!r}: frame {i}: color decoded to {color.shape}, expected "
+                    f"({cam.height}, {cam.width}, 3) for the recording's camera"
+                )
+            return Frame(i, int(self._times[i]), color, self._depth(i), self)
         except PcdcodecError:
             raise
         except Exception as exc:  # a backend or a record parser meeting damaged bytes
