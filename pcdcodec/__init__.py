@@ -32,8 +32,9 @@ from .errors import (
     UnknownCodecError,
 )
 from .evaluation import Evaluation, evaluate
+from .frame import Frame
 from .projector import Projector, Reprojection
-from .recording import Frame, Recording, RecordingWriter, open, recover
+from .recording import Recording, RecordingWriter, open, recover
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
 

@@ -104,7 +104,7 @@ def make_clean(name: str, folder: Path) -> Clean:
 def load_clean(name: str, path: Path) -> Clean:
     """A clean recording written before (by :func:`make_clean`), decoded."""
     with pcdcodec.open(path) as rec:
-        frames = {f.timestamp: (f.color, f.depth) for f in rec}
+        frames = {f.timestamp_ns: (f.color, f.depth) for f in rec}
         settings = settings_of(rec)
         if len(frames) != FRAMES or not rec.verify().ok:
             raise RuntimeError(f"{path} is not a clean {FRAMES}-frame recording")
@@ -229,9 +229,9 @@ def check(clean: Clean, path: Path) -> Result:
                     failed += 1
                     result.errors.append(str(exc))
                     continue
-                expected = clean.frames.get(frame.timestamp)
+                expected = clean.frames.get(frame.timestamp_ns)
                 if expected is None:
-                    return Result("WRONG-TIMESTAMP", f"frame {i} at t={frame.timestamp}")
+                    return Result("WRONG-TIMESTAMP", f"frame {i} at t={frame.timestamp_ns}")
                 color, depth = expected
                 same_color = (color is None and frame.color is None) or (
                     color is not None
@@ -241,7 +241,7 @@ def check(clean: Clean, path: Path) -> Result:
                 if not same_color or not (
                     depth.dtype == frame.depth.dtype and np.array_equal(depth, frame.depth)
                 ):
-                    return Result("WRONG-FRAME", f"frame {i} at t={frame.timestamp} differs")
+                    return Result("WRONG-FRAME", f"frame {i} at t={frame.timestamp_ns} differs")
                 result.frames_read += 1
             report = rec.verify()
             if failed and report.ok:

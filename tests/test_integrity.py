@@ -55,7 +55,7 @@ def clean(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def decoded(clean: Path) -> list[tuple[int, Any, Any]]:
     with pcdcodec.open(clean) as rec:
-        return [(f.timestamp, f.color, f.depth) for f in rec]
+        return [(f.timestamp_ns, f.color, f.depth) for f in rec]
 
 
 def summary_records(data: bytes) -> list[tuple[int, int, int]]:
@@ -86,7 +86,7 @@ def channel_ids(path: Path) -> dict[str, int]:
 
 def read_all(path: Path) -> tuple[list[tuple[int, Any, Any]], pcdcodec.recording.VerifyReport]:
     with pcdcodec.open(path) as rec:
-        frames = [(f.timestamp, f.color, f.depth) for f in rec]
+        frames = [(f.timestamp_ns, f.color, f.depth) for f in rec]
         return frames, rec.verify()
 
 
@@ -291,7 +291,7 @@ def test_old_files_without_digest_still_read() -> None:
         assert rec.metadata == {"site": "lab"}
         assert rec.depth_scale == 5000.0
         for frame, (color, depth, ts) in zip(rec, golden_frames(), strict=True):
-            assert frame.timestamp == ts
+            assert frame.timestamp_ns == ts
             np.testing.assert_array_equal(frame.color, color)
             np.testing.assert_array_equal(frame.depth, depth)
         assert rec.verify().ok

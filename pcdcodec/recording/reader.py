@@ -9,7 +9,7 @@ import os
 import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
@@ -20,49 +20,13 @@ from ..camera import CameraIntrinsics
 from ..color.base import Packet, StreamCodec, VideoDecoder
 from ..depth.base import FrameCodec, read_header
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
+from ..frame import Frame
 from ..projector import Projector
 from ..registry import get_codec
 from . import _index as fmt
 from ._ros import CameraCalibration, CompressedVideo
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
-
-
-@dataclass
-class Frame:
-    """One decoded frame of a recording.
-
-    ``color`` is H×W×3 uint8 RGB (``None`` for depth-only recordings), ``depth`` the exact
-    depth image that was written, ``timestamp`` nanoseconds.
-    """
-
-    index: int
-    timestamp: int
-    color: npt.NDArray[np.uint8] | None = field(repr=False)
-    depth: npt.NDArray[Any] = field(repr=False)
-    recording: Recording = field(repr=False)
-
-    def to_points(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8] | None]:
-        """N×3 float32 points in metres and their N×3 uint8 colors (see :class:`Projector`)."""
-        return self.recording.projector.to_points(self.depth, self.color)
-
-    def to_point_cloud(self, tensor: bool = False) -> Any:
-        """The frame as an Open3D point cloud (``open3d.t.geometry.PointCloud`` if ``tensor``)."""
-        return self.recording.projector.to_point_cloud(self.depth, self.color, tensor=tensor)
-
-    def to_rgbd(self) -> Any:
-        """The frame as an ``open3d.geometry.RGBDImage`` (depth in metres, RGB colors)."""
-        import open3d as o3d
-
-        geometry: Any = o3d.geometry
-        color = self.color if self.color is not None else np.zeros((*self.depth.shape, 3), np.uint8)
-        return geometry.RGBDImage.create_from_color_and_depth(
-            geometry.Image(np.ascontiguousarray(color)),
-            geometry.Image(np.ascontiguousarray(self.depth)),
-            depth_scale=self.recording.depth_scale,
-            depth_trunc=float(np.finfo(np.float32).max),
-            convert_rgb_to_intensity=False,
-        )
 
 
 @dataclass
@@ -422,7 +386,13 @@ class Recording:
                     f"{str(self.path)!r}: frame {i}: color decoded to {color.shape}, expected "
                     f"({cam.height}, {cam.width}, 3) for the recording's camera"
                 )
-            return Frame(i, int(self._times[i]), color, self._depth(i), self)
+            return Frame(
+                color,
+                self._depth(i),
+                int(self._times[i]),
+                index=i,
+                projector=self.projector,
+            )
         except PcdcodecError:
             raise
         except Exception as exc:  # a backend or a record parser meeting damaged bytes
