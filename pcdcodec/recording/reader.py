@@ -150,6 +150,11 @@ class Recording:
                 f"{where} names codecs that cannot be made ({type(exc).__name__}: {exc})"
             ) from exc
         self._check_channels(name, depth_config, color_config)
+        if fmt.DIGEST_KEY not in meta:
+            # Written before digests: the CRC-checked calibration message vouches for the camera.
+            wrong = [e for e in self._check_calibration(index) if "disagrees" in e]
+            if wrong:
+                raise DecodeError(f"{name!r}: {wrong[0]}")
         if not isinstance(depth_codec, FrameCodec):
             raise DecodeError(f"{where}: depth codec {depth_codec.name!r} is not a frame codec")
         self.depth_codec = depth_codec
