@@ -163,4 +163,4 @@ def _load_builtin() -> None:
     if _loaded:
         return
     _loaded = True
-    from . import folder  # noqa: F401 - registers itself
+    from . import folder, rosbag  # noqa: F401 - each registers itself
