@@ -33,7 +33,7 @@ from .errors import (
 )
 from .evaluation import Evaluation, evaluate
 from .projector import Projector, Reprojection
-from .recording import Frame, Recording, RecordingWriter, open
+from .recording import Frame, Recording, RecordingWriter, export_bag, open
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
 
@@ -65,6 +65,7 @@ __all__ = [
     "codec_class",
     "decode_depth",
     "evaluate",
+    "export_bag",
     "get_codec",
     "list_codecs",
     "load_folder",

@@ -12,6 +12,7 @@ from ..errors import InputError
 from ._index import FORMAT_VERSION
 from .reader import Frame, Recording, VerifyReport
 from .recover import recover
+from .rosbag_export import export_bag
 from .writer import RecordingWriter
 
 __all__ = [
@@ -20,6 +21,7 @@ __all__ = [
     "Recording",
     "RecordingWriter",
     "VerifyReport",
+    "export_bag",
     "open",
     "recover",
 ]
