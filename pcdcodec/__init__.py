@@ -33,7 +33,15 @@ from .errors import (
 )
 from .evaluation import Evaluation, evaluate
 from .projector import Projector, Reprojection
-from .recording import Frame, Recording, RecordingWriter, export_bag, open
+from .recording import (
+    EncodeSummary,
+    Frame,
+    Recording,
+    RecordingWriter,
+    encode,
+    export_bag,
+    open,
+)
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
 
@@ -46,6 +54,7 @@ __all__ = [
     "CodecUnavailableError",
     "ColorCodec",
     "DecodeError",
+    "EncodeSummary",
     "Evaluation",
     "Frame",
     "FrameCodec",
@@ -64,6 +73,7 @@ __all__ = [
     "as_uint16_depth",
     "codec_class",
     "decode_depth",
+    "encode",
     "evaluate",
     "export_bag",
     "get_codec",

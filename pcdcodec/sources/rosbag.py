@@ -299,6 +299,9 @@ class RosbagSource(Source):
     ) -> None:
         from ..camera import CameraIntrinsics
 
+        no_color = color_topic is not None and color_topic.strip().lower() in ("", "none")
+        if no_color:
+            color_topic = ""
         cands = self.candidates()
         by_topic = {c.topic: c for c in cands}
         self.stats = _Stats()
@@ -376,7 +379,7 @@ class RosbagSource(Source):
             self.depth_scale = (
                 float(depth_scale) if depth_scale is not None else (1.0 if float_depth else 1000.0)
             )
-            if color_topic is None:
+            if color_topic is None and not no_color:
                 colors = [
                     c for c in cands if c.role == "color" and (c.width, c.height) == (width, height)
                 ]
