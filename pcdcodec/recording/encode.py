@@ -106,26 +106,39 @@ def encode(
                 "or give the input a camera (camera.json, a CameraInfo topic)"
             )
         meta = {**source.metadata, **(metadata or {})}
+        target = Path(out)
+        if target.exists() and not overwrite:
+            raise InputError(f"{str(target)!r} already exists; pass overwrite=True to replace it")
+        if target.is_dir():
+            raise InputError(f"{str(target)!r} is a folder, not a file")
+        # Written beside the final name and moved there once complete: a failed conversion
+        # leaves nothing under the final name (and an older file there intact).
+        partial = target.with_name(f".{target.name}.partial-{os.getpid()}")
+        partial.unlink(missing_ok=True)
         start = time.perf_counter()
-        with RecordingWriter(
-            out,
-            intrinsics=source.intrinsics,
-            depth_scale=source.depth_scale,
-            color=color if source.has_color else None,
-            depth=depth,
-            fps=fps,
-            metadata=meta,
-            overwrite=overwrite,
-        ) as writer:
-            count = writer.write_source(source, progress=progress)
+        try:
+            with RecordingWriter(
+                partial,
+                intrinsics=source.intrinsics,
+                depth_scale=source.depth_scale,
+                color=color if source.has_color else None,
+                depth=depth,
+                fps=fps,
+                metadata=meta,
+            ) as writer:
+                count = writer.write_source(source, progress=progress)
+            if count == 0:
+                raise InputError(
+                    f"{str(source.path)!r} gave no frames" + _why_empty(source.describe())
+                )
+            os.replace(partial, target)
+        finally:
+            partial.unlink(missing_ok=True)
         seconds = time.perf_counter() - start
-        if count == 0:
-            Path(out).unlink(missing_ok=True)
-            raise InputError(f"{str(source.path)!r} gave no frames" + _why_empty(source.describe()))
         return EncodeSummary(
-            Path(out),
+            target,
             count,
-            Path(out).stat().st_size,
+            target.stat().st_size,
             writer.bytes_color,
             writer.bytes_depth,
             seconds,

@@ -395,11 +395,11 @@ def _write(
                     elif depth.dtype == np.uint16 and scale == 1000.0:
                         bag.write(t_depth, ts, msgs.image(ts, depth, "16UC1"))
                     else:
-                        metres = (
-                            depth
-                            if depth.dtype == np.float32 and scale == 1.0
-                            else (depth / np.float32(scale)).astype(np.float32)
-                        )
+                        if depth.dtype == np.float32 and scale == 1.0:
+                            metres = depth
+                        else:
+                            metres = (depth / np.float32(scale)).astype(np.float32)
+                            metres[depth == 0] = np.nan  # ROS 32FC1: NaN is no measurement
                         bag.write(t_depth, ts, msgs.image(ts, metres, "32FC1"))
                     if color is not None:
                         bag.write(t_color, ts, msgs.image(ts, color, "rgb8"))
