@@ -32,10 +32,10 @@ from .errors import (
     UnknownCodecError,
 )
 from .evaluation import Evaluation, evaluate
+from .frame import Frame
 from .projector import Projector, Reprojection
 from .recording import (
     EncodeSummary,
-    Frame,
     Recording,
     RecordingWriter,
     encode,

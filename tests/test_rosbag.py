@@ -410,7 +410,7 @@ def test_cloud_bag_round_trip_rebuilds_every_point(tmp_path: Path, to: str, info
     with pcdcodec.open(rec_path) as rec:
         assert rec.depth_scale == 1.0
         for frame, original in zip(rec, seq, strict=True):
-            assert frame.timestamp == original.timestamp_ns
+            assert frame.timestamp_ns == original.timestamp_ns
             want = projector.to_organized(original.depth)
             got = rec.projector.to_organized(frame.depth)
             valid = np.isfinite(want[..., 2])

@@ -106,7 +106,7 @@ def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
 
 
 def _from_recording(rec: Any, close: Callable[[], None]) -> _Input:
-    frames = ((f.color, f.depth, int(f.timestamp)) for f in rec)
+    frames = ((f.color, f.depth, int(f.timestamp_ns)) for f in rec)
     return _Input(frames, rec.intrinsics, rec.depth_scale, dict(rec.metadata), len(rec), close)
 
 
