@@ -34,7 +34,15 @@ from .errors import (
 from .evaluation import Evaluation, evaluate
 from .frame import Frame
 from .projector import Projector, Reprojection
-from .recording import Recording, RecordingWriter, open, recover
+from .recording import (
+    EncodeSummary,
+    Recording,
+    RecordingWriter,
+    encode,
+    export_bag,
+    open,
+    recover,
+)
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
 
@@ -47,6 +55,7 @@ __all__ = [
     "CodecUnavailableError",
     "ColorCodec",
     "DecodeError",
+    "EncodeSummary",
     "Evaluation",
     "Frame",
     "FrameCodec",
@@ -65,7 +74,9 @@ __all__ = [
     "as_uint16_depth",
     "codec_class",
     "decode_depth",
+    "encode",
     "evaluate",
+    "export_bag",
     "get_codec",
     "list_codecs",
     "load_folder",
