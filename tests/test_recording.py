@@ -18,6 +18,7 @@ import pytest
 import pcdcodec
 from pcdcodec.datasets import RGBDSequence, load_sample
 from pcdcodec.metrics import psnr
+from pcdcodec.recording._index import seal
 
 from .conftest import SEQUENCES, SHARED_SEQUENCES, load_colors, load_depths
 
@@ -461,6 +462,7 @@ def _rewrite_metadata(src: Path, dst: Path, **changes: str) -> None:
             data = dict(meta.metadata)
             if meta.name == "pcdcodec":
                 data.update(changes)
+                data = seal(meta.name, data)  # as a writer of such a file would
             w.add_metadata(meta.name, data)
         ids = {}
         for sid, schema in summary.schemas.items():

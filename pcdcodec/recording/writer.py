@@ -127,6 +127,8 @@ class RecordingWriter:
         user = {
             str(k): v if isinstance(v, str) else json.dumps(v) for k, v in (metadata or {}).items()
         }
+        if fmt.DIGEST_KEY in user:
+            raise InputError(f"metadata key {fmt.DIGEST_KEY!r} is reserved for the file's digest")
 
         if self.path.exists() and not overwrite:
             raise InputError(
@@ -148,11 +150,14 @@ class RecordingWriter:
         self._file: IO[bytes] = open(self._writing, mode)  # noqa: SIM115 - closed by close()
         # One chunk per message: each is on disk (with its CRC) as soon as it is written, and
         # MCAP's chunk index then gives every message's time and offset directly.
-        self._mcap = Writer(self._file, chunk_size=0, compression=CompressionType.NONE)
+        self._mcap = Writer(
+            self._file, chunk_size=0, compression=CompressionType.NONE, enable_data_crcs=True
+        )
         self._mcap.start(profile=fmt.PROFILE, library=f"pcdcodec {__version__}")
-        self._mcap.add_metadata(
-            fmt.METADATA_NAME,
-            {
+        # The settings the file is read with; each record is sealed with its digest, and the
+        # main record lists the others, so a reader notices any of them changed or missing.
+        records: dict[str, dict[str, str]] = {
+            fmt.METADATA_NAME: {
                 "format_version": str(fmt.FORMAT_VERSION),
                 "library": f"pcdcodec {__version__}",
                 "intrinsics": json.dumps(self.intrinsics.to_dict()),
@@ -164,9 +169,14 @@ class RecordingWriter:
                 else "",
                 "frame_id": frame_id,
             },
-        )
+        }
         if user:
-            self._mcap.add_metadata(fmt.USER_METADATA_NAME, user)
+            records[fmt.USER_METADATA_NAME] = user
+        records[fmt.METADATA_NAME][fmt.RECORDS_KEY] = json.dumps(
+            [name for name in records if name != fmt.METADATA_NAME]
+        )
+        for name, data in records.items():
+            self._mcap.add_metadata(name, fmt.seal(name, data))
         self._file.flush()
 
         self._encoder: VideoEncoder | None = None
