@@ -42,7 +42,10 @@ _NGAPCTX = 6
 _M_TZERO = _M_HDR + 16  # table gaps: zero flag, exponent, mantissa
 _M_TEXP = _M_TZERO + _NGAPCTX
 _M_TMANT = _M_TEXP + _NGAPCTX * 16
-_NMODELS = _M_TMANT + 16 * 16
+_M_QZERO = _M_TMANT + 16 * 16  # zero flag and sign per (gradient triple, error bin)
+_NQE = 4
+_M_QSIGN = _M_QZERO + 730 * _NQE
+_NMODELS = _M_QSIGN + 730 * _NQE
 
 # Bias cancellation (LOCO-I style) over quantised gradient triples; the last slot is unused.
 _NBIAS = 9 * 9 * 9 + 1
@@ -370,6 +373,14 @@ def encode_image(image: Any, allow_table: bool) -> Any:
                 continue
             p, ctx, q = _predict(idx, err, valid, y, x, w, last, glut, elut)
             p += bcor[q]
+            if q != _NOBIAS:
+                eb = ctx % _NEBIN
+                zc = q * _NQE + (eb if eb < _NQE else _NQE - 1)
+                sc = _M_QSIGN + zc
+                zc += _M_QZERO
+            else:
+                zc = _M_ZERO + ctx
+                sc = _M_SIGN + ctx
             if p < 0:
                 p = 0
             elif p > maxidx:
@@ -381,15 +392,15 @@ def encode_image(image: Any, allow_table: bool) -> Any:
             if q != _NOBIAS:
                 _bias_update(bsum, bcnt, bcor, q, e)
             if e == 0:
-                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_ZERO + ctx, 0)
+                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, zc, 0)
                 continue
-            low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_ZERO + ctx, 1)
+            low, rng, pos = _enc(low, rng, pos, out, probs, cnt, zc, 1)
             m = e
             if e < 0:
-                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_SIGN + ctx, 1)
+                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, sc, 1)
                 m = -e
             else:
-                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_SIGN + ctx, 0)
+                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, sc, 0)
             k = 0
             while (m >> (k + 1)) != 0:
                 k += 1
@@ -499,14 +510,22 @@ def decode_image(buf: Any, out_img: Any) -> int:
                     continue
             p, ctx, q = _predict(idx, err, valid, y, x, w, last, glut, elut)
             p += bcor[q]
+            if q != _NOBIAS:
+                eb = ctx % _NEBIN
+                zc = q * _NQE + (eb if eb < _NQE else _NQE - 1)
+                sc = _M_QSIGN + zc
+                zc += _M_QZERO
+            else:
+                zc = _M_ZERO + ctx
+                sc = _M_SIGN + ctx
             if p < 0:
                 p = 0
             elif p > maxidx:
                 p = maxidx
-            nz, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, _M_ZERO + ctx)
+            nz, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, zc)
             e = 0
             if nz:
-                neg, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, _M_SIGN + ctx)
+                neg, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, sc)
                 e0 = _M_EXP + ctx * _EXP
                 k = 0
                 while k < 15:
