@@ -45,7 +45,7 @@ _M_TMANT = _M_TEXP + _NGAPCTX * 16
 _M_QZERO = _M_TMANT + 16 * 16  # zero flag and sign per (gradient triple, error bin)
 _NQE = 4
 _M_QSIGN = _M_QZERO + 730 * _NQE
-_NMODELS = _M_QSIGN + 730 * _NQE
+_NMODELS = _M_QSIGN + 730 * 9
 
 # Bias cancellation (LOCO-I style) over quantised gradient triples; the last slot is unused.
 _NBIAS = 9 * 9 * 9 + 1
@@ -269,6 +269,14 @@ def _bias_update(bsum: Any, bcnt: Any, bcor: Any, q: int, e: int) -> None:
 
 
 @njit(cache=True)
+def _esign(err: Any, y: int, x: int) -> int:
+    """Signs of the west and north residuals (both neighbours are valid where it is used)."""
+    ew = err[y, x - 1]
+    en = err[y - 1, x]
+    return (0 if ew == 0 else (1 if ew > 0 else 2)) * 3 + (0 if en == 0 else (1 if en > 0 else 2))
+
+
+@njit(cache=True)
 def _gap_ctx(pgap: int) -> int:
     if pgap < 2:
         return pgap
@@ -376,7 +384,7 @@ def encode_image(image: Any, allow_table: bool) -> Any:
             if q != _NOBIAS:
                 eb = ctx % _NEBIN
                 zc = q * _NQE + (eb if eb < _NQE else _NQE - 1)
-                sc = _M_QSIGN + zc
+                sc = _M_QSIGN + q * 9 + _esign(err, y, x)
                 zc += _M_QZERO
             else:
                 zc = _M_ZERO + ctx
@@ -513,7 +521,7 @@ def decode_image(buf: Any, out_img: Any) -> int:
             if q != _NOBIAS:
                 eb = ctx % _NEBIN
                 zc = q * _NQE + (eb if eb < _NQE else _NQE - 1)
-                sc = _M_QSIGN + zc
+                sc = _M_QSIGN + q * 9 + _esign(err, y, x)
                 zc += _M_QZERO
             else:
                 zc = _M_ZERO + ctx
