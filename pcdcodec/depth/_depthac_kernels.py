@@ -47,7 +47,7 @@ _NQE = 4
 _M_QSIGN = _M_QZERO + 730 * _NQE
 _NMODELS = _M_QSIGN + 730 * 9
 
-# Bias cancellation (LOCO-I style) over quantised gradient triples; the last slot is unused.
+# Contexts of quantised gradient triples (9 levels each); the last one means no triple.
 _NBIAS = 9 * 9 * 9 + 1
 _NOBIAS = _NBIAS - 1
 
@@ -134,47 +134,39 @@ def _dec(
 # -- shared modelling ---------------------------------------------------------------------
 
 
-@njit(cache=True)
-def _q9(d: int) -> int:
-    """Quantise a signed gradient to 9 levels (0..8, 4 = zero)."""
-    a = d if d > 0 else -d
-    if a == 0:
-        return 4
-    if a == 1:
-        q = 1
-    elif a <= 3:
-        q = 2
-    elif a <= 8:
-        q = 3
-    else:
-        q = 4
-    return 4 + q if d > 0 else 4 - q
+_Q9_LUT = np.array(
+    [0] * 3 + [1] * 5 + [2] * 2 + [3, 4, 5] + [6] * 2 + [7] * 5 + [8] * 3, dtype=np.int64
+)
+_PAD = 2  # rows above and columns on each side of the padded working arrays
 
 
 @njit(cache=True)
-def _mask_ctx(valid: Any, y: int, x: int, w: int) -> int:
-    c = 0
-    if x > 0:
-        c |= np.int64(valid[y, x - 1])
-        if x > 1:
-            c |= np.int64(valid[y, x - 2]) << 1
-    if y > 0:
-        c |= np.int64(valid[y - 1, x]) << 2
-        if x > 0:
-            c |= np.int64(valid[y - 1, x - 1]) << 3
-            if x > 1:
-                c |= np.int64(valid[y - 1, x - 2]) << 5
-        if x + 1 < w:
-            c |= np.int64(valid[y - 1, x + 1]) << 4
-            if x + 2 < w:
-                c |= np.int64(valid[y - 1, x + 2]) << 6
-        if y > 1:
-            c |= np.int64(valid[y - 2, x]) << 7
-            if x > 0:
-                c |= np.int64(valid[y - 2, x - 1]) << 8
-            if x + 1 < w:
-                c |= np.int64(valid[y - 2, x + 1]) << 9
-    return c
+def _q9(d: int) -> Any:
+    """Quantise a signed index gradient to 9 levels (0..8, 4 = zero): 0, 1, 2-3, 4-8, 9+."""
+    if d > 11:
+        return 8
+    if d < -11:
+        return 0
+    return _Q9_LUT[d + 11]
+
+
+@njit(cache=True)
+def _mask_ctx(valid: Any, o: int, s: int) -> Any:
+    """Ten causal mask bits around flat position ``o`` of a padded array of row stride ``s``."""
+    n = o - s
+    nn = n - s
+    return (
+        np.int64(valid[o - 1])
+        | (np.int64(valid[o - 2]) << 1)
+        | (np.int64(valid[n]) << 2)
+        | (np.int64(valid[n - 1]) << 3)
+        | (np.int64(valid[n + 1]) << 4)
+        | (np.int64(valid[n - 2]) << 5)
+        | (np.int64(valid[n + 2]) << 6)
+        | (np.int64(valid[nn]) << 7)
+        | (np.int64(valid[nn - 1]) << 8)
+        | (np.int64(valid[nn + 1]) << 9)
+    )
 
 
 @njit(cache=True)
@@ -191,27 +183,22 @@ def _ctx(g: int, e: int, cls: int, glut: Any, elut: Any) -> int:
 
 @njit(cache=True)
 def _predict(
-    idx: Any, err: Any, valid: Any, y: int, x: int, w: int, last: int, glut: Any, elut: Any
+    idx: Any, err: Any, valid: Any, o: int, s: int, last: int, glut: Any, elut: Any
 ) -> tuple[int, int, int]:
-    """Prediction, model context and bias context of pixel (y, x) from valid neighbours."""
-    va = x > 0 and valid[y, x - 1] != 0
-    vb = y > 0 and valid[y - 1, x] != 0
-    vd = y > 0 and x + 1 < w and valid[y - 1, x + 1] != 0
-    e = 0
-    if va:
-        a = idx[y, x - 1]
-        ea = err[y, x - 1]
-        e += ea if ea > 0 else -ea
-    else:
-        a = 0
-    if vb:
-        b = idx[y - 1, x]
-        eb = err[y - 1, x]
-        e += eb if eb > 0 else -eb
-    else:
-        b = 0
-    if va and vb and valid[y - 1, x - 1] != 0:
-        c = idx[y - 1, x - 1]
+    """Prediction, model context and gradient-triple context at flat position ``o``.
+
+    The arrays are padded with invalid pixels, so no neighbour lookup leaves them.
+    """
+    n = o - s
+    va = valid[o - 1] != 0
+    vb = valid[n] != 0
+    a = np.int64(idx[o - 1])
+    b = np.int64(idx[n])
+    ea = np.int64(err[o - 1])
+    eb = np.int64(err[n])
+    e = (ea if ea > 0 else -ea) + (eb if eb > 0 else -eb)
+    if va and vb and valid[n - 1] != 0:
+        c = np.int64(idx[n - 1])
         mx = a if a > b else b
         mn = a if a < b else b
         if c >= mx:
@@ -221,8 +208,8 @@ def _predict(
         else:
             p = a + b - c
         g = _absdiff(a, c) + _absdiff(b, c)
-        if vd:
-            d = idx[y - 1, x + 1]
+        if valid[n + 1] != 0:
+            d = np.int64(idx[n + 1])
             g += _absdiff(b, d)
             q = (_q9(d - b) * 9 + _q9(b - c)) * 9 + _q9(c - a)
             return p, _ctx(g, e, 0, glut, elut), q
@@ -231,49 +218,26 @@ def _predict(
     if va and vb:
         return (a + b) >> 1, _ctx(2 * _absdiff(a, b), e, 2, glut, elut), _NOBIAS
     if va:
-        g = 0
-        if x > 1 and valid[y, x - 2] != 0:
-            g = 2 * _absdiff(a, idx[y, x - 2])
+        g = 2 * _absdiff(a, np.int64(idx[o - 2])) if valid[o - 2] != 0 else 0
         return a, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS
     if vb:
-        g = 0
-        if y > 1 and valid[y - 2, x] != 0:
-            g = 2 * _absdiff(b, idx[y - 2, x])
+        g = 2 * _absdiff(b, np.int64(idx[n - s])) if valid[n - s] != 0 else 0
         return b, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS
-    if vd:
-        return idx[y - 1, x + 1], _ctx(0, 1, 4, glut, elut), _NOBIAS
+    if valid[n + 1] != 0:
+        return np.int64(idx[n + 1]), _ctx(0, 1, 4, glut, elut), _NOBIAS
     return last, _ctx(0, 0, 4, glut, elut), _NOBIAS
 
 
 @njit(cache=True)
-def _bias_update(bsum: Any, bcnt: Any, bcor: Any, q: int, e: int) -> None:
-    s = bsum[q] + e
-    n = bcnt[q] + 1
-    if n == 64:
-        s = s // 2 if s >= 0 else -((-s) // 2)
-        n = 32
-    if s <= -n:
-        if bcor[q] > -64:
-            bcor[q] -= 1
-        s += n
-        if s <= -n:
-            s = -n + 1
-    elif s > 0:
-        if bcor[q] < 64:
-            bcor[q] += 1
-        s -= n
-        if s > 0:
-            s = 0
-    bsum[q] = s
-    bcnt[q] = n
-
-
-@njit(cache=True)
-def _esign(err: Any, y: int, x: int) -> int:
-    """Signs of the west and north residuals (both neighbours are valid where it is used)."""
-    ew = err[y, x - 1]
-    en = err[y - 1, x]
-    return (0 if ew == 0 else (1 if ew > 0 else 2)) * 3 + (0 if en == 0 else (1 if en > 0 else 2))
+def _coding_ctx(ctx: int, q: int, err: Any, o: int, s: int) -> tuple[int, int]:
+    """Models of the zero flag and of the sign."""
+    if q == _NOBIAS:
+        return _M_ZERO + ctx, _M_SIGN + ctx
+    eb = ctx % _NEBIN
+    ew = err[o - 1]
+    en = err[o - s]
+    sg = (0 if ew == 0 else (1 if ew > 0 else 2)) * 3 + (0 if en == 0 else (1 if en > 0 else 2))
+    return _M_QZERO + q * _NQE + (eb if eb < _NQE else _NQE - 1), _M_QSIGN + q * 9 + sg
 
 
 @njit(cache=True)
@@ -298,17 +262,17 @@ def encode_image(image: Any, allow_table: bool) -> Any:
     glut = _G_LUT
     elut = _E_LUT
     rank = np.zeros(65536, dtype=np.int64)
-    valid = np.empty((h, w), dtype=np.uint8)
+    st = w + 2 * _PAD
+    valid = np.zeros((h + _PAD) * st + _PAD, dtype=np.uint8)
     nvalid = 0
     for y in range(h):
+        o = (y + _PAD) * st + _PAD
         for x in range(w):
             v = image[y, x]
             rank[v] = 1
             if v != 0:
-                valid[y, x] = 1
+                valid[o + x] = 1
                 nvalid += 1
-            else:
-                valid[y, x] = 0
     rank[0] = 0
     ntable = 0
     for v in range(1, 65536):
@@ -316,9 +280,8 @@ def encode_image(image: Any, allow_table: bool) -> Any:
             rank[v] = ntable + 1
             ntable += 1
     use_table = allow_table and nvalid > 0 and 2 * ntable <= nvalid
-    maxidx = ntable - 1 if use_table else 65535
 
-    out = np.zeros(16 + 40 * npix + 8 * ntable, dtype=np.uint8)
+    out = np.empty(16 + 40 * npix + 8 * ntable, dtype=np.uint8)
     out[0] = (1 if use_table else 0) | (2 if nvalid < npix else 0)
     low = 0
     rng = _MASK32
@@ -356,49 +319,30 @@ def encode_image(image: Any, allow_table: bool) -> Any:
             pgap = gap
             prev = v
 
-    idx = np.zeros((h, w), dtype=np.int64)
-    if use_table:
-        for y in range(h):
-            for x in range(w):
-                idx[y, x] = rank[image[y, x]] - 1
-    else:
-        for y in range(h):
-            for x in range(w):
-                idx[y, x] = image[y, x]
-    err = np.zeros((h, w), dtype=np.int64)
-    bsum = np.zeros(_NBIAS, dtype=np.int64)
-    bcnt = np.ones(_NBIAS, dtype=np.int64)
-    bcor = np.zeros(_NBIAS, dtype=np.int64)
+    idx = np.zeros(valid.size, dtype=np.int32)
+    for y in range(h):
+        o = (y + _PAD) * st + _PAD
+        for x in range(w):
+            v = image[y, x]
+            idx[o + x] = rank[v] - 1 if use_table else v
+    err = np.zeros(valid.size, dtype=np.int32)
     code_mask = nvalid < npix
     last = 0
     for y in range(h):
-        for x in range(w):
+        o0 = (y + _PAD) * st + _PAD
+        for o in range(o0, o0 + w):
             if code_mask:
                 low, rng, pos = _enc(
-                    low, rng, pos, out, probs, cnt, _M_MASK + _mask_ctx(valid, y, x, w), valid[y, x]
+                    low, rng, pos, out, probs, cnt, _M_MASK + _mask_ctx(valid, o, st), valid[o]
                 )
-            if valid[y, x] == 0:
+            if valid[o] == 0:
                 continue
-            p, ctx, q = _predict(idx, err, valid, y, x, w, last, glut, elut)
-            p += bcor[q]
-            if q != _NOBIAS:
-                eb = ctx % _NEBIN
-                zc = q * _NQE + (eb if eb < _NQE else _NQE - 1)
-                sc = _M_QSIGN + q * 9 + _esign(err, y, x)
-                zc += _M_QZERO
-            else:
-                zc = _M_ZERO + ctx
-                sc = _M_SIGN + ctx
-            if p < 0:
-                p = 0
-            elif p > maxidx:
-                p = maxidx
-            v = idx[y, x]
+            p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
+            zc, sc = _coding_ctx(ctx, q, err, o, st)
+            v = np.int64(idx[o])
             e = v - p
-            err[y, x] = e
+            err[o] = e
             last = v
-            if q != _NOBIAS:
-                _bias_update(bsum, bcnt, bcor, q, e)
             if e == 0:
                 low, rng, pos = _enc(low, rng, pos, out, probs, cnt, zc, 0)
                 continue
@@ -497,39 +441,27 @@ def decode_image(buf: Any, out_img: Any) -> int:
         for i in range(65536):
             table[i] = i
 
-    valid = np.ones((h, w), dtype=np.uint8)
-    idx = np.zeros((h, w), dtype=np.int64)
-    err = np.zeros((h, w), dtype=np.int64)
-    bsum = np.zeros(_NBIAS, dtype=np.int64)
-    bcnt = np.ones(_NBIAS, dtype=np.int64)
-    bcor = np.zeros(_NBIAS, dtype=np.int64)
+    st = w + 2 * _PAD
+    valid = np.zeros((h + _PAD) * st + _PAD, dtype=np.uint8)
+    idx = np.zeros(valid.size, dtype=np.int32)
+    err = np.zeros(valid.size, dtype=np.int32)
     last = 0
     for y in range(h):
         if pos > n:
             return ERR_LENGTH
+        o0 = (y + _PAD) * st + _PAD
         for x in range(w):
+            o = o0 + x
             if code_mask:
                 bit, code, rng, pos = _dec(
-                    code, rng, pos, buf, n, probs, cnt, _M_MASK + _mask_ctx(valid, y, x, w)
+                    code, rng, pos, buf, n, probs, cnt, _M_MASK + _mask_ctx(valid, o, st)
                 )
-                valid[y, x] = bit
                 if bit == 0:
                     out_img[y, x] = 0
                     continue
-            p, ctx, q = _predict(idx, err, valid, y, x, w, last, glut, elut)
-            p += bcor[q]
-            if q != _NOBIAS:
-                eb = ctx % _NEBIN
-                zc = q * _NQE + (eb if eb < _NQE else _NQE - 1)
-                sc = _M_QSIGN + q * 9 + _esign(err, y, x)
-                zc += _M_QZERO
-            else:
-                zc = _M_ZERO + ctx
-                sc = _M_SIGN + ctx
-            if p < 0:
-                p = 0
-            elif p > maxidx:
-                p = maxidx
+            valid[o] = 1
+            p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
+            zc, sc = _coding_ctx(ctx, q, err, o, st)
             nz, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, zc)
             e = 0
             if nz:
@@ -550,12 +482,10 @@ def decode_image(buf: Any, out_img: Any) -> int:
             v = p + e
             if v < 0 or v > maxidx or table[v] == 0:
                 return ERR_INDEX
-            idx[y, x] = v
-            err[y, x] = e
+            idx[o] = v
+            err[o] = e
             out_img[y, x] = table[v]
             last = v
-            if q != _NOBIAS:
-                _bias_update(bsum, bcnt, bcor, q, e)
     if pos != n:
         return ERR_LENGTH
     return OK
