@@ -189,8 +189,12 @@ class FolderSource(Source):
         return len(self.pairs)
 
     def __iter__(self) -> Iterator[RGBDFrame]:
+        return self.frames()
+
+    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[RGBDFrame]:
+        """Frames ``start`` to ``stop`` (exclusive); only their images are read."""
         shape: tuple[int, ...] | None = None
-        for t, c, d in self.pairs:
+        for t, c, d in self.pairs[start:stop]:
             frame = RGBDFrame(_read_color(c), _read_depth(d), t)
             if frame.color.shape[:2] != frame.depth.shape:
                 raise InputError(
