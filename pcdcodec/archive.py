@@ -541,6 +541,15 @@ def _sweep(out: Path) -> None:
                     os.unlink(os.path.join(dirpath, name))
 
 
+def _prune(folder: Path) -> None:
+    """Remove the empty folders under ``folder`` (segments are gone once joined)."""
+    if not folder.is_dir():
+        return
+    for dirpath, _, _ in sorted(os.walk(folder), key=lambda w: -len(w[0])):
+        with contextlib.suppress(OSError):
+            os.rmdir(dirpath)  # only succeeds when empty
+
+
 def _plan(frames: int | None, segment_frames: int) -> list[tuple[int, int | None]]:
     if frames is None or frames <= segment_frames:
         return [(0, None)]
@@ -748,6 +757,7 @@ def archive(
                     bar.close()
                     manifest.save()
         _sweep(out)
+        _prune(out / PARTS)
     return ArchiveSummary(
         [items[rel] for _, rel in inputs],
         time.perf_counter() - started,
@@ -866,12 +876,15 @@ def _run(
             fail(rel, full if full is not None else exc)
             if full is not None and stopped is None:
                 stopped = str(full)
+                # Joins under way are let finish: they free their segments' space, and
+                # their outputs are complete.
                 for other in jobs.values():
                     for f in other.futures:
-                        f.cancel()
+                        if f.key in what and what[f.key][1] != "join":
+                            f.cancel()
             continue
-        if stopped is not None:
-            continue
+        if stopped is not None and step != "join":
+            continue  # a join that finished anyway left a complete output: record it
         result = fut.result()
         fut.release()
         if step == "probe":
@@ -934,7 +947,7 @@ def _run(
             item.frames = job.frames or int(manifest.entries[rel].get("frames") or 0)
             item.segments = len(job.plan)
             manifest.update(rel, state="done", bytes_out=item.bytes_out, frames=item.frames)
-            if verify:
+            if verify and stopped is None:
                 colors = (
                     [c for i in sorted(job.colors) for c in job.colors[i]]
                     if writer_options["color"] is not None and len(job.colors) == len(job.plan)
