@@ -35,8 +35,9 @@ from .errors import (
     VerificationError,
 )
 from .evaluation import Evaluation, evaluate
+from .frame import Frame
 from .projector import Projector, Reprojection
-from .recording import Frame, Recording, RecordingWriter, open
+from .recording import Recording, RecordingWriter, open
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
 

@@ -430,9 +430,9 @@ def _verify(
             frame = next(decoded, None)
             if frame is None:
                 raise VerificationError(f"{name}: frame {n} of the source is missing")
-            if frame.timestamp != original.timestamp_ns:
+            if frame.timestamp_ns != original.timestamp_ns:
                 raise VerificationError(
-                    f"{name}: frame {n} is at {frame.timestamp} ns, the source's at "
+                    f"{name}: frame {n} is at {frame.timestamp_ns} ns, the source's at "
                     f"{original.timestamp_ns} ns"
                 )
             if frame.depth.dtype != original.depth.dtype or not np.array_equal(

@@ -223,9 +223,10 @@ def _cmd_decode(args: argparse.Namespace) -> int:
             ["# depth maps", "# timestamp filename"],
         )
         with Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar:
-            for frame in rec:
-                stamp = f"{frame.timestamp // 1_000_000_000}.{frame.timestamp % 1_000_000_000:09d}"
-                name = f"{frame.index:06d}"
+            for i, frame in enumerate(rec):
+                t = frame.timestamp_ns
+                stamp = f"{t // 1_000_000_000}.{t % 1_000_000_000:09d}"
+                name = f"{i:06d}"
                 if frame.color is not None:
                     (out / "rgb" / f"{name}.png").write_bytes(imagecodecs.png_encode(frame.color))
                     rgb_list.append(f"{stamp} rgb/{name}.png")
@@ -244,7 +245,7 @@ def _cmd_decode(args: argparse.Namespace) -> int:
                     for flag, ext in ((args.ply, "ply"), (args.pcd, "pcd")):
                         if flag:
                             o3d.io.write_point_cloud(out / "clouds" / f"{name}.{ext}", cloud)
-                bar.update(frame.index + 1)
+                bar.update(i + 1)
         (out / "rgb.txt").write_text("\n".join(rgb_list) + "\n")
         (out / "depth.txt").write_text("\n".join(depth_list) + "\n")
         camera = {**rec.intrinsics.to_dict(), "depth_scale": rec.depth_scale}

@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError
+from .frame import Frame
 from .sources.base import Source
 
 if TYPE_CHECKING:
@@ -43,16 +44,12 @@ _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
 _NS_PER_S = 1_000_000_000
 
 
-@dataclass
-class RGBDFrame:
-    """One color/depth pair: RGB uint8 H×W×3, depth H×W (uint16 units or float32 metres)."""
-
-    color: npt.NDArray[np.uint8]
-    depth: npt.NDArray[Any]
-    timestamp_ns: int
+#: The frame type of sources, recordings and evaluation (see :class:`pcdcodec.Frame`);
+#: ``RGBDFrame(color=..., depth=..., timestamp_ns=...)``.
+RGBDFrame = Frame
 
 
-@dataclass
+@dataclass(repr=False)
 class RGBDSequence:
     """Frames in time order, with the camera that took them."""
 
@@ -77,7 +74,21 @@ class RGBDSequence:
 
     @property
     def colors(self) -> list[npt.NDArray[np.uint8]]:
-        return [f.color for f in self.frames]
+        return [f.color for f in self.frames if f.color is not None]
+
+    def __repr__(self) -> str:
+        size = ""
+        if self.frames:
+            h, w = self.frames[0].depth.shape[:2]
+            size = f", {w}x{h} {self.frames[0].depth.dtype}"
+        name = f" {self.name!r}" if self.name else ""
+        span = ""
+        if len(self.frames) > 1:
+            span = f", {(self.frames[-1].timestamp_ns - self.frames[0].timestamp_ns) / 1e9:.2f} s"
+        return (
+            f"<pcdcodec.RGBDSequence{name}: {len(self.frames)} frames{size}{span}, "
+            f"depth_scale={self.depth_scale:g}, intrinsics={self.intrinsics!r}>"
+        )
 
 
 def sample_dir() -> Path:
@@ -194,8 +205,14 @@ class FolderSource(Source):
     def frames(self, start: int = 0, stop: int | None = None) -> Iterator[RGBDFrame]:
         """Frames ``start`` to ``stop`` (exclusive); only their images are read."""
         shape: tuple[int, ...] | None = None
-        for t, c, d in self.pairs[start:stop]:
-            frame = RGBDFrame(_read_color(c), _read_depth(d), t)
+        projector = None
+        if self.intrinsics is not None:
+            from .projector import Projector
+
+            projector = Projector(self.intrinsics, self.depth_scale)
+        for i, (t, c, d) in enumerate(self.pairs[start:stop], start):
+            frame = RGBDFrame(_read_color(c), _read_depth(d), t, index=i, projector=projector)
+            assert frame.color is not None
             if frame.color.shape[:2] != frame.depth.shape:
                 raise InputError(
                     f"{str(c)!r} is {frame.color.shape[1]}x{frame.color.shape[0]} but "

@@ -58,6 +58,7 @@ def assert_same_as_source(output: Path, source: Path) -> None:
     frames = list(pcdcodec.open_source(source))
     with pcdcodec.open(output) as rec:
         assert rec.indexed
+        assert rec.verify().ok
         assert len(rec) == len(frames)
         np.testing.assert_array_equal(rec.timestamps, [f.timestamp_ns for f in frames])
         sequential = []
@@ -120,6 +121,8 @@ def test_join_reads_like_one_writer(tmp_path: Path, sample: RGBDSequence, color:
             # Decoding straight through the joins gives each segment's own decode.
             np.testing.assert_array_equal(frame.color, color_alone)
         assert {0, 4, 7} <= set(rec._keyframes)
+        report = rec.verify()  # every checksum, and a full scan against the index
+        assert report.ok, report.errors
         for i in (8, 5, 4, 0, 7, 3):
             np.testing.assert_array_equal(rec[i].color, alone[i])
     # One metadata record, the calibration once, sequence numbers that continue.

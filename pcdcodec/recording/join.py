@@ -25,13 +25,17 @@ def _load(path: Path) -> fmt.FileIndex:
         if f.read(8) != fmt.MAGIC:
             raise DecodeError(f"{str(path)!r} is not a pcdcodec recording (not an MCAP file)")
         f.seek(0)
-        index = fmt.from_summary(f)
+        try:
+            index = fmt.from_summary(f)
+        except Exception as exc:
+            raise DecodeError(f"{str(path)!r} has a damaged index ({exc})") from exc
     if index is None:
         raise DecodeError(
             f"{str(path)!r} was not closed by its writer (no index); `pcdcodec recover` it first"
         )
     if index.profile != fmt.PROFILE or fmt.METADATA_NAME not in index.metadata:
         raise DecodeError(f"{str(path)!r} is not a pcdcodec recording")
+    fmt.check_metadata(index, repr(str(path)))
     return index
 
 
@@ -107,7 +111,9 @@ def join(
     frames = 0
     try:
         with tmp.open("wb") as out:
-            writer = Writer(out, chunk_size=0, compression=CompressionType.NONE)
+            writer = Writer(
+                out, chunk_size=0, compression=CompressionType.NONE, enable_data_crcs=True
+            )
             writer.start(profile=fmt.PROFILE, library=_library(paths[0]))
             for name, data in first.metadata.items():
                 writer.add_metadata(name, data)
@@ -131,8 +137,9 @@ def join(
                 channel_topic = {cid: ch.topic for cid, ch in index.channels.items()}
                 offsets = sorted({o for topic in index.offsets.values() for o in topic})
                 with path.open("rb") as f:
+                    size = fmt.file_size(f)
                     for offset in offsets:
-                        for m in fmt.read_chunk_messages(f, offset, what=f"{path.name}"):
+                        for m in fmt.read_chunk_messages(f, offset, what=path.name, size=size):
                             topic = channel_topic.get(m.channel_id)
                             if topic is None or (topic == fmt.TOPIC_CALIBRATION and n > 0):
                                 continue
