@@ -560,14 +560,14 @@ def _plan(frames: int | None, segment_frames: int) -> list[tuple[int, int | None
 
 class _ByteProgress:
     def __init__(self, total: int, enabled: bool, stream: Any) -> None:
-        self.total, self.done, self.enabled, self.stream = total, 0, enabled, stream
+        self.total, self.done, self.enabled, self.stream = total, 0.0, enabled, stream
         self.inputs_done = 0
         self.inputs = 0
         self._start = time.perf_counter()
         self._last = 0.0
 
     def add(self, n: float) -> None:
-        self.done = min(self.total, self.done + int(n))
+        self.done = min(float(self.total), self.done + n)
         self.show()
 
     def show(self, force: bool = False) -> None:
@@ -695,69 +695,106 @@ def archive(
 
     with _Lock(out):
         _sweep(out)
-        manifest = _Manifest(out)
-        items: dict[str, ArchiveItem] = {}
-        todo: list[tuple[Path, str, int, int]] = []
-        for path, rel in inputs:
-            size, mtime = _stat(path)
-            entry = manifest.entries.get(rel, {})
-            item = ArchiveItem(str(path), str(out / rel), "pending", bytes_in=size)
-            items[rel] = item
-            unchanged = (
-                entry.get("size") == size
-                and entry.get("mtime_ns") == mtime
-                and entry.get("settings") == settings
-                and (out / rel).is_file()
+        try:
+            return _archive(
+                inputs,
+                out,
+                scheduler,
+                workers,
+                processes,
+                options,
+                writer_options,
+                settings,
+                segment_frames,
+                verify,
+                delete_source_after_verify,
+                progress,
+                show,
+                say,
+                started,
             )
-            if unchanged and entry.get("state") in DONE_STATES:
-                if verify and entry.get("state") == "done":
-                    todo.append((path, rel, size, mtime))  # encoded before, not yet verified
-                else:
-                    item.state = "skipped"
-                    item.bytes_out = int(entry.get("bytes_out", 0))
-                    item.frames = int(entry.get("frames", 0))
-                continue
-            todo.append((path, rel, size, mtime))
-        total = sum(s for _, _, s, _ in todo)
-        bar = _ByteProgress(total, show and not callable(progress), sys.stderr)
-        bar.inputs = len(todo)
+        finally:
+            # Whatever stopped the run (Ctrl-C included), no half-written file stays behind.
+            _sweep(out)
+            _prune(out / PARTS)
 
-        def advance(n: float) -> None:
-            bar.add(n)
-            if callable(progress):
-                progress(bar.done, bar.total)
 
-        stopped: str | None = None
-        workers_seen = 0
-        dashboard: str | None = None
-        if todo:
-            with _cluster(scheduler, workers, processes) as client:
-                dashboard = _dashboard(client)
-                workers_seen = len(client.scheduler_info().get("workers", {}))
-                say(
-                    f"dashboard: {dashboard}" if dashboard else "dashboard: install bokeh to see it"
+def _archive(
+    inputs: list[tuple[Path, str]],
+    out: Path,
+    scheduler: str | None,
+    workers: int | None,
+    processes: bool,
+    options: dict[str, Any],
+    writer_options: dict[str, Any],
+    settings: dict[str, Any],
+    segment_frames: int,
+    verify: bool,
+    delete_source_after_verify: bool,
+    progress: bool | Callable[[int, int], None] | None,
+    show: bool,
+    say: Callable[[str], None],
+    started: float,
+) -> ArchiveSummary:
+    manifest = _Manifest(out)
+    items: dict[str, ArchiveItem] = {}
+    todo: list[tuple[Path, str, int, int]] = []
+    for path, rel in inputs:
+        size, mtime = _stat(path)
+        entry = manifest.entries.get(rel, {})
+        item = ArchiveItem(str(path), str(out / rel), "pending", bytes_in=size)
+        items[rel] = item
+        unchanged = (
+            entry.get("size") == size
+            and entry.get("mtime_ns") == mtime
+            and entry.get("settings") == settings
+            and (out / rel).is_file()
+        )
+        if unchanged and entry.get("state") in DONE_STATES:
+            if verify and entry.get("state") == "done":
+                todo.append((path, rel, size, mtime))  # encoded before, not yet verified
+            else:
+                item.state = "skipped"
+                item.bytes_out = int(entry.get("bytes_out", 0))
+                item.frames = int(entry.get("frames", 0))
+            continue
+        todo.append((path, rel, size, mtime))
+    total = sum(s for _, _, s, _ in todo)
+    bar = _ByteProgress(total, show and not callable(progress), sys.stderr)
+    bar.inputs = len(todo)
+
+    def advance(n: float) -> None:
+        bar.add(n)
+        if callable(progress):
+            progress(round(bar.done), bar.total)
+
+    stopped: str | None = None
+    workers_seen = 0
+    dashboard: str | None = None
+    if todo:
+        with _cluster(scheduler, workers, processes) as client:
+            dashboard = _dashboard(client)
+            workers_seen = len(client.scheduler_info().get("workers", {}))
+            say(f"dashboard: {dashboard}" if dashboard else "dashboard: install bokeh to see it")
+            try:
+                stopped = _run(
+                    client,
+                    todo,
+                    items,
+                    manifest,
+                    out,
+                    options,
+                    writer_options,
+                    settings,
+                    segment_frames,
+                    verify,
+                    delete_source_after_verify,
+                    advance,
+                    bar,
                 )
-                try:
-                    stopped = _run(
-                        client,
-                        todo,
-                        items,
-                        manifest,
-                        out,
-                        options,
-                        writer_options,
-                        settings,
-                        segment_frames,
-                        verify,
-                        delete_source_after_verify,
-                        advance,
-                        bar,
-                    )
-                finally:
-                    bar.close()
-                    manifest.save()
-        _sweep(out)
-        _prune(out / PARTS)
+            finally:
+                bar.close()
+                manifest.save()
     return ArchiveSummary(
         [items[rel] for _, rel in inputs],
         time.perf_counter() - started,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import errno
+import importlib.util
 import itertools
 import json
 import os
@@ -174,10 +175,27 @@ def tree(tmp_path: Path) -> Path:
 
 def test_archive_mirrors_verifies_and_skips_on_rerun(tmp_path: Path, tree: Path) -> None:
     out = tmp_path / "out"
+    messages: list[str] = []
+    seen: list[tuple[int, int]] = []
     summary = archive(
-        [tree], out, workers=2, processes=False, segment_frames=4, verify=True, progress=False
+        [tree],
+        out,
+        workers=2,
+        processes=False,
+        segment_frames=4,
+        verify=True,
+        progress=lambda done, total: seen.append((done, total)),
+        log=messages.append,
     )
     assert summary.ok, summary.to_text()
+    # Progress counts source bytes, up to all of them.
+    assert seen[-1][0] == seen[-1][1] == summary.bytes_in
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen)
+    assert messages[0].startswith("dashboard: ")
+    if importlib.util.find_spec("bokeh") is not None:
+        assert summary.dashboard is not None
+        assert summary.dashboard.startswith("http://")
+        assert summary.dashboard in messages[0]
     assert sorted(Path(i.output).relative_to(out).as_posix() for i in summary.items) == [
         "lab/c.pcdc",
         "lab/day1/a.pcdc",
