@@ -117,9 +117,10 @@ def generate(work: Path, n: int, frames: int, fmt: str, long_factor: int = 1) ->
     return made
 
 
-def _peak_rss() -> int:
-    """This process's peak resident memory in bytes (Linux reports KiB)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+def _usage() -> tuple[int, float]:
+    """This process's peak resident memory in bytes (Linux reports KiB) and CPU seconds."""
+    u = resource.getrusage(resource.RUSAGE_SELF)
+    return u.ru_maxrss * 1024, u.ru_utime + u.ru_stime
 
 
 def run(inputs: list[Path], out: Path, workers: int, segment_frames: int) -> dict[str, Any]:
@@ -149,7 +150,10 @@ def run(inputs: list[Path], out: Path, workers: int, segment_frames: int) -> dic
             progress=False,
         )
         wall = time.perf_counter() - start
-        peaks = sorted(client.run(_peak_rss).values())
+        usage = list(client.run(_usage).values())
+        peaks = sorted(p for p, _ in usage)
+        cpu = sum(c for _, c in usage)
+        load = os.getloadavg()[0]
     if not summary.ok:
         raise SystemExit(summary.to_text())
     return {
@@ -163,6 +167,11 @@ def run(inputs: list[Path], out: Path, workers: int, segment_frames: int) -> dic
         "mb_per_s": summary.bytes_in / 1e6 / wall,
         "frames_per_s": summary.frames / wall,
         "peak_rss_per_worker_mb": [p / 1e6 for p in peaks],
+        # Per CPU-second of the workers: the rate of one core, whatever else runs beside.
+        "worker_cpu_s": cpu,
+        "mb_per_cpu_s": summary.bytes_in / 1e6 / cpu,
+        "frames_per_cpu_s": summary.frames / cpu,
+        "load_average_1min": load,
     }
 
 
@@ -197,13 +206,17 @@ def main() -> None:
 
     print()
     print(f"{args.format}: {len(inputs)} inputs, {args.frames} frames each")
-    print("| workers | MB/s in | frames/s | ratio | seconds | peak RSS per worker (MB) |")
-    print("|---|---|---|---|---|---|")
+    print(
+        "| workers | MB/s in | frames/s | ratio | seconds | MB per CPU-s | frames per CPU-s "
+        "| peak RSS per worker (MB) | load |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in results["runs"]:
         rss = ", ".join(f"{p:.0f}" for p in r["peak_rss_per_worker_mb"])
         print(
-            f"| {r['workers']} | {r['mb_per_s']:.1f} | {r['frames_per_s']:.1f} | "
-            f"{r['ratio']:.1f} | {r['seconds']:.1f} | {rss} |"
+            f"| {r['workers']} | {r['mb_per_s']:.2f} | {r['frames_per_s']:.2f} | "
+            f"{r['ratio']:.1f} | {r['seconds']:.1f} | {r['mb_per_cpu_s']:.2f} | "
+            f"{r['frames_per_cpu_s']:.2f} | {rss} | {r['load_average_1min']:.1f} |"
         )
     for r in results.get("memory", []):
         rss = r["peak_rss_per_worker_mb"][0]
