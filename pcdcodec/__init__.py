@@ -24,12 +24,15 @@ from .color import DEFAULT_COLOR_CODEC
 from .datasets import RGBDFrame, RGBDSequence, load_folder, load_sample
 from .depth import DEFAULT_DEPTH_CODEC, FrameCodec, decode_depth
 from .errors import (
+    ArchiveLockedError,
     CodecUnavailableError,
     DecodeError,
+    DiskFullError,
     InputError,
     InputTypeError,
     PcdcodecError,
     UnknownCodecError,
+    VerificationError,
 )
 from .evaluation import Evaluation, evaluate
 from .frame import Frame
@@ -50,11 +53,13 @@ __all__ = [
     "DEFAULT_COLOR_CODEC",
     "DEFAULT_DEPTH_CODEC",
     "KINDS",
+    "ArchiveLockedError",
     "CameraIntrinsics",
     "Codec",
     "CodecUnavailableError",
     "ColorCodec",
     "DecodeError",
+    "DiskFullError",
     "EncodeSummary",
     "Evaluation",
     "Frame",
@@ -70,6 +75,7 @@ __all__ = [
     "Reprojection",
     "Source",
     "UnknownCodecError",
+    "VerificationError",
     "__version__",
     "as_uint16_depth",
     "codec_class",

@@ -499,6 +499,27 @@ def _cmd_import(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_archive(args: argparse.Namespace) -> int:
+    from .archive import archive
+
+    summary = archive(
+        args.src,
+        args.output,
+        scheduler=args.scheduler,
+        workers=args.workers,
+        color=parse_codec(args.color, "color") if args.color != "none" else None,
+        depth=parse_codec(args.depth, "depth"),
+        fps=args.fps,
+        segment_frames=args.segment_frames,
+        verify=args.verify,
+        delete_source_after_verify=args.delete_source_after_verify,
+        processes=not args.threads,
+        progress=False if args.quiet else None,
+    )
+    print(json.dumps(summary.to_dict(), indent=2) if args.json else summary.to_text())
+    return 0 if summary.ok else 1
+
+
 # -- parser ------------------------------------------------------------------------------------
 
 
@@ -596,6 +617,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     _add_camera_options(p)
     p.set_defaults(func=_cmd_bench)
+
+    p = sub.add_parser("archive", help="compress many inputs on a Dask cluster, resumably")
+    p.add_argument("src", nargs="+", help="inputs, or folders searched for inputs")
+    p.add_argument("-o", "--output", required=True, help="output folder (mirrors the sources)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", help="address of a running Dask scheduler")
+    where.add_argument("--workers", type=int, help="local workers (default: one per core)")
+    p.add_argument("--threads", action="store_true", help="local workers as threads")
+    p.add_argument("--color", default="h264", help="color codec, or none for depth only")
+    p.add_argument("--depth", default="jpegxl", help="depth codec, e.g. jpegxl or zstd:level=9")
+    p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
+    p.add_argument(
+        "--segment-frames",
+        type=int,
+        default=300,
+        help="frames per parallel segment of a long input (default: %(default)s)",
+    )
+    p.add_argument("--verify", action="store_true", help="decode and compare every output")
+    p.add_argument(
+        "--delete-source-after-verify",
+        action="store_true",
+        help="delete each source once its output is verified (implies --verify)",
+    )
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=_cmd_archive)
 
     p = sub.add_parser("codecs", help="list the registered codecs and their defaults")
     p.add_argument("--kind", choices=KINDS, help="only codecs of this kind")
