@@ -24,6 +24,7 @@ from ..errors import InputError, InputTypeError
 from ..frame import OPEN3D_DEPTH_SCALE
 from ..projector import check_color_camera
 from ..registry import get_codec
+from ..sources.base import Source
 from ..transform import as_rigid, matrix_to_quaternion
 from . import _index as fmt
 from ._ros import (
@@ -437,15 +438,15 @@ class RecordingWriter:
         Open3D RGBDImages, legacy or tensor, alone or as ``(rgbd, timestamp)`` tuples.
         ``rgbd_depth_scale`` is the depth scale the RGBDImages were made with (see
         :meth:`write_rgbd`). ``progress`` is called with the number of frames written so far.
+        To record a whole source with its camera, use :meth:`write_source` (or
+        :func:`pcdcodec.encode`).
         """
-        from ..frame import open3d_rgbd_kind
+        from ..frame import Frame, open3d_rgbd_kind
 
         count = 0
         for item in frames:
-            if hasattr(item, "depth") and hasattr(item, "timestamp_ns"):
-                self.write(
-                    item.color, item.depth, item.timestamp_ns, pose=getattr(item, "pose", None)
-                )
+            if isinstance(item, Frame):
+                self.write(item.color, item.depth, item.timestamp_ns, pose=item.pose)
             elif open3d_rgbd_kind(item) is not None:
                 self.write_rgbd(item, depth_scale=rgbd_depth_scale)
             elif (
@@ -464,6 +465,57 @@ class RecordingWriter:
             if progress is not None:
                 progress(count)
         return count
+
+    def write_source(self, source: Source, *, progress: Callable[[int], None] | None = None) -> int:
+        """Write every frame of a :class:`~pcdcodec.Source` and return how many were written.
+
+        The source's camera and depth scale must be this recording's (:func:`pcdcodec.encode`
+        opens the writer from the source, so they are). A source without color
+        (``source.has_color`` false) needs a writer opened with ``color=None``. Raises
+        :class:`~pcdcodec.InputError` when they disagree; frames already written stay intact.
+        """
+        from ..sources.base import Source
+
+        if not isinstance(source, Source):
+            raise InputTypeError(
+                f"write_source takes a pcdcodec.Source, got {type(source).__name__}; use "
+                "write_frames for other iterables"
+            )
+        if source.intrinsics is not None and source.intrinsics != self.intrinsics:
+            raise InputError(
+                f"source {str(source.path)!r} has camera {source.intrinsics.to_dict()}, this "
+                f"recording {self.intrinsics.to_dict()}"
+            )
+        if source.color_intrinsics != self.color_intrinsics or (
+            source.depth_to_color is not None
+            and self.depth_to_color is not None
+            and not np.allclose(source.depth_to_color, self.depth_to_color, rtol=0, atol=1e-12)
+        ):
+
+            def show(cam: CameraIntrinsics | None, d2c: Any) -> str:
+                t = None if d2c is None else np.round(np.asarray(d2c), 6).tolist()
+                return f"color camera {cam.to_dict() if cam else None}, depth_to_color {t}"
+
+            raise InputError(
+                f"source {str(source.path)!r} has "
+                f"{show(source.color_intrinsics, source.depth_to_color)}; this recording has "
+                f"{show(self.color_intrinsics, self.depth_to_color)} "
+                "(open the recording with the source's color_intrinsics and depth_to_color)"
+            )
+        if float(source.depth_scale) != self.depth_scale:
+            raise InputError(
+                f"source {str(source.path)!r} has depth scale {source.depth_scale} per metre, this "
+                f"recording {self.depth_scale}"
+            )
+        if not source.has_color and self.color_codec is not None:
+            raise InputError(
+                f"source {str(source.path)!r} has no color; open the recording with color=None"
+            )
+        if source.has_color and self.color_codec is None:
+            frames: Iterable[Any] = ((None, f.depth, f.timestamp_ns) for f in source)
+        else:
+            frames = source
+        return self.write_frames(frames, progress=progress)
 
     def _synchronizer(self) -> Any:
         if self._sync is None:
@@ -543,8 +595,14 @@ class RecordingWriter:
                 self._channels["pose"] = self._mcap.register_channel(
                     fmt.TOPIC_POSE, "cdr", self._transform_schema(), {}
                 )
+                self._channels["pose_matrix"] = self._mcap.register_channel(
+                    fmt.TOPIC_POSE_MATRIX, fmt.ENCODING_POSE_MATRIX, 0, {}
+                )
             msg = _transform(pose, timestamp, self.world_frame_id, self.frame_id)
             self._mcap.add_message(self._channels["pose"], timestamp, msg, timestamp)
+            # The quaternion is a rounding away from the matrix given; keep that exactly too.
+            exact = np.ascontiguousarray(pose, dtype="<f8").tobytes()
+            self._mcap.add_message(self._channels["pose_matrix"], timestamp, exact, timestamp)
             self.poses_written += 1
         self.frames_written += 1
         self._depth_written.append(timestamp)

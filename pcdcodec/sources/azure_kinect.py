@@ -105,13 +105,20 @@ class AzureKinectSource(Source):
     """Frames of an Azure Kinect ``.mkv``: depth in millimetres (depth scale 1000) with the
     depth camera's intrinsics, color with the color camera's, and ``depth_to_color``.
 
-    ``max_frames`` stops early. ``metadata`` holds the serial number, the depth and color
-    modes and the firmware versions. Raises :class:`~pcdcodec.InputError` for a file without a
-    depth track, without the ``calibration.json`` attachment, with an unknown depth mode or
-    color resolution, and when iterating a file that holds no captures (no clusters).
+    ``max_frames`` stops early; ``intrinsics`` replaces the calibrated depth camera.
+    ``metadata`` holds the serial number, the depth and color modes and the firmware versions.
+    Raises :class:`~pcdcodec.InputError` for a file without a depth track, without the
+    ``calibration.json`` attachment, with an unknown depth mode or color resolution, or without
+    clusters (no captures).
     """
 
-    def __init__(self, path: str | Path, *, max_frames: int | None = None) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        max_frames: int | None = None,
+        intrinsics: CameraIntrinsics | None = None,
+    ) -> None:
         import av
 
         self.path = Path(path)
@@ -130,6 +137,8 @@ class AzureKinectSource(Source):
             self._read_header(container, name)
         finally:
             container.close()
+        if intrinsics is not None:
+            self.intrinsics = intrinsics
 
     def _read_header(self, container: Any, name: str) -> None:
         tags = dict(container.metadata)
@@ -207,6 +216,7 @@ class AzureKinectSource(Source):
             self.depth_to_color = _rt(color_cal) @ np.linalg.inv(_rt(depth_cal))
             self._color_index = color.index
             self.metadata["color_mode"] = str(dict(color.metadata).get("K4A_COLOR_MODE", ""))
+        self.has_color = color is not None
         self._count = int(depth.frames or 0)
 
     def __len__(self) -> int:

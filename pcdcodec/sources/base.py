@@ -25,7 +25,14 @@ if TYPE_CHECKING:
     from ..camera import CameraIntrinsics
     from ..datasets import RGBDFrame
 
-__all__ = ["Source", "SourceKind", "open_source", "register_source", "source_kinds"]
+__all__ = [
+    "Source",
+    "SourceKind",
+    "detect_kind",
+    "open_source",
+    "register_source",
+    "source_kinds",
+]
 
 
 class Source(abc.ABC):
@@ -40,6 +47,7 @@ class Source(abc.ABC):
     * ``color_intrinsics`` and ``depth_to_color``: for sensors whose color camera is apart from
       the depth camera, the color camera and the rigid 4 × 4 transform from the depth to the
       color camera frame (both ``None`` when color is registered to depth, the default).
+    * ``has_color``: whether frames carry color (``RGBDFrame.color`` is ``None`` otherwise).
 
     Iterating yields frames one at a time, so a source of any length runs in bounded memory.
     A source is a context manager; :meth:`close` releases files it holds.
@@ -51,10 +59,21 @@ class Source(abc.ABC):
     metadata: dict[str, str]
     color_intrinsics: CameraIntrinsics | None = None
     depth_to_color: Any = None
+    has_color: bool = True
 
     @abc.abstractmethod
     def __iter__(self) -> Iterator[RGBDFrame]:
         """The frames, in time order."""
+
+    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[RGBDFrame]:
+        """Frames ``start`` to ``stop`` (exclusive), in time order.
+
+        This reads and drops the frames before ``start``; sources that can seek override it, so
+        a long input can be encoded in segments without reading it from the top each time.
+        """
+        import itertools
+
+        return itertools.islice(iter(self), start, stop)
 
     def __len__(self) -> int:
         """The number of frames; sources that cannot tell cheaply raise ``TypeError``."""
@@ -139,6 +158,27 @@ def read_magic(path: Path, n: int = 16) -> bytes:
         return b""
 
 
+def detect_kind(path: str | os.PathLike[str]) -> str | None:
+    """The name of the reader :func:`open_source` would pick for ``path``, or ``None``."""
+    _load_builtin()
+    p = Path(path)
+    if not p.exists():
+        return None
+    return next((k.name for k in _KINDS.values() if k.probe(p)), None)
+
+
+def _call(kind: SourceKind, p: Path, options: dict[str, Any]) -> Source:
+    try:
+        return kind.opener(p, **options)
+    except TypeError as exc:
+        if "unexpected keyword argument" not in str(exc):
+            raise
+        raise InputError(
+            f"the {kind.name} reader takes no option {str(exc).rsplit(' ', 1)[-1]} "
+            f"(given: {', '.join(sorted(options))})"
+        ) from None
+
+
 def open_source(path: str | os.PathLike[str], *, kind: str | None = None, **options: Any) -> Source:
     """Open any RGB-D input: a folder, a ROS 1 or ROS 2 bag, a camera recording.
 
@@ -153,10 +193,10 @@ def open_source(path: str | os.PathLike[str], *, kind: str | None = None, **opti
     if kind is not None:
         if kind not in _KINDS:
             raise InputError(f"unknown source kind {kind!r}; known: {', '.join(_KINDS)}")
-        return _KINDS[kind].opener(p, **options)
+        return _call(_KINDS[kind], p, options)
     for k in _KINDS.values():
         if k.probe(p):
-            return k.opener(p, **options)
+            return _call(k, p, options)
     raise InputError(
         f"{str(p)!r} is not an input pcdcodec reads; expected one of: "
         + "; ".join(f"{k.name} ({k.description})" for k in _KINDS.values())
@@ -171,8 +211,9 @@ def _load_builtin() -> None:
     if _loaded:
         return
     _loaded = True
-    from . import (
-        azure_kinect,  # noqa: F401 - registers itself
-        folder,  # noqa: F401 - registers itself
-        realsense,  # noqa: F401 - registers itself
+    from . import (  # noqa: F401 - each registers itself
+        azure_kinect,
+        folder,
+        realsense,
+        rosbag,
     )

@@ -85,8 +85,8 @@ class RealSenseBagSource(Source):
     ``depth_scale`` (depth units per metre) overrides the recorded Depth Units option; without
     either, opening raises :class:`~pcdcodec.InputError`. ``max_dt`` (seconds) drops depth
     frames whose nearest color frame is farther away in time (default: keep every depth frame).
-    ``max_frames`` stops early. ``metadata`` holds the device name, serial number and firmware,
-    and the topics read.
+    ``max_frames`` stops early; ``intrinsics`` replaces the recorded depth camera. ``metadata``
+    holds the device name, serial number and firmware, and the topics read.
     """
 
     def __init__(
@@ -96,6 +96,7 @@ class RealSenseBagSource(Source):
         depth_scale: float | None = None,
         max_dt: float | None = None,
         max_frames: int | None = None,
+        intrinsics: CameraIntrinsics | None = None,
     ) -> None:
         from rosbags.rosbag1 import Reader
         from rosbags.typesys import Stores, get_typestore
@@ -114,6 +115,8 @@ class RealSenseBagSource(Source):
             self._read_header(reader, name, depth_scale)
         finally:
             reader.close()
+        if intrinsics is not None:
+            self.intrinsics = intrinsics
 
     # -- header ------------------------------------------------------------------------
 
@@ -132,6 +135,7 @@ class RealSenseBagSource(Source):
         color = streams.get("Color")
         self.depth_topic = f"{depth_prefix}/image/data"
         self.color_topic = None if color is None else f"{color[0]}/image/data"
+        self.has_color = color is not None
         device = depth_prefix.split("/sensor_")[0]
         units_topic = f"{device}/sensor_{depth_sensor}/option/Depth Units/value"
         wanted = {
