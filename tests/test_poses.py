@@ -144,3 +144,32 @@ def test_recording_stores_poses_as_frame_transforms(tmp_path: Path) -> None:
     np.testing.assert_allclose(
         quaternion_to_matrix([q.x, q.y, q.z, q.w]), pose0[:3, :3], atol=1e-12
     )
+
+
+@pytest.mark.parametrize("to", ["rosbag1", "rosbag2"])
+def test_bag_export_writes_poses_to_tf(tmp_path: Path, to: str) -> None:
+    from rosbags.highlevel import AnyReader
+
+    source = open_folder(sample_dir(), max_frames=3)
+    rec = tmp_path / "p.pcdc"
+    with pcdcodec.open(
+        rec, "w", intrinsics=source.intrinsics, depth_scale=source.depth_scale, color="ffv1"
+    ) as w:
+        w.write_frames(source)
+    out = tmp_path / ("p.bag" if to == "rosbag1" else "p")
+    summary = pcdcodec.export_bag(rec, out, to=to)
+    assert "/tf" in summary["topics"]
+    assert source.poses is not None
+    with AnyReader([out]) as reader:
+        conns = [c for c in reader.connections if c.topic == "/tf"]
+        msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(conns)]
+    assert len(msgs) == 3
+    for msg, pose in zip(msgs, source.poses, strict=True):
+        (tf,) = msg.transforms
+        assert pose is not None
+        assert tf.header.frame_id == "world"
+        t, q = tf.transform.translation, tf.transform.rotation
+        np.testing.assert_allclose([t.x, t.y, t.z], pose[:3, 3])
+        np.testing.assert_allclose(
+            quaternion_to_matrix([q.x, q.y, q.z, q.w]), pose[:3, :3], atol=1e-12
+        )
