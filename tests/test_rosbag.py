@@ -475,7 +475,9 @@ def test_exported_bags_carry_definitions_hashes_and_valid_mcap(tmp_path: Path) -
         assert by_topic["/camera/depth/image_raw"].digest == "060021388200f6f0f447d0fcd9c64743"
         assert "uint32 height" in by_topic["/camera/depth/image_raw"].msgdef.data
         assert by_topic["/camera/depth_registered/points"].msgtype == "sensor_msgs/msg/PointCloud2"
-        assert r.message_count == 2 * 5
+        # Five topics per frame, and /tf: the sample's frames carry poses (its groundtruth.txt).
+        assert "/tf" in by_topic
+        assert r.message_count == 2 * 6
     ros2 = tmp_path / "r2"
     pcdcodec.export_bag(rec_path, ros2, to="rosbag2", storage="mcap")
     mcap_file = next(ros2.glob("*.mcap"))
@@ -487,7 +489,7 @@ def test_exported_bags_carry_definitions_hashes_and_valid_mcap(tmp_path: Path) -
         schemas = {s.name for s in reader.get_summary().schemas.values()}
         count = sum(1 for _ in reader.iter_messages())
     assert "sensor_msgs/msg/Image" in schemas
-    assert count == 2 * 4
+    assert count == 2 * 5  # four topics and /tf
     meta = (ros2 / "metadata.yaml").read_text()
     assert "RIHS01_" in meta  # the type hash ROS 2 Iron+ checks
     assert "mcap" in meta
