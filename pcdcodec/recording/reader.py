@@ -152,7 +152,7 @@ class Recording:
         self._check_channels(name, depth_config, color_config)
         if fmt.DIGEST_KEY not in meta:
             # Written before digests: the CRC-checked calibration message vouches for the camera.
-            wrong = [e for e in self._check_calibration(index) if "disagrees" in e]
+            wrong = self._check_calibration(index, readable_only=True)
             if wrong:
                 raise DecodeError(f"{name!r}: {wrong[0]}")
         if not isinstance(depth_codec, FrameCodec):
@@ -539,8 +539,12 @@ class Recording:
         errors.extend(self._check_calibration(scanned))
         return errors
 
-    def _check_calibration(self, index: fmt.FileIndex) -> list[str]:
-        """The calibration message (inside a CRC-checked chunk) must match the intrinsics."""
+    def _check_calibration(self, index: fmt.FileIndex, *, readable_only: bool = False) -> list[str]:
+        """The calibration message (inside a CRC-checked chunk) must match the intrinsics.
+
+        With ``readable_only``, a message that cannot be read is no problem (only one that
+        disagrees is).
+        """
         offsets = index.offsets.get(fmt.TOPIC_CALIBRATION, [])
         channel = index.channel(fmt.TOPIC_CALIBRATION)
         if not offsets or channel is None:
@@ -551,12 +555,16 @@ class Recording:
             data = next(m.data for m in messages if m.channel_id == channel.id)
             cal = CameraCalibration.decode(data)
         except PcdcodecError as exc:
-            return [str(exc)]
+            return [] if readable_only else [str(exc)]
         except Exception as exc:
-            return [
-                f"the calibration message at byte offset {offsets[0]} does not parse "
-                f"({type(exc).__name__}: {exc})"
-            ]
+            return (
+                []
+                if readable_only
+                else [
+                    f"the calibration message at byte offset {offsets[0]} does not parse "
+                    f"({type(exc).__name__}: {exc})"
+                ]
+            )
         cam = self.intrinsics
         k = [cam.fx, 0.0, cam.cx, 0.0, cam.fy, cam.cy, 0.0, 0.0, 1.0]
         if (cal.width, cal.height) != (cam.width, cam.height) or not np.allclose(cal.k, k):
