@@ -17,6 +17,8 @@ from typing import Any
 from . import __version__
 from ._progress import Progress
 from .codec import KINDS
+from .color import DEFAULT_COLOR_CODEC
+from .depth import DEFAULT_DEPTH_CODEC
 from .errors import InputError, PcdcodecError
 from .registry import codec_class, list_codecs, parse_codec_spec, parse_codec_specs
 
@@ -414,8 +416,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("encode", help="encode an RGB-D folder (TUM layout or rgb/ + depth/)")
     p.add_argument("src", help="folder with rgb.txt/depth.txt, or rgb/ and depth/ images")
     p.add_argument("-o", "--output", required=True, help="the .pcdc file to write")
-    p.add_argument("--color", default="h264", help="color codec, e.g. h264 or h264:crf=20")
-    p.add_argument("--depth", default="jpegxl", help="depth codec, e.g. jpegxl or zstd:level=9")
+    p.add_argument(
+        "--color", default=DEFAULT_COLOR_CODEC, help="color codec, e.g. h264 or h264:crf=20"
+    )
+    p.add_argument(
+        "--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec, e.g. jpegxl or zstd:level=9"
+    )
     p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
     p.add_argument("--max-frames", type=int, default=None, help="encode only the first N")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
@@ -458,14 +464,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("import", help="read the paper layout back into a .pcdc file")
     p.add_argument("input", help="folder written by `export --layout paper`")
     p.add_argument("-o", "--output", required=True)
-    p.add_argument("--depth", default="jpegxl", help="depth codec for the new file")
+    p.add_argument("--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec for the new file")
     p.add_argument("--overwrite", action="store_true")
     p.set_defaults(func=_cmd_import)
 
     p = sub.add_parser("bench", help="compare codecs on a recording or an RGB-D folder")
     p.add_argument("src", help="a .pcdc recording or a folder that `encode` accepts")
     p.add_argument("--depth", default=None, help="depth codecs, comma-separated (default: all)")
-    p.add_argument("--color", default="h264", help="color codecs, comma-separated")
+    p.add_argument("--color", default=DEFAULT_COLOR_CODEC, help="color codecs, comma-separated")
     p.add_argument("--frames", type=int, default=30, help="frames to use (default: %(default)s)")
     p.add_argument("-o", "--output", default=None, help="folder for report, CSV, JSON and plots")
     p.add_argument("--no-rd", action="store_true", help="skip the color quality sweep")
