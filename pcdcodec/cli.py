@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import operator
 import sys
 import tempfile
 from collections.abc import Sequence
@@ -43,15 +44,20 @@ def _intrinsics_from_args(args: argparse.Namespace, width: int, height: int) -> 
 
 def _frame_size(src: str, depth_scale: float | None) -> tuple[int, int]:
     """(width, height) of the input's frames: a recording's camera, or a folder's first frame."""
+    from .sources.base import detect_kind
+
     path = Path(src)
-    if path.is_file():
+    if path.is_file() and detect_kind(src) is None:
         from .recording import open as open_recording
 
         with open_recording(path) as rec:
             return rec.intrinsics.width, rec.intrinsics.height
-    from .datasets import open_folder
+    from .sources import open_source
 
-    first = next(iter(open_folder(path, max_frames=1, depth_scale=depth_scale or 1000.0)))
+    with open_source(path, max_frames=1, depth_scale=depth_scale or 1000.0) as source:
+        first = next(iter(source), None)
+    if first is None:
+        raise InputError(f"{src!r} gives no frames")
     h, w = first.depth.shape
     return w, h
 
@@ -134,6 +140,14 @@ def _add_camera_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--depth-scale", type=float, help="depth units per metre (1000 for mm)")
 
 
+def _add_topic_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("bag topics (default: chosen by type and namespace)")
+    g.add_argument("--depth-topic", help="depth Image or CompressedImage topic")
+    g.add_argument("--color-topic", help="color topic ('' for depth only)")
+    g.add_argument("--info-topic", help="CameraInfo topic")
+    g.add_argument("--cloud-topic", help="organized PointCloud2 topic (read instead of images)")
+
+
 def _mib(n: float) -> str:
     return f"{n / 2**20:.2f} MiB"
 
@@ -203,43 +217,77 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0 if m.depth_exact else 1
 
 
+def _source_options(args: argparse.Namespace) -> dict[str, Any]:
+    from .sources.base import detect_kind
+
+    opts: dict[str, Any] = {}
+    if args.max_frames is not None:
+        opts["max_frames"] = args.max_frames
+    if args.depth_scale is not None:
+        opts["depth_scale"] = args.depth_scale
+    kind = detect_kind(args.src)
+    if kind == "folder":
+        opts["fps"] = args.fps
+    topics = {
+        "depth_topic": args.depth_topic,
+        "color_topic": args.color_topic,
+        "info_topic": args.info_topic,
+        "cloud_topic": args.cloud_topic,
+    }
+    given = {k: v for k, v in topics.items() if v is not None}
+    if given and kind != "rosbag" and kind is not None:
+        flags = " ".join("--" + k.replace("_", "-") for k in given)
+        raise InputError(f"{flags} apply to bags; {args.src!r} is a {kind}")
+    opts.update(given)
+    return opts
+
+
 def _cmd_encode(args: argparse.Namespace) -> int:
-    from .datasets import open_folder
-    from .recording import open as open_recording
+    from .recording import encode
+    from .sources import open_source
 
     camera, depth_scale = _camera_from_args(args)
-    source = open_folder(
-        args.src,
-        max_frames=args.max_frames,
-        intrinsics=camera,
-        depth_scale=depth_scale,
-        fps=args.fps,
-    )
-    intrinsics = source.intrinsics
-    if intrinsics is None:
-        raise InputError(
-            f"no intrinsics for {args.src!r}: pass --intrinsics FILE, --camera NAME or --fx --fy "
-            "--cx --cy, or put a camera.json or intrinsics.K.txt in the folder"
-        )
-    with (
-        open_recording(
-            args.output,
-            "w",
-            intrinsics=intrinsics,
-            depth_scale=source.depth_scale,
-            color=parse_codec(args.color, "color"),
-            depth=parse_codec(args.depth, "depth"),
-            fps=args.fps,
-            metadata=source.metadata,
-            overwrite=args.overwrite,
-        ) as writer,
-        Progress(len(source), "encoding", enabled=None if not args.quiet else False) as bar,
-    ):
-        count = writer.write_frames(source, progress=bar.update)
-    size = Path(args.output).stat().st_size
+    options = _source_options(args)
+    if depth_scale is not None:
+        options["depth_scale"] = depth_scale
+    with open_source(args.src, **options) as source:
+        intrinsics = camera
+        if intrinsics is None and source.intrinsics is None:
+            raise InputError(
+                f"no intrinsics for {args.src!r}: pass --intrinsics FILE, --camera NAME or --fx "
+                "--fy --cx --cy, or put a camera.json or intrinsics.K.txt in the folder"
+            )
+        total = operator.length_hint(source) or None
+        with Progress(total, "encoding", enabled=None if not args.quiet else False) as bar:
+            summary = encode(
+                source,
+                args.output,
+                color=parse_codec(args.color, "color"),
+                depth=parse_codec(args.depth, "depth"),
+                intrinsics=intrinsics,
+                fps=args.fps,
+                overwrite=args.overwrite,
+                progress=bar.update,
+            )
+    n = summary.frames
     print(
-        f"wrote {count} frames to {args.output} ({_mib(size)}, {size / count / 1024:.1f} KiB/frame)"
+        f"wrote {n} frames to {args.output} ({_mib(summary.bytes)}, "
+        f"{summary.bytes / n / 1024:.1f} KiB/frame, {summary.fps:.1f} fps)"
     )
+    info = summary.source
+    for key in ("depth_topic", "color_topic", "info_topic", "cloud_topic"):
+        if info.get(key):
+            print(f"  {key.replace('_', ' '):12} {info[key]}")
+    dropped = summary.dropped
+    if any(dropped.values()):
+        print(
+            f"  dropped      {dropped.get('color', 0)} color and {dropped.get('depth', 0)} depth "
+            "images without a partner"
+        )
+    if info.get("out_of_order"):
+        print(f"  skipped      {info['out_of_order']} messages whose stamp did not increase")
+    for note in info.get("notes", []):
+        print(f"  note         {note}")
     return 0
 
 
@@ -284,9 +332,47 @@ def _info(rec: Any) -> dict[str, Any]:
     }
 
 
-def _cmd_info(args: argparse.Namespace) -> int:
-    from .recording import open as open_recording
+def _cmd_info_source(args: argparse.Namespace) -> int:
+    from .sources import open_source
 
+    with open_source(args.input) as source:
+        info = source.describe()
+        candidates = getattr(source, "candidates", None)
+        topics = [c.to_dict() for c in candidates()] if callable(candidates) else []
+    if args.json:
+        print(json.dumps({**info, "topics": topics}, indent=2, default=str))
+        return 0
+    print(f"{args.input}: {info['source']}")
+    if topics:
+        print("  topics (role from the type and the first message):")
+        for t in topics:
+            role = t["role"] or "-"
+            extra = " ".join(x for x in (t["encoding"], t["size"], t["note"]) if x)
+            print(f"    {role:6} {t['topic']}  [{t['type']}, {t['messages']} msgs] {extra}")
+    print("  chosen:")
+    for key in ("mode", "depth_topic", "color_topic", "info_topic", "cloud_topic"):
+        if info.get(key):
+            print(f"    {key.replace('_', ' '):12} {info[key]}")
+    cam = info.get("intrinsics")
+    if cam:
+        print(
+            f"    camera       {cam['width']}x{cam['height']}, fx={cam['fx']:.6g} "
+            f"fy={cam['fy']:.6g} cx={cam['cx']:.6g} cy={cam['cy']:.6g}"
+        )
+    print(f"    depth scale  {info['depth_scale']} per metre")
+    for note in info.get("notes", []):
+        print(f"    note         {note}")
+    return 0
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from .recording import _index
+    from .recording import open as open_recording
+    from .sources.base import detect_kind, read_magic
+
+    path = Path(args.input)
+    if read_magic(path, 8) != _index.MAGIC and detect_kind(path) is not None:
+        return _cmd_info_source(args)
     with open_recording(args.input) as rec:
         info = _info(rec)
     if args.json:
@@ -310,7 +396,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
         print(f"  times      {stamps} (the input had no timestamps)")
     if info["metadata"]:
         print(f"  metadata   {json.dumps(info['metadata'])}")
-    if not info["indexed"]:
+    problem = rec.index.summary_problem
+    if problem:
+        print(f"  index      unusable ({problem}); frames found by reading the whole file")
+    elif not info["indexed"]:
         print("  index      missing: the writer did not finish; `pcdcodec recover` rewrites it")
     return 0
 
@@ -338,17 +427,37 @@ def _cmd_recover(args: argparse.Namespace) -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
+    if args.output is not None and args.output_pos is not None:
+        raise InputError("give the output folder once: as -o/--output or as the second argument")
+    args.output = args.output if args.output is not None else args.output_pos
+    if args.output is None:
+        raise InputError("export needs an output: a second argument or -o/--output")
+    if args.to is not None:
+        from .recording.rosbag_export import export_bag
+
+        with Progress(None, "exporting", enabled=None if not args.quiet else False) as bar:
+            summary = export_bag(
+                args.input,
+                args.output,
+                to=args.to,
+                storage=args.storage,
+                cloud=args.cloud,
+                compressed_depth=args.compressed_depth,
+                overwrite=args.overwrite,
+                progress=bar.update,
+            )
+        print(
+            f"exported {summary['frames']} frames to {args.output} ({args.to}"
+            + (f", {args.storage}" if args.to == "rosbag2" else "")
+            + f", {_mib(summary['bytes'])}): {', '.join(summary['topics'])}"
+        )
+        return 0
     from .recording.paper import export_paper
 
     if args.layout != "paper":
         raise InputError(f"unknown layout {args.layout!r}; known layouts: paper")
-    if args.output is not None and args.output_folder is not None:
-        raise InputError("give the output folder once: as -o/--output or as the second argument")
-    output = args.output if args.output is not None else args.output_folder
-    if output is None:
-        raise InputError("export needs an output folder: -o/--output FOLDER")
-    summary = export_paper(args.input, output, overwrite=args.overwrite)
-    print(f"exported {summary['frames']} frames to {output} (layout {args.layout})")
+    summary = export_paper(args.input, args.output, overwrite=args.overwrite)
+    print(f"exported {summary['frames']} frames to {args.output} (layout {args.layout})")
     return 0
 
 
@@ -392,6 +501,27 @@ def _cmd_import(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_archive(args: argparse.Namespace) -> int:
+    from .archive import archive
+
+    summary = archive(
+        args.src,
+        args.output,
+        scheduler=args.scheduler,
+        workers=args.workers,
+        color=parse_codec(args.color, "color") if args.color != "none" else None,
+        depth=parse_codec(args.depth, "depth"),
+        fps=args.fps,
+        segment_frames=args.segment_frames,
+        verify=args.verify,
+        delete_source_after_verify=args.delete_source_after_verify,
+        processes=not args.threads,
+        progress=False if args.quiet else None,
+    )
+    print(json.dumps(summary.to_dict(), indent=2) if args.json else summary.to_text())
+    return 0 if summary.ok else 1
+
+
 # -- parser ------------------------------------------------------------------------------------
 
 
@@ -413,8 +543,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=None, help="use only the first N frames")
     p.set_defaults(func=_cmd_demo)
 
-    p = sub.add_parser("encode", help="encode an RGB-D folder (TUM layout or rgb/ + depth/)")
-    p.add_argument("src", help="folder with rgb.txt/depth.txt, or rgb/ and depth/ images")
+    p = sub.add_parser("encode", help="encode any input: RGB-D folder, ROS 1 or ROS 2 bag, ...")
+    p.add_argument("src", help="an RGB-D folder, a ROS 1 bag, a ROS 2 bag folder or file, ...")
     p.add_argument("-o", "--output", required=True, help="the .pcdc file to write")
     p.add_argument(
         "--color", default=DEFAULT_COLOR_CODEC, help="color codec, e.g. h264 or h264:crf=20"
@@ -427,6 +557,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     _add_camera_options(p)
+    _add_topic_options(p)
     p.set_defaults(func=_cmd_encode)
 
     p = sub.add_parser("decode", help="write PNG color, 16-bit PNG depth and point clouds")
@@ -438,7 +569,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=_cmd_decode)
 
-    p = sub.add_parser("info", help="describe a recording")
+    p = sub.add_parser("info", help="describe a recording, or a bag's topics and choices")
     p.add_argument("input")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=_cmd_info)
@@ -453,12 +584,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true")
     p.set_defaults(func=_cmd_recover)
 
-    p = sub.add_parser("export", help="write a recording in another layout")
+    p = sub.add_parser("export", help="write a recording as a ROS bag or in the paper's layout")
     p.add_argument("input")
-    p.add_argument("-o", "--output", help="output folder")
-    p.add_argument("output_folder", nargs="?", help=argparse.SUPPRESS)  # the former spelling
-    p.add_argument("--layout", default="paper", help="paper: video + LZ4 depth + JSON")
+    p.add_argument(
+        "output_pos",
+        nargs="?",
+        metavar="OUTPUT",
+        help="output bag (file for rosbag1, folder for rosbag2) or folder (or -o OUTPUT)",
+    )
+    p.add_argument("-o", "--output", help="the output, as the second argument says")
+    p.add_argument("--to", choices=("rosbag1", "rosbag2"), help="write a ROS bag")
+    p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap", help="ROS 2 storage")
+    p.add_argument("--cloud", action="store_true", help="add the organized PointCloud2 XYZRGB")
+    p.add_argument(
+        "--compressed-depth", action="store_true", help="depth as compressedDepth (16UC1 mm)"
+    )
+    p.add_argument("--layout", default="paper", help="without --to: paper (video + LZ4 + JSON)")
     p.add_argument("--overwrite", action="store_true")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=_cmd_export)
 
     p = sub.add_parser("import", help="read the paper layout back into a .pcdc file")
@@ -480,6 +623,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     _add_camera_options(p)
     p.set_defaults(func=_cmd_bench)
+
+    p = sub.add_parser("archive", help="compress many inputs on a Dask cluster, resumably")
+    p.add_argument("src", nargs="+", help="inputs, or folders searched for inputs")
+    p.add_argument("-o", "--output", required=True, help="output folder (mirrors the sources)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", help="address of a running Dask scheduler")
+    where.add_argument("--workers", type=int, help="local workers (default: one per core)")
+    p.add_argument("--threads", action="store_true", help="local workers as threads")
+    p.add_argument("--color", default="h264", help="color codec, or none for depth only")
+    p.add_argument("--depth", default="jpegxl", help="depth codec, e.g. jpegxl or zstd:level=9")
+    p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
+    p.add_argument(
+        "--segment-frames",
+        type=int,
+        default=300,
+        help="frames per parallel segment of a long input (default: %(default)s)",
+    )
+    p.add_argument("--verify", action="store_true", help="decode and compare every output")
+    p.add_argument(
+        "--delete-source-after-verify",
+        action="store_true",
+        help="delete each source once its output is verified (implies --verify)",
+    )
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=_cmd_archive)
 
     p = sub.add_parser("codecs", help="list the registered codecs and their defaults")
     p.add_argument("--kind", choices=KINDS, help="only codecs of this kind")

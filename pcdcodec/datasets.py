@@ -250,13 +250,17 @@ class FolderSource(Source):
         return len(self.pairs)
 
     def __iter__(self) -> Iterator[RGBDFrame]:
+        return self.frames()
+
+    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[RGBDFrame]:
+        """Frames ``start`` to ``stop`` (exclusive); only their images are read."""
         shape: tuple[int, ...] | None = None
         projector = None
         if self.intrinsics is not None:
             from .projector import Projector
 
             projector = Projector(self.intrinsics, self.depth_scale)
-        for i, (t, c, d) in enumerate(self.pairs):
+        for i, (t, c, d) in enumerate(self.pairs[start:stop], start):
             frame = RGBDFrame(_read_color(c), _read_depth(d), t, index=i, projector=projector)
             assert frame.color is not None
             if frame.color.shape[:2] != frame.depth.shape:
