@@ -522,6 +522,24 @@ def _cmd_archive(args: argparse.Namespace) -> int:
     return 0 if summary.ok else 1
 
 
+def _cmd_view(args: argparse.Namespace) -> int:
+    from .viewer import view, view_open3d
+
+    if args.open3d:
+        view_open3d(args.input, every=args.every)
+        return 0
+    saved = view(
+        args.input,
+        save=args.save,
+        every=args.every,
+        max_frames=args.max_frames,
+        stride=args.stride,
+    )
+    if saved is not None:
+        print(f"wrote {saved} (open it with: rerun {saved})")
+    return 0
+
+
 # -- parser ------------------------------------------------------------------------------------
 
 
@@ -649,6 +667,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=_cmd_archive)
+
+    p = sub.add_parser("view", help="show a recording in the Rerun viewer (pcdcodec[view])")
+    p.add_argument("input", help="the .pcdc file")
+    p.add_argument("--save", metavar="OUT.rrd", help="write a Rerun file instead of a window")
+    p.add_argument("--every", type=int, default=1, help="show every n-th frame")
+    p.add_argument("--max-frames", type=int, default=None, help="show at most N frames")
+    p.add_argument(
+        "--stride", type=int, default=2, help="point cloud of every n-th pixel (default: 2)"
+    )
+    p.add_argument("--open3d", action="store_true", help="play in Open3D's window instead")
+    p.set_defaults(func=_cmd_view)
 
     p = sub.add_parser("codecs", help="list the registered codecs and their defaults")
     p.add_argument("--kind", choices=KINDS, help="only codecs of this kind")
