@@ -22,7 +22,7 @@ from ..depth.base import FrameCodec, read_header
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
 from ..frame import Frame
 from ..projector import Projector
-from ..registry import get_codec
+from ..registry import codec_for_reading
 from . import _index as fmt
 from ._ros import CameraCalibration, CompressedVideo
 
@@ -51,7 +51,13 @@ class Recording:
     plus the color packets from the keyframe before it; iteration decodes each packet once.
     """
 
-    def __init__(self, path: str | os.PathLike[str]) -> None:
+    def __init__(self, path: str | os.PathLike[str], *, threads: int | None = None) -> None:
+        if threads is not None and (
+            isinstance(threads, bool) or not isinstance(threads, int) or threads < 0
+        ):
+            raise InputError(f"threads must be a non-negative int (0: automatic), got {threads!r}")
+        #: Decoder threads per codec chosen by this reader (``None``: each codec's default).
+        self.threads = threads
         self.path = Path(path)
         if not self.path.exists():
             raise InputError(f"recording {str(self.path)!r} does not exist")
@@ -137,8 +143,12 @@ class Recording:
             if k != fmt.DIGEST_KEY
         }
         try:
-            depth_codec = get_codec(depth_config, kind="depth")
-            color_codec = get_codec(color_config, kind="color") if color_config else None
+            depth_codec = codec_for_reading(depth_config, kind="depth", threads=self.threads)
+            color_codec = (
+                codec_for_reading(color_config, kind="color", threads=self.threads)
+                if color_config
+                else None
+            )
         except UnknownCodecError as exc:
             raise UnknownCodecError(
                 f"{name!r} was written with a codec not available here: {exc}"
@@ -239,10 +249,11 @@ class Recording:
 
     @property
     def codecs(self) -> dict[str, dict[str, Any] | None]:
-        """The configs of the codecs that wrote the recording."""
+        """The configs of the codecs that wrote the recording (as stored: without the reader's
+        own settings such as ``threads``)."""
         return {
-            "color": self.color_codec.get_config() if self.color_codec else None,
-            "depth": self.depth_codec.get_config(),
+            "color": self.color_codec.stored_config() if self.color_codec else None,
+            "depth": self.depth_codec.stored_config(),
         }
 
     @property
