@@ -37,7 +37,15 @@ from .errors import (
 from .evaluation import Evaluation, evaluate
 from .frame import Frame
 from .projector import Projector, Reprojection
-from .recording import Recording, RecordingWriter, open
+from .recording import (
+    EncodeSummary,
+    Recording,
+    RecordingWriter,
+    encode,
+    export_bag,
+    open,
+    recover,
+)
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
 
@@ -52,6 +60,7 @@ __all__ = [
     "ColorCodec",
     "DecodeError",
     "DiskFullError",
+    "EncodeSummary",
     "Evaluation",
     "Frame",
     "FrameCodec",
@@ -71,7 +80,9 @@ __all__ = [
     "as_uint16_depth",
     "codec_class",
     "decode_depth",
+    "encode",
     "evaluate",
+    "export_bag",
     "get_codec",
     "list_codecs",
     "load_folder",
@@ -79,5 +90,6 @@ __all__ = [
     "metrics",
     "open",
     "open_source",
+    "recover",
     "register_codec",
 ]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import operator
 import sys
 import tempfile
 import time
@@ -64,6 +65,14 @@ def _add_camera_options(p: argparse.ArgumentParser) -> None:
     ):
         g.add_argument(f"--{k}", type=float, help=f"{what} in pixels")
     g.add_argument("--depth-scale", type=float, help="depth units per metre (1000 for mm)")
+
+
+def _add_topic_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("bag topics (default: chosen by type and namespace)")
+    g.add_argument("--depth-topic", help="depth Image or CompressedImage topic")
+    g.add_argument("--color-topic", help="color topic ('' for depth only)")
+    g.add_argument("--info-topic", help="CameraInfo topic")
+    g.add_argument("--cloud-topic", help="organized PointCloud2 topic (read instead of images)")
 
 
 def _mib(n: float) -> str:
@@ -169,39 +178,74 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0 if exact else 1
 
 
-def _cmd_encode(args: argparse.Namespace) -> int:
-    from .datasets import open_folder
-    from .recording import open as open_recording
+def _source_options(args: argparse.Namespace) -> dict[str, Any]:
+    from .sources.base import detect_kind
 
-    source = open_folder(
-        args.src, max_frames=args.max_frames, depth_scale=args.depth_scale, fps=args.fps
-    )
-    first = next(iter(source))
-    h, w = first.depth.shape
-    intrinsics = _intrinsics_from_args(args, w, h) or source.intrinsics
-    if intrinsics is None:
-        raise InputError(
-            f"no intrinsics for {args.src!r}: pass --fx --fy --cx --cy, or put a camera.json "
-            "with width, height, fx, fy, cx, cy (and depth_scale) in the folder"
-        )
-    with (
-        open_recording(
-            args.output,
-            "w",
-            intrinsics=intrinsics,
-            depth_scale=source.depth_scale,
-            color=parse_codec(args.color, "color"),
-            depth=parse_codec(args.depth, "depth"),
-            fps=args.fps,
-            overwrite=args.overwrite,
-        ) as writer,
-        Progress(len(source), "encoding", enabled=None if not args.quiet else False) as bar,
-    ):
-        count = writer.write_frames(source, progress=bar.update)
-    size = Path(args.output).stat().st_size
+    opts: dict[str, Any] = {}
+    if args.max_frames is not None:
+        opts["max_frames"] = args.max_frames
+    if args.depth_scale is not None:
+        opts["depth_scale"] = args.depth_scale
+    kind = detect_kind(args.src)
+    if kind == "folder":
+        opts["fps"] = args.fps
+    topics = {
+        "depth_topic": args.depth_topic,
+        "color_topic": args.color_topic,
+        "info_topic": args.info_topic,
+        "cloud_topic": args.cloud_topic,
+    }
+    given = {k: v for k, v in topics.items() if v is not None}
+    if given and kind != "rosbag" and kind is not None:
+        flags = " ".join("--" + k.replace("_", "-") for k in given)
+        raise InputError(f"{flags} apply to bags; {args.src!r} is a {kind}")
+    opts.update(given)
+    return opts
+
+
+def _cmd_encode(args: argparse.Namespace) -> int:
+    from .recording import encode
+    from .sources import open_source
+
+    with open_source(args.src, **_source_options(args)) as source:
+        intrinsics = None
+        if any(getattr(args, k) is not None for k in ("fx", "fy", "cx", "cy")):
+            first = next(iter(source), None)
+            if first is None:
+                raise InputError(f"{args.src!r} gives no frames")
+            h, w = first.depth.shape
+            intrinsics = _intrinsics_from_args(args, w, h)
+        total = operator.length_hint(source) or None
+        with Progress(total, "encoding", enabled=None if not args.quiet else False) as bar:
+            summary = encode(
+                source,
+                args.output,
+                color=parse_codec(args.color, "color"),
+                depth=parse_codec(args.depth, "depth"),
+                intrinsics=intrinsics,
+                fps=args.fps,
+                overwrite=args.overwrite,
+                progress=bar.update,
+            )
+    n = summary.frames
     print(
-        f"wrote {count} frames to {args.output} ({_mib(size)}, {size / count / 1024:.1f} KiB/frame)"
+        f"wrote {n} frames to {args.output} ({_mib(summary.bytes)}, "
+        f"{summary.bytes / n / 1024:.1f} KiB/frame, {summary.fps:.1f} fps)"
     )
+    info = summary.source
+    for key in ("depth_topic", "color_topic", "info_topic", "cloud_topic"):
+        if info.get(key):
+            print(f"  {key.replace('_', ' '):12} {info[key]}")
+    dropped = summary.dropped
+    if any(dropped.values()):
+        print(
+            f"  dropped      {dropped.get('color', 0)} color and {dropped.get('depth', 0)} depth "
+            "images without a partner"
+        )
+    if info.get("out_of_order"):
+        print(f"  skipped      {info['out_of_order']} messages whose stamp did not increase")
+    for note in info.get("notes", []):
+        print(f"  note         {note}")
     return 0
 
 
@@ -273,9 +317,47 @@ def _info(rec: Any) -> dict[str, Any]:
     }
 
 
-def _cmd_info(args: argparse.Namespace) -> int:
-    from .recording import open as open_recording
+def _cmd_info_source(args: argparse.Namespace) -> int:
+    from .sources import open_source
 
+    with open_source(args.input) as source:
+        info = source.describe()
+        candidates = getattr(source, "candidates", None)
+        topics = [c.to_dict() for c in candidates()] if callable(candidates) else []
+    if args.json:
+        print(json.dumps({**info, "topics": topics}, indent=2, default=str))
+        return 0
+    print(f"{args.input}: {info['source']}")
+    if topics:
+        print("  topics (role from the type and the first message):")
+        for t in topics:
+            role = t["role"] or "-"
+            extra = " ".join(x for x in (t["encoding"], t["size"], t["note"]) if x)
+            print(f"    {role:6} {t['topic']}  [{t['type']}, {t['messages']} msgs] {extra}")
+    print("  chosen:")
+    for key in ("mode", "depth_topic", "color_topic", "info_topic", "cloud_topic"):
+        if info.get(key):
+            print(f"    {key.replace('_', ' '):12} {info[key]}")
+    cam = info.get("intrinsics")
+    if cam:
+        print(
+            f"    camera       {cam['width']}x{cam['height']}, fx={cam['fx']:.6g} "
+            f"fy={cam['fy']:.6g} cx={cam['cx']:.6g} cy={cam['cy']:.6g}"
+        )
+    print(f"    depth scale  {info['depth_scale']} per metre")
+    for note in info.get("notes", []):
+        print(f"    note         {note}")
+    return 0
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from .recording import _index
+    from .recording import open as open_recording
+    from .sources.base import detect_kind, read_magic
+
+    path = Path(args.input)
+    if read_magic(path, 8) != _index.MAGIC and detect_kind(path) is not None:
+        return _cmd_info_source(args)
     with open_recording(args.input) as rec:
         info = _info(rec)
     if args.json:
@@ -296,7 +378,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
     print(f"  depth      {json.dumps(info['codecs']['depth'])}")
     if info["metadata"]:
         print(f"  metadata   {json.dumps(info['metadata'])}")
-    if not info["indexed"]:
+    problem = rec.index.summary_problem
+    if problem:
+        print(f"  index      unusable ({problem}); frames found by reading the whole file")
+    elif not info["indexed"]:
         print("  index      missing: the writer did not finish; `pcdcodec recover` rewrites it")
     return 0
 
@@ -324,6 +409,26 @@ def _cmd_recover(args: argparse.Namespace) -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
+    if args.to is not None:
+        from .recording.rosbag_export import export_bag
+
+        with Progress(None, "exporting", enabled=None if not args.quiet else False) as bar:
+            summary = export_bag(
+                args.input,
+                args.output,
+                to=args.to,
+                storage=args.storage,
+                cloud=args.cloud,
+                compressed_depth=args.compressed_depth,
+                overwrite=args.overwrite,
+                progress=bar.update,
+            )
+        print(
+            f"exported {summary['frames']} frames to {args.output} ({args.to}"
+            + (f", {args.storage}" if args.to == "rosbag2" else "")
+            + f", {_mib(summary['bytes'])}): {', '.join(summary['topics'])}"
+        )
+        return 0
     from .recording.paper import export_paper
 
     if args.layout != "paper":
@@ -421,8 +526,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=None, help="use only the first N frames")
     p.set_defaults(func=_cmd_demo)
 
-    p = sub.add_parser("encode", help="encode an RGB-D folder (TUM layout or rgb/ + depth/)")
-    p.add_argument("src", help="folder with rgb.txt/depth.txt, or rgb/ and depth/ images")
+    p = sub.add_parser("encode", help="encode any input: RGB-D folder, ROS 1 or ROS 2 bag, ...")
+    p.add_argument("src", help="an RGB-D folder, a ROS 1 bag, a ROS 2 bag folder or file, ...")
     p.add_argument("-o", "--output", required=True, help="the .pcdc file to write")
     p.add_argument("--color", default="h264", help="color codec, e.g. h264 or h264:crf=20")
     p.add_argument("--depth", default="jpegxl", help="depth codec, e.g. jpegxl or zstd:level=9")
@@ -431,6 +536,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     _add_camera_options(p)
+    _add_topic_options(p)
     p.set_defaults(func=_cmd_encode)
 
     p = sub.add_parser("decode", help="write PNG color, 16-bit PNG depth and point clouds")
@@ -442,7 +548,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=_cmd_decode)
 
-    p = sub.add_parser("info", help="describe a recording")
+    p = sub.add_parser("info", help="describe a recording, or a bag's topics and choices")
     p.add_argument("input")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=_cmd_info)
@@ -457,11 +563,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true")
     p.set_defaults(func=_cmd_recover)
 
-    p = sub.add_parser("export", help="write a recording in another layout")
+    p = sub.add_parser("export", help="write a recording as a ROS bag or in the paper's layout")
     p.add_argument("input")
-    p.add_argument("output", help="output folder")
-    p.add_argument("--layout", default="paper", help="paper: video + LZ4 depth + JSON")
+    p.add_argument("output", help="output bag (file for rosbag1, folder for rosbag2) or folder")
+    p.add_argument("--to", choices=("rosbag1", "rosbag2"), help="write a ROS bag")
+    p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap", help="ROS 2 storage")
+    p.add_argument("--cloud", action="store_true", help="add the organized PointCloud2 XYZRGB")
+    p.add_argument(
+        "--compressed-depth", action="store_true", help="depth as compressedDepth (16UC1 mm)"
+    )
+    p.add_argument("--layout", default="paper", help="without --to: paper (video + LZ4 + JSON)")
     p.add_argument("--overwrite", action="store_true")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=_cmd_export)
 
     p = sub.add_parser("import", help="read the paper layout back into a .pcdc file")

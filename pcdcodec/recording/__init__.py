@@ -10,16 +10,21 @@ from typing import Any, Literal, overload
 
 from ..errors import InputError
 from ._index import FORMAT_VERSION
+from .encode import EncodeSummary, encode
 from .reader import Frame, Recording, VerifyReport
 from .recover import recover
+from .rosbag_export import export_bag
 from .writer import RecordingWriter
 
 __all__ = [
     "FORMAT_VERSION",
+    "EncodeSummary",
     "Frame",
     "Recording",
     "RecordingWriter",
     "VerifyReport",
+    "encode",
+    "export_bag",
     "open",
     "recover",
 ]

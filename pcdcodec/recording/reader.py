@@ -61,6 +61,14 @@ class Recording:
         self._lock = threading.RLock()
         try:
             self._load()
+        except PcdcodecError:
+            self._file.close()
+            raise
+        except Exception as exc:  # whatever damaged bytes make a parser raise
+            self._file.close()
+            raise DecodeError(
+                f"{str(self.path)!r} could not be read ({type(exc).__name__}: {exc})"
+            ) from exc
         except BaseException:
             self._file.close()
             raise
@@ -142,6 +150,11 @@ class Recording:
                 f"{where} names codecs that cannot be made ({type(exc).__name__}: {exc})"
             ) from exc
         self._check_channels(name, depth_config, color_config)
+        if fmt.DIGEST_KEY not in meta:
+            # Written before digests: the CRC-checked calibration message vouches for the camera.
+            wrong = [e for e in self._check_calibration(index) if "disagrees" in e]
+            if wrong:
+                raise DecodeError(f"{name!r}: {wrong[0]}")
         if not isinstance(depth_codec, FrameCodec):
             raise DecodeError(f"{where}: depth codec {depth_codec.name!r} is not a frame codec")
         self.depth_codec = depth_codec
@@ -172,13 +185,16 @@ class Recording:
             self._is_cdr = channel is not None and channel.encoding == "cdr"
             # A frame exists when both its depth and a decodable color packet were written.
             first_key = self._packet_pts[self._keyframes[0]] if self._keyframes else None
-            keep = [
+            good = [
                 i
                 for i, t in enumerate(d_times.tolist())
                 if t in self._packet_of_pts
                 and first_key is not None
                 and self._packet_of_pts[t] >= self._keyframes[0]
             ]
+            # Frames after the last complete one were in flight when the writer stopped. One
+            # missing its packet before that is damage: it stays, and reading it fails.
+            keep = list(range(good[-1] + 1)) if good else []
             d_times, d_offsets = d_times[keep], d_offsets[keep]
         self._times = d_times
         self._offsets = d_offsets
@@ -319,7 +335,11 @@ class Recording:
         if self.color_codec is None:
             return None
         ts = int(self._times[i])
-        j = self._packet_of_pts[ts]
+        j = self._packet_of_pts.get(ts, -1)
+        if j < 0 or j < self._keyframes[0]:
+            raise DecodeError(
+                f"{str(self.path)!r}: frame {i} (t={ts} ns): no decodable color packet has its time"
+            )
         with self._lock:
             if ts in self._decoded:
                 return self._decoded.pop(ts)
@@ -364,8 +384,15 @@ class Recording:
             raise IndexError(f"frame index {i} is out of range for {n} frames")
         i = int(i) % n
         try:
+            color = self._color(i)
+            cam = self.intrinsics
+            if color is not None and color.shape != (cam.height, cam.width, 3):
+                raise DecodeError(
+                    f"{str(self.path)!r}: frame {i}: color decoded to {color.shape}, expected "
+                    f"({cam.height}, {cam.width}, 3) for the recording's camera"
+                )
             return Frame(
-                self._color(i),
+                color,
                 self._depth(i),
                 int(self._times[i]),
                 index=i,

@@ -23,6 +23,7 @@ from ..depth.base import FrameCodec
 from ..errors import InputError, InputTypeError
 from ..frame import OPEN3D_DEPTH_SCALE
 from ..registry import get_codec
+from ..sources.base import Source
 from . import _index as fmt
 from ._ros import (
     CAMERA_CALIBRATION,
@@ -351,12 +352,14 @@ class RecordingWriter:
         Open3D RGBDImages, legacy or tensor, alone or as ``(rgbd, timestamp)`` tuples.
         ``rgbd_depth_scale`` is the depth scale the RGBDImages were made with (see
         :meth:`write_rgbd`). ``progress`` is called with the number of frames written so far.
+        To record a whole source with its camera, use :meth:`write_source` (or
+        :func:`pcdcodec.encode`).
         """
-        from ..frame import open3d_rgbd_kind
+        from ..frame import Frame, open3d_rgbd_kind
 
         count = 0
         for item in frames:
-            if hasattr(item, "depth") and hasattr(item, "timestamp_ns"):
+            if isinstance(item, Frame):
                 self.write(item.color, item.depth, item.timestamp_ns)
             elif open3d_rgbd_kind(item) is not None:
                 self.write_rgbd(item, depth_scale=rgbd_depth_scale)
@@ -376,6 +379,41 @@ class RecordingWriter:
             if progress is not None:
                 progress(count)
         return count
+
+    def write_source(self, source: Source, *, progress: Callable[[int], None] | None = None) -> int:
+        """Write every frame of a :class:`~pcdcodec.Source` and return how many were written.
+
+        The source's camera and depth scale must be this recording's (:func:`pcdcodec.encode`
+        opens the writer from the source, so they are). A source without color
+        (``source.has_color`` false) needs a writer opened with ``color=None``. Raises
+        :class:`~pcdcodec.InputError` when they disagree; frames already written stay intact.
+        """
+        from ..sources.base import Source
+
+        if not isinstance(source, Source):
+            raise InputTypeError(
+                f"write_source takes a pcdcodec.Source, got {type(source).__name__}; use "
+                "write_frames for other iterables"
+            )
+        if source.intrinsics is not None and source.intrinsics != self.intrinsics:
+            raise InputError(
+                f"source {str(source.path)!r} has camera {source.intrinsics.to_dict()}, this "
+                f"recording {self.intrinsics.to_dict()}"
+            )
+        if float(source.depth_scale) != self.depth_scale:
+            raise InputError(
+                f"source {str(source.path)!r} has depth scale {source.depth_scale} per metre, this "
+                f"recording {self.depth_scale}"
+            )
+        if not source.has_color and self.color_codec is not None:
+            raise InputError(
+                f"source {str(source.path)!r} has no color; open the recording with color=None"
+            )
+        if source.has_color and self.color_codec is None:
+            frames: Iterable[Any] = ((None, f.depth, f.timestamp_ns) for f in source)
+        else:
+            frames = source
+        return self.write_frames(frames, progress=progress)
 
     def _synchronizer(self) -> Any:
         if self._sync is None:
