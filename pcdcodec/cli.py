@@ -18,6 +18,8 @@ from typing import Any
 from . import __version__
 from ._progress import Progress
 from .codec import KINDS
+from .color import DEFAULT_COLOR_CODEC
+from .depth import DEFAULT_DEPTH_CODEC
 from .errors import InputError, PcdcodecError
 from .registry import codec_class, list_codecs, parse_codec_spec, parse_codec_specs
 
@@ -537,6 +539,24 @@ def _cmd_archive(args: argparse.Namespace) -> int:
     return 0 if summary.ok else 1
 
 
+def _cmd_view(args: argparse.Namespace) -> int:
+    from .viewer import view, view_open3d
+
+    if args.open3d:
+        view_open3d(args.input, every=args.every)
+        return 0
+    saved = view(
+        args.input,
+        save=args.save,
+        every=args.every,
+        max_frames=args.max_frames,
+        stride=args.stride,
+    )
+    if saved is not None:
+        print(f"wrote {saved} (open it with: rerun {saved})")
+    return 0
+
+
 # -- parser ------------------------------------------------------------------------------------
 
 
@@ -568,8 +588,12 @@ def build_parser() -> argparse.ArgumentParser:
         "Azure Kinect .mkv, ...",
     )
     p.add_argument("-o", "--output", required=True, help="the .pcdc file to write")
-    p.add_argument("--color", default="h264", help="color codec, e.g. h264 or h264:crf=20")
-    p.add_argument("--depth", default="jpegxl", help="depth codec, e.g. jpegxl or zstd:level=9")
+    p.add_argument(
+        "--color", default=DEFAULT_COLOR_CODEC, help="color codec, e.g. h264 or h264:crf=20"
+    )
+    p.add_argument(
+        "--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec, e.g. jpegxl or zstd:level=9"
+    )
     p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
     p.add_argument("--max-frames", type=int, default=None, help="encode only the first N")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
@@ -625,14 +649,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("import", help="read the paper layout back into a .pcdc file")
     p.add_argument("input", help="folder written by `export --layout paper`")
     p.add_argument("-o", "--output", required=True)
-    p.add_argument("--depth", default="jpegxl", help="depth codec for the new file")
+    p.add_argument("--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec for the new file")
     p.add_argument("--overwrite", action="store_true")
     p.set_defaults(func=_cmd_import)
 
     p = sub.add_parser("bench", help="compare codecs on a recording or an RGB-D folder")
     p.add_argument("src", help="a .pcdc recording or a folder that `encode` accepts")
     p.add_argument("--depth", default=None, help="depth codecs, comma-separated (default: all)")
-    p.add_argument("--color", default="h264", help="color codecs, comma-separated")
+    p.add_argument("--color", default=DEFAULT_COLOR_CODEC, help="color codecs, comma-separated")
     p.add_argument("--frames", type=int, default=30, help="frames to use (default: %(default)s)")
     p.add_argument("-o", "--output", default=None, help="folder for report, CSV, JSON and plots")
     p.add_argument("--no-rd", action="store_true", help="skip the color quality sweep")
@@ -667,6 +691,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=_cmd_archive)
+
+    p = sub.add_parser("view", help="show a recording in the Rerun viewer (pcdcodec[view])")
+    p.add_argument("input", help="the .pcdc file")
+    p.add_argument("--save", metavar="OUT.rrd", help="write a Rerun file instead of a window")
+    p.add_argument("--every", type=int, default=1, help="show every n-th frame")
+    p.add_argument("--max-frames", type=int, default=None, help="show at most N frames")
+    p.add_argument(
+        "--stride", type=int, default=2, help="point cloud of every n-th pixel (default: 2)"
+    )
+    p.add_argument("--open3d", action="store_true", help="play in Open3D's window instead")
+    p.set_defaults(func=_cmd_view)
 
     p = sub.add_parser("codecs", help="list the registered codecs and their defaults")
     p.add_argument("--kind", choices=KINDS, help="only codecs of this kind")

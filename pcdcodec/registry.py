@@ -22,6 +22,7 @@ from .errors import InputError, InputTypeError, UnknownCodecError
 __all__ = [
     "ENTRY_POINT_GROUP",
     "codec_class",
+    "codec_for_reading",
     "get_codec",
     "list_codecs",
     "parse_codec_spec",
@@ -198,3 +199,19 @@ def parse_codec_specs(text: str, kind: str | None = None) -> list[Codec]:
     if not specs:
         raise InputError(f"no codec in {text!r}")
     return [parse_codec_spec(s, kind) for s in specs]
+
+
+def codec_for_reading(
+    config: Mapping[str, Any], /, *, kind: str | None = None, threads: int | None = None
+) -> Codec:
+    """The codec a file's recorded ``config`` describes, with this machine's settings.
+
+    Runtime parameters (:attr:`Codec.runtime_params`, such as ``threads``) are a property of the
+    machine, not of the data: any the file recorded (older files did) are dropped, and
+    ``threads`` applies to the codecs that take it (``None``: the codec's default).
+    """
+    codec = get_codec(config, kind=kind)
+    stored = codec.stored_config()
+    if threads is not None and "threads" in codec.runtime_params:
+        stored["threads"] = threads
+    return get_codec(stored, kind=kind)
