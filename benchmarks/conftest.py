@@ -38,16 +38,21 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
     depth = _collect(session, "depth")
     if depth:
         write("")
-        write("depth codecs: ratio against raw uint16, median ms per frame")
+        write("depth codecs: ratio against raw uint16, median ms per frame, times / jpegxl's")
         write(
-            f"| {'sequence':18} | {'codec':7} | {'ratio':>6} | {'encode ms':>9} "
-            f"| {'decode ms':>9} |"
+            f"| {'sequence':26} | {'codec':8} | {'ratio':>6} | {'encode ms':>9} "
+            f"| {'decode ms':>9} | {'enc/jxl':>7} | {'dec/jxl':>7} |"
         )
-        write(f"|{'-' * 20}|{'-' * 9}|{'-' * 8}|{'-' * 11}|{'-' * 11}|")
+        write(f"|{'-' * 28}|{'-' * 10}|{'-' * 8}|{'-' * 11}|{'-' * 11}|{'-' * 9}|{'-' * 9}|")
         for (sequence, codec), row in sorted(depth.items()):
+            jxl = depth.get((sequence, "jpegxl"), {})
+            rel = [
+                f"{row[op] / jxl[op]:7.2f}" if op in row and jxl.get(op) else f"{'':7}"
+                for op in ("encode", "decode")
+            ]
             write(
-                f"| {sequence:18} | {codec:7} | {row['ratio']:6.2f} | {_ms(row, 'encode')} "
-                f"| {_ms(row, 'decode')} |"
+                f"| {sequence:26} | {codec:8} | {row['ratio']:6.2f} | {_ms(row, 'encode')} "
+                f"| {_ms(row, 'decode')} | {rel[0]} | {rel[1]} |"
             )
     color = _collect(session, "color")
     if color:
