@@ -24,12 +24,15 @@ from .color import DEFAULT_COLOR_CODEC
 from .datasets import RGBDFrame, RGBDSequence, load_folder, load_sample
 from .depth import DEFAULT_DEPTH_CODEC, FrameCodec, decode_depth
 from .errors import (
+    ArchiveLockedError,
     CodecUnavailableError,
     DecodeError,
+    DiskFullError,
     InputError,
     InputTypeError,
     PcdcodecError,
     UnknownCodecError,
+    VerificationError,
 )
 from .evaluation import Evaluation, evaluate
 from .frame import Frame
@@ -41,6 +44,7 @@ from .recording import (
     encode,
     export_bag,
     open,
+    recover,
 )
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
@@ -49,11 +53,13 @@ __all__ = [
     "DEFAULT_COLOR_CODEC",
     "DEFAULT_DEPTH_CODEC",
     "KINDS",
+    "ArchiveLockedError",
     "CameraIntrinsics",
     "Codec",
     "CodecUnavailableError",
     "ColorCodec",
     "DecodeError",
+    "DiskFullError",
     "EncodeSummary",
     "Evaluation",
     "Frame",
@@ -69,6 +75,7 @@ __all__ = [
     "Reprojection",
     "Source",
     "UnknownCodecError",
+    "VerificationError",
     "__version__",
     "as_uint16_depth",
     "codec_class",
@@ -83,5 +90,6 @@ __all__ = [
     "metrics",
     "open",
     "open_source",
+    "recover",
     "register_codec",
 ]

@@ -220,7 +220,7 @@ def test_import_without_codec_config_uses_the_defaults(exported: Any, tmp_path: 
     out = tmp_path / "c.pcdc"
     import_paper(copy, out)
     with pcdcodec.open(out) as rec:
-        assert rec.codecs["color"] == pcdcodec.get_codec(codec_id).get_config()
+        assert rec.codecs["color"] == pcdcodec.get_codec(codec_id).stored_config()
     for x, y in zip(_frames(recording), _frames(out), strict=True):
         assert x.color is not None
         assert np.array_equal(x.color, y.color)

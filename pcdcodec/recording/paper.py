@@ -37,6 +37,7 @@ from .._validate import check_depth
 from ..camera import CameraIntrinsics
 from ..color.base import Packet, StreamCodec
 from ..color.pyav import PyAVCodec
+from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import CodecUnavailableError, DecodeError, InputError, PcdcodecError
 from ..registry import codec_class, get_codec
 from .reader import Recording
@@ -744,7 +745,7 @@ def import_paper(
     in_dir: str | os.PathLike[str],
     out_path: str | os.PathLike[str],
     *,
-    depth: Any = "jpegxl",
+    depth: Any = DEFAULT_DEPTH_CODEC,
     overwrite: bool = False,
     progress: Callable[[int], None] | None = None,
 ) -> int:

@@ -22,7 +22,7 @@ from ..depth.base import FrameCodec, read_header
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
 from ..frame import Frame
 from ..projector import Projector
-from ..registry import get_codec
+from ..registry import codec_for_reading
 from . import _index as fmt
 from ._ros import CameraCalibration, CompressedVideo
 
@@ -51,7 +51,13 @@ class Recording:
     plus the color packets from the keyframe before it; iteration decodes each packet once.
     """
 
-    def __init__(self, path: str | os.PathLike[str]) -> None:
+    def __init__(self, path: str | os.PathLike[str], *, threads: int | None = None) -> None:
+        if threads is not None and (
+            isinstance(threads, bool) or not isinstance(threads, int) or threads < 0
+        ):
+            raise InputError(f"threads must be a non-negative int (0: automatic), got {threads!r}")
+        #: Decoder threads per codec chosen by this reader (``None``: each codec's default).
+        self.threads = threads
         self.path = Path(path)
         if not self.path.exists():
             raise InputError(f"recording {str(self.path)!r} does not exist")
@@ -61,6 +67,14 @@ class Recording:
         self._lock = threading.RLock()
         try:
             self._load()
+        except PcdcodecError:
+            self._file.close()
+            raise
+        except Exception as exc:  # whatever damaged bytes make a parser raise
+            self._file.close()
+            raise DecodeError(
+                f"{str(self.path)!r} could not be read ({type(exc).__name__}: {exc})"
+            ) from exc
         except BaseException:
             self._file.close()
             raise
@@ -129,8 +143,12 @@ class Recording:
             if k != fmt.DIGEST_KEY
         }
         try:
-            depth_codec = get_codec(depth_config, kind="depth")
-            color_codec = get_codec(color_config, kind="color") if color_config else None
+            depth_codec = codec_for_reading(depth_config, kind="depth", threads=self.threads)
+            color_codec = (
+                codec_for_reading(color_config, kind="color", threads=self.threads)
+                if color_config
+                else None
+            )
         except UnknownCodecError as exc:
             raise UnknownCodecError(
                 f"{name!r} was written with a codec not available here: {exc}"
@@ -142,6 +160,11 @@ class Recording:
                 f"{where} names codecs that cannot be made ({type(exc).__name__}: {exc})"
             ) from exc
         self._check_channels(name, depth_config, color_config)
+        if fmt.DIGEST_KEY not in meta:
+            # Written before digests: the CRC-checked calibration message vouches for the camera.
+            wrong = self._check_calibration(index, readable_only=True)
+            if wrong:
+                raise DecodeError(f"{name!r}: {wrong[0]}")
         if not isinstance(depth_codec, FrameCodec):
             raise DecodeError(f"{where}: depth codec {depth_codec.name!r} is not a frame codec")
         self.depth_codec = depth_codec
@@ -172,13 +195,16 @@ class Recording:
             self._is_cdr = channel is not None and channel.encoding == "cdr"
             # A frame exists when both its depth and a decodable color packet were written.
             first_key = self._packet_pts[self._keyframes[0]] if self._keyframes else None
-            keep = [
+            good = [
                 i
                 for i, t in enumerate(d_times.tolist())
                 if t in self._packet_of_pts
                 and first_key is not None
                 and self._packet_of_pts[t] >= self._keyframes[0]
             ]
+            # Frames after the last complete one were in flight when the writer stopped. One
+            # missing its packet before that is damage: it stays, and reading it fails.
+            keep = list(range(good[-1] + 1)) if good else []
             d_times, d_offsets = d_times[keep], d_offsets[keep]
         self._times = d_times
         self._offsets = d_offsets
@@ -223,10 +249,11 @@ class Recording:
 
     @property
     def codecs(self) -> dict[str, dict[str, Any] | None]:
-        """The configs of the codecs that wrote the recording."""
+        """The configs of the codecs that wrote the recording (as stored: without the reader's
+        own settings such as ``threads``)."""
         return {
-            "color": self.color_codec.get_config() if self.color_codec else None,
-            "depth": self.depth_codec.get_config(),
+            "color": self.color_codec.stored_config() if self.color_codec else None,
+            "depth": self.depth_codec.stored_config(),
         }
 
     @property
@@ -374,7 +401,11 @@ class Recording:
         if self.color_codec is None:
             return None
         ts = int(self._times[i])
-        j = self._packet_of_pts[ts]
+        j = self._packet_of_pts.get(ts, -1)
+        if j < 0 or j < self._keyframes[0]:
+            raise DecodeError(
+                f"{str(self.path)!r}: frame {i} (t={ts} ns): no decodable color packet has its time"
+            )
         with self._lock:
             if ts in self._decoded:
                 return self._decoded.pop(ts)
@@ -419,8 +450,15 @@ class Recording:
             raise IndexError(f"frame index {i} is out of range for {n} frames")
         i = int(i) % n
         try:
+            color = self._color(i)
+            cam = self.intrinsics
+            if color is not None and color.shape != (cam.height, cam.width, 3):
+                raise DecodeError(
+                    f"{str(self.path)!r}: frame {i}: color decoded to {color.shape}, expected "
+                    f"({cam.height}, {cam.width}, 3) for the recording's camera"
+                )
             return Frame(
-                self._color(i),
+                color,
                 self.depth(i),
                 int(self._times[i]),
                 index=i,
@@ -567,8 +605,12 @@ class Recording:
         errors.extend(self._check_calibration(scanned))
         return errors
 
-    def _check_calibration(self, index: fmt.FileIndex) -> list[str]:
-        """The calibration message (inside a CRC-checked chunk) must match the intrinsics."""
+    def _check_calibration(self, index: fmt.FileIndex, *, readable_only: bool = False) -> list[str]:
+        """The calibration message (inside a CRC-checked chunk) must match the intrinsics.
+
+        With ``readable_only``, a message that cannot be read is no problem (only one that
+        disagrees is).
+        """
         offsets = index.offsets.get(fmt.TOPIC_CALIBRATION, [])
         channel = index.channel(fmt.TOPIC_CALIBRATION)
         if not offsets or channel is None:
@@ -579,12 +621,16 @@ class Recording:
             data = next(m.data for m in messages if m.channel_id == channel.id)
             cal = CameraCalibration.decode(data)
         except PcdcodecError as exc:
-            return [str(exc)]
+            return [] if readable_only else [str(exc)]
         except Exception as exc:
-            return [
-                f"the calibration message at byte offset {offsets[0]} does not parse "
-                f"({type(exc).__name__}: {exc})"
-            ]
+            return (
+                []
+                if readable_only
+                else [
+                    f"the calibration message at byte offset {offsets[0]} does not parse "
+                    f"({type(exc).__name__}: {exc})"
+                ]
+            )
         cam = self.intrinsics
         k = [cam.fx, 0.0, cam.cx, 0.0, cam.fy, cam.cy, 0.0, 0.0, 1.0]
         if (cal.width, cal.height) != (cam.width, cam.height) or not np.allclose(cal.k, k):

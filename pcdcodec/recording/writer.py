@@ -18,7 +18,9 @@ from .._validate import check_color, check_depth
 from .._version import __version__
 from ..camera import CameraIntrinsics
 from ..codec import Codec
+from ..color import DEFAULT_COLOR_CODEC
 from ..color.base import Packet, StreamCodec, VideoEncoder
+from ..depth import DEFAULT_DEPTH_CODEC
 from ..depth.base import FrameCodec
 from ..errors import InputError, InputTypeError
 from ..frame import OPEN3D_DEPTH_SCALE
@@ -88,8 +90,8 @@ class RecordingWriter:
         *,
         intrinsics: Any,
         depth_scale: float = 1000.0,
-        color: Any = "h264",
-        depth: Any = "jpegxl",
+        color: Any = DEFAULT_COLOR_CODEC,
+        depth: Any = DEFAULT_DEPTH_CODEC,
         fps: float = 30.0,
         metadata: dict[str, Any] | None = None,
         overwrite: bool = False,
@@ -163,8 +165,8 @@ class RecordingWriter:
                 "intrinsics": json.dumps(self.intrinsics.to_dict()),
                 "depth_scale": repr(self.depth_scale),
                 "fps": repr(self.fps),
-                "depth_codec": json.dumps(self.depth_codec.get_config()),
-                "color_codec": json.dumps(self.color_codec.get_config())
+                "depth_codec": json.dumps(self.depth_codec.stored_config()),
+                "color_codec": json.dumps(self.color_codec.stored_config())
                 if self.color_codec
                 else "",
                 "frame_id": frame_id,
@@ -224,7 +226,7 @@ class RecordingWriter:
                 extradata = self._encoder.extradata
             meta = {
                 **size,
-                "codec": json.dumps(self.color_codec.get_config()),
+                "codec": json.dumps(self.color_codec.stored_config()),
                 "extradata": base64.b64encode(extradata).decode() if extradata else "",
             }
             video_format = self.color_codec.video_format
@@ -245,7 +247,7 @@ class RecordingWriter:
             0,
             {
                 **size,
-                "codec": json.dumps(self.depth_codec.get_config()),
+                "codec": json.dumps(self.depth_codec.stored_config()),
                 "depth_scale": repr(self.depth_scale),
             },
         )

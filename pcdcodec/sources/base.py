@@ -60,6 +60,16 @@ class Source(abc.ABC):
     def __iter__(self) -> Iterator[RGBDFrame]:
         """The frames, in time order."""
 
+    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[RGBDFrame]:
+        """Frames ``start`` to ``stop`` (exclusive), in time order.
+
+        This reads and drops the frames before ``start``; sources that can seek override it, so
+        a long input can be encoded in segments without reading it from the top each time.
+        """
+        import itertools
+
+        return itertools.islice(iter(self), start, stop)
+
     def __len__(self) -> int:
         """The number of frames; sources that cannot tell cheaply raise ``TypeError``."""
         raise TypeError(f"{type(self).__name__} does not know its frame count in advance")
