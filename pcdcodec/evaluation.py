@@ -26,6 +26,8 @@ import numpy as np
 import numpy.typing as npt
 
 from .camera import CameraIntrinsics
+from .codec import Codec
+from .color import DEFAULT_COLOR_CODEC
 from .color.base import StreamCodec, decode_packets, encode_frames
 from .datasets import RGBDFrame, RGBDSequence, open_folder
 from .depth.base import FrameCodec
@@ -326,8 +328,8 @@ def _frames_of(
 def evaluate(
     source: Any,
     *,
-    depth: Sequence[str | dict[str, Any]] | None = None,
-    color: Sequence[str | dict[str, Any]] = ("h264",),
+    depth: Sequence[str | dict[str, Any] | Codec] | None = None,
+    color: Sequence[str | dict[str, Any] | Codec] = (DEFAULT_COLOR_CODEC,),
     frames: int | None = 30,
     intrinsics: CameraIntrinsics | None = None,
     depth_scale: float | None = None,

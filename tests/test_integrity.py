@@ -279,7 +279,7 @@ def test_settings_of_old_files_are_cross_checked(tmp_path: Path) -> None:
     with pytest.raises(pcdcodec.DecodeError, match=r"depth_scale is 5000\.0"):
         pcdcodec.open(path)
     _edit_metadata(GOLDEN, path, b'"fx": 52.5', b'"fx": 92.5', "pcdcodec")
-    with pytest.raises(pcdcodec.DecodeError, match="calibration message .* disagrees"):
+    with pytest.raises(pcdcodec.DecodeError, match=r"calibration message .* disagrees"):
         pcdcodec.open(path)
 
 

@@ -63,7 +63,7 @@ def _frames(path: Path) -> list[pcdcodec.Frame]:
 
 def _packets(path: Path) -> list[bytes]:
     with pcdcodec.open(path) as rec:
-        return [rec._packet(j).data for j in range(len(rec._packet_pts))]
+        return [p.data for p in rec.packets()]
 
 
 @pytest.fixture(scope="module", params=CODECS)
@@ -220,7 +220,7 @@ def test_import_without_codec_config_uses_the_defaults(exported: Any, tmp_path: 
     out = tmp_path / "c.pcdc"
     import_paper(copy, out)
     with pcdcodec.open(out) as rec:
-        assert rec.codecs["color"] == pcdcodec.get_codec(codec_id).get_config()
+        assert rec.codecs["color"] == pcdcodec.get_codec(codec_id).stored_config()
     for x, y in zip(_frames(recording), _frames(out), strict=True):
         assert x.color is not None
         assert np.array_equal(x.color, y.color)

@@ -402,13 +402,16 @@ def test_cloud_bag_round_trip_rebuilds_every_point(tmp_path: Path, to: str, info
     assert written["frames"] == 3
     assert written["bytes"] > 3 * 640 * 480 * 32
     rec_path = tmp_path / "c.pcdc"
-    summary = pcdcodec.encode(bag, rec_path, color="ffv1")
+    # z of these clouds is depth / 5000 in float32: kept as uint16 units (auto), or as float32.
+    cloud_depth = "auto" if info else "float32"
+    summary = pcdcodec.encode(bag, rec_path, color="ffv1", cloud_depth=cloud_depth)
     assert summary.frames == 3
     assert summary.source["mode"] == "cloud"
     assert ("intrinsics_fit_residual_px" in summary.source) is not info
     projector = pcdcodec.Projector(seq.intrinsics, depth_scale=seq.depth_scale)
     with pcdcodec.open(rec_path) as rec:
-        assert rec.depth_scale == 1.0
+        assert rec.depth_scale == (5000.0 if info else 1.0)
+        assert rec[0].depth.dtype == (np.uint16 if info else np.float32)
         for frame, original in zip(rec, seq, strict=True):
             assert frame.timestamp_ns == original.timestamp_ns
             want = projector.to_organized(original.depth)
@@ -418,6 +421,38 @@ def test_cloud_bag_round_trip_rebuilds_every_point(tmp_path: Path, to: str, info
             err = np.abs(got[valid] - want[valid]).max()
             assert err <= 1e-6
             assert np.array_equal(frame.color, original.color)
+
+
+def test_cloud_whose_z_stops_being_whole_units_says_how_to_keep_float32(tmp_path: Path) -> None:
+    from pcdcodec.recording.rosbag_export import CLOUD_DTYPE, cloud_array
+
+    store = _store(False)
+    frames = _small(2)
+    intr = pcdcodec.CameraIntrinsics(160, 120, 131.25, 131.25, 79.75, 59.75)
+    projector = pcdcodec.Projector(intr, depth_scale=1000.0)
+    field = store.types["sensor_msgs/msg/PointField"]
+    msgs = []
+    for k, (c, d) in enumerate(frames):
+        pts = cloud_array(projector, d, c)
+        if k == 1:
+            pts["z"] += np.float32(1e-4)  # no longer whole millimetres
+        assert pts.dtype == CLOUD_DTYPE
+        msg = store.types["sensor_msgs/msg/PointCloud2"](
+            header=_header(store, False, NS + k), height=120, width=160,
+            fields=[field(name=n, offset=o, datatype=7, count=1) for n, o in (("x", 0), ("y", 4), ("z", 8), ("rgb", 16))],  # noqa: E501
+            is_bigendian=False, point_step=32, row_step=160 * 32,
+            data=pts.reshape(-1).view(np.uint8), is_dense=False,
+        )  # fmt: skip
+        msgs.append(("/cam/points", NS + k, msg))
+    bag = write_bag(tmp_path / "z.bag", msgs)
+    with pytest.raises(InputError, match=r"not whole 1/1000 m steps.*cloud_depth='float32'"):
+        pcdcodec.encode(bag, tmp_path / "z.pcdc", intrinsics=intr)
+    summary = pcdcodec.encode(bag, tmp_path / "z.pcdc", intrinsics=intr, cloud_depth="float32")
+    assert summary.frames == 2
+    with pcdcodec.open(tmp_path / "z.pcdc") as rec:
+        z = rec[1].depth
+    want = cloud_array(projector, frames[1][1], None)["z"] + np.float32(1e-4)
+    assert np.array_equal(z, want, equal_nan=True)
 
 
 # -- sync ---------------------------------------------------------------------------------------

@@ -22,7 +22,7 @@ from ..depth.base import FrameCodec, read_header
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
 from ..frame import Frame
 from ..projector import Projector
-from ..registry import get_codec
+from ..registry import codec_for_reading
 from . import _index as fmt
 from ._ros import CameraCalibration, CompressedVideo
 
@@ -51,7 +51,13 @@ class Recording:
     plus the color packets from the keyframe before it; iteration decodes each packet once.
     """
 
-    def __init__(self, path: str | os.PathLike[str]) -> None:
+    def __init__(self, path: str | os.PathLike[str], *, threads: int | None = None) -> None:
+        if threads is not None and (
+            isinstance(threads, bool) or not isinstance(threads, int) or threads < 0
+        ):
+            raise InputError(f"threads must be a non-negative int (0: automatic), got {threads!r}")
+        #: Decoder threads per codec chosen by this reader (``None``: each codec's default).
+        self.threads = threads
         self.path = Path(path)
         if not self.path.exists():
             raise InputError(f"recording {str(self.path)!r} does not exist")
@@ -137,8 +143,12 @@ class Recording:
             if k != fmt.DIGEST_KEY
         }
         try:
-            depth_codec = get_codec(depth_config, kind="depth")
-            color_codec = get_codec(color_config, kind="color") if color_config else None
+            depth_codec = codec_for_reading(depth_config, kind="depth", threads=self.threads)
+            color_codec = (
+                codec_for_reading(color_config, kind="color", threads=self.threads)
+                if color_config
+                else None
+            )
         except UnknownCodecError as exc:
             raise UnknownCodecError(
                 f"{name!r} was written with a codec not available here: {exc}"
@@ -152,7 +162,7 @@ class Recording:
         self._check_channels(name, depth_config, color_config)
         if fmt.DIGEST_KEY not in meta:
             # Written before digests: the CRC-checked calibration message vouches for the camera.
-            wrong = [e for e in self._check_calibration(index) if "disagrees" in e]
+            wrong = self._check_calibration(index, readable_only=True)
             if wrong:
                 raise DecodeError(f"{name!r}: {wrong[0]}")
         if not isinstance(depth_codec, FrameCodec):
@@ -239,10 +249,11 @@ class Recording:
 
     @property
     def codecs(self) -> dict[str, dict[str, Any] | None]:
-        """The configs of the codecs that wrote the recording."""
+        """The configs of the codecs that wrote the recording (as stored: without the reader's
+        own settings such as ``threads``)."""
         return {
-            "color": self.color_codec.get_config() if self.color_codec else None,
-            "depth": self.depth_codec.get_config(),
+            "color": self.color_codec.stored_config() if self.color_codec else None,
+            "depth": self.depth_codec.stored_config(),
         }
 
     @property
@@ -279,7 +290,21 @@ class Recording:
 
     # -- frames ----------------------------------------------------------------------------
 
-    def _depth(self, i: int) -> npt.NDArray[Any]:
+    # -- packet level: the encoded streams, as written (the counterpart of write_encoded) -----
+
+    def _index_of(self, i: int) -> int:
+        n = len(self)
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+            raise InputTypeError(f"frame index must be an int, got {type(i).__name__}")
+        if not -n <= i < n:
+            raise IndexError(f"frame index {i} is out of range for {n} frames")
+        return int(i) % n
+
+    def depth_bytes(self, i: int) -> bytes:
+        """The encoded depth of frame ``i``, exactly as its depth codec wrote it (see
+        :func:`pcdcodec.decode_depth`). Raises :class:`~pcdcodec.DecodeError` when the file
+        there is damaged."""
+        i = self._index_of(i)
         offset = int(self._offsets[i])
         ts = int(self._times[i])
         what = f"{str(self.path)!r}: frame {i} (t={ts} ns): depth at byte offset {offset}"
@@ -290,30 +315,71 @@ class Recording:
         channel = self.index.channel(fmt.TOPIC_DEPTH)
         for m in messages:
             if channel is not None and m.channel_id == channel.id and m.log_time == ts:
-                try:
-                    # Checked before decoding, so a frame that claims to be huge is never made.
-                    header = read_header(m.data)
-                    cam = self.intrinsics
-                    if header.shape != (cam.height, cam.width):
-                        raise DecodeError(
-                            f"the frame is {header.width}x{header.height}, but the recording's "
-                            f"camera is {cam.width}x{cam.height}"
-                        )
-                    if header.dtype.name not in self.depth_codec.dtypes:
-                        raise DecodeError(
-                            f"the frame is {header.dtype}, but {self.depth_codec.name!r} writes "
-                            f"{' or '.join(str(d) for d in self.depth_codec.dtypes)}"
-                        )
-                    depth = self.depth_codec.decode(m.data)
-                    if depth.shape != header.shape or depth.dtype != header.dtype:
-                        raise DecodeError(
-                            f"decoded to {depth.dtype} {depth.shape}, expected "
-                            f"{header.dtype} {header.shape}"
-                        )
-                    return depth
-                except DecodeError as exc:
-                    raise DecodeError(f"{what}: {exc}") from exc
+                return bytes(m.data)
         raise DecodeError(f"{what}: no depth message with that time in the chunk there")
+
+    def depth(self, i: int) -> npt.NDArray[Any]:
+        """The depth image of frame ``i`` alone, without decoding its color."""
+        i = self._index_of(i)
+        data = self.depth_bytes(i)
+        what = (
+            f"{str(self.path)!r}: frame {i} (t={int(self._times[i])} ns): depth at byte offset "
+            f"{int(self._offsets[i])}"
+        )
+        try:
+            # Checked before decoding, so a frame that claims to be huge is never made.
+            header = read_header(data)
+            cam = self.intrinsics
+            if header.shape != (cam.height, cam.width):
+                raise DecodeError(
+                    f"the frame is {header.width}x{header.height}, but the recording's "
+                    f"camera is {cam.width}x{cam.height}"
+                )
+            if header.dtype.name not in self.depth_codec.dtypes:
+                raise DecodeError(
+                    f"the frame is {header.dtype}, but {self.depth_codec.name!r} writes "
+                    f"{' or '.join(str(d) for d in self.depth_codec.dtypes)}"
+                )
+            depth = self.depth_codec.decode(data)
+            if depth.shape != header.shape or depth.dtype != header.dtype:
+                raise DecodeError(
+                    f"decoded to {depth.dtype} {depth.shape}, expected "
+                    f"{header.dtype} {header.shape}"
+                )
+            return depth
+        except DecodeError as exc:
+            raise DecodeError(f"{what}: {exc}") from exc
+
+    @property
+    def extradata(self) -> bytes | None:
+        """The color decoder's set-up bytes (FFV1, HuffYUV), or ``None``."""
+        return self._extradata
+
+    @property
+    def packet_timestamps(self) -> npt.NDArray[np.int64]:
+        """The pts (ns) of every color packet, in decode (file) order; empty without color."""
+        if self.color_codec is None:
+            return np.zeros(0, np.int64)
+        out: npt.NDArray[np.int64] = np.asarray(self._packet_pts, np.int64).copy()
+        return out
+
+    @property
+    def keyframes(self) -> list[int]:
+        """Indices (into :attr:`packet_timestamps`) of the color packets decoding can start at."""
+        return list(self._keyframes)
+
+    def packet(self, j: int) -> Packet:
+        """Color packet ``j`` in decode order, as written (``checksum`` is ``None``)."""
+        n = len(self.packet_timestamps)
+        if isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 0 <= j < n:
+            raise IndexError(f"packet index {j!r} is out of range for {n} packets")
+        return self._packet(int(j))
+
+    def packets(self, start: int = 0) -> Iterator[Packet]:
+        """The color packets from ``start`` on, in decode order, each read once: with
+        :attr:`extradata`, what a decoder (or a muxer) needs to play the color stream."""
+        for j in range(start, len(self.packet_timestamps)):
+            yield self._packet(j)
 
     def _packet(self, j: int) -> Packet:
         offset = int(self._packet_offsets[j])
@@ -393,7 +459,7 @@ class Recording:
                 )
             return Frame(
                 color,
-                self._depth(i),
+                self.depth(i),
                 int(self._times[i]),
                 index=i,
                 projector=self.projector,
@@ -539,8 +605,12 @@ class Recording:
         errors.extend(self._check_calibration(scanned))
         return errors
 
-    def _check_calibration(self, index: fmt.FileIndex) -> list[str]:
-        """The calibration message (inside a CRC-checked chunk) must match the intrinsics."""
+    def _check_calibration(self, index: fmt.FileIndex, *, readable_only: bool = False) -> list[str]:
+        """The calibration message (inside a CRC-checked chunk) must match the intrinsics.
+
+        With ``readable_only``, a message that cannot be read is no problem (only one that
+        disagrees is).
+        """
         offsets = index.offsets.get(fmt.TOPIC_CALIBRATION, [])
         channel = index.channel(fmt.TOPIC_CALIBRATION)
         if not offsets or channel is None:
@@ -551,12 +621,16 @@ class Recording:
             data = next(m.data for m in messages if m.channel_id == channel.id)
             cal = CameraCalibration.decode(data)
         except PcdcodecError as exc:
-            return [str(exc)]
+            return [] if readable_only else [str(exc)]
         except Exception as exc:
-            return [
-                f"the calibration message at byte offset {offsets[0]} does not parse "
-                f"({type(exc).__name__}: {exc})"
-            ]
+            return (
+                []
+                if readable_only
+                else [
+                    f"the calibration message at byte offset {offsets[0]} does not parse "
+                    f"({type(exc).__name__}: {exc})"
+                ]
+            )
         cam = self.intrinsics
         k = [cam.fx, 0.0, cam.cx, 0.0, cam.fy, cam.cy, 0.0, 0.0, 1.0]
         if (cal.width, cal.height) != (cam.width, cam.height) or not np.allclose(cal.k, k):

@@ -6,7 +6,7 @@ import base64
 import json
 import os
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import IO, Any
@@ -18,7 +18,9 @@ from .._validate import check_color, check_depth
 from .._version import __version__
 from ..camera import CameraIntrinsics
 from ..codec import Codec
+from ..color import DEFAULT_COLOR_CODEC
 from ..color.base import Packet, StreamCodec, VideoEncoder
+from ..depth import DEFAULT_DEPTH_CODEC
 from ..depth.base import FrameCodec
 from ..errors import InputError, InputTypeError
 from ..frame import OPEN3D_DEPTH_SCALE
@@ -88,8 +90,8 @@ class RecordingWriter:
         *,
         intrinsics: Any,
         depth_scale: float = 1000.0,
-        color: Any = "h264",
-        depth: Any = "jpegxl",
+        color: Any = DEFAULT_COLOR_CODEC,
+        depth: Any = DEFAULT_DEPTH_CODEC,
         fps: float = 30.0,
         metadata: dict[str, Any] | None = None,
         overwrite: bool = False,
@@ -122,7 +124,6 @@ class RecordingWriter:
                     f"color codec {color_codec.name!r} writes whole video files, not packets; "
                     "recordings need a stream codec such as 'h264' or 'ffv1'"
                 )
-            color_codec._require_available()
             self.color_codec = color_codec
         self.depth_codec._require_available()
         user = {
@@ -164,8 +165,8 @@ class RecordingWriter:
                 "intrinsics": json.dumps(self.intrinsics.to_dict()),
                 "depth_scale": repr(self.depth_scale),
                 "fps": repr(self.fps),
-                "depth_codec": json.dumps(self.depth_codec.get_config()),
-                "color_codec": json.dumps(self.color_codec.get_config())
+                "depth_codec": json.dumps(self.depth_codec.stored_config()),
+                "color_codec": json.dumps(self.color_codec.stored_config())
                 if self.color_codec
                 else "",
                 "frame_id": frame_id,
@@ -196,11 +197,20 @@ class RecordingWriter:
         self.bytes_color = 0
         self.bytes_depth = 0
         self._sync: Any = None
+        self._mode: str | None = None  # "frames" (write) or "encoded" (write_encoded)
         self._closed = False
 
     # -- writing -----------------------------------------------------------------------
 
-    def _start_stream(self, height: int, width: int, timestamp: int) -> None:
+    def _start_stream(
+        self,
+        height: int,
+        width: int,
+        timestamp: int,
+        *,
+        encoded: bool = False,
+        extradata: bytes | None = None,
+    ) -> None:
         if (width, height) != (self.intrinsics.width, self.intrinsics.height):
             raise InputError(
                 f"frames are {width}x{height}, but the intrinsics are for "
@@ -209,14 +219,17 @@ class RecordingWriter:
         mcap = self._mcap
         size = {"width": str(width), "height": str(height)}
         if self.color_codec is not None:
-            self._encoder = self.color_codec.encoder(width, height, self.fps)
-            extradata = self._encoder.extradata
+            if not encoded:
+                # Packets encoded elsewhere need no encoder here (nor its library).
+                self.color_codec._require_available()
+                self._encoder = self.color_codec.encoder(width, height, self.fps)
+                extradata = self._encoder.extradata
             meta = {
                 **size,
-                "codec": json.dumps(self.color_codec.get_config()),
+                "codec": json.dumps(self.color_codec.stored_config()),
                 "extradata": base64.b64encode(extradata).decode() if extradata else "",
             }
-            video_format = getattr(self.color_codec, "video_format", None)
+            video_format = self.color_codec.video_format
             if video_format:
                 sid = mcap.register_schema(COMPRESSED_VIDEO, "ros2msg", COMPRESSED_VIDEO_SCHEMA)
                 meta["format"] = video_format
@@ -234,7 +247,7 @@ class RecordingWriter:
             0,
             {
                 **size,
-                "codec": json.dumps(self.depth_codec.get_config()),
+                "codec": json.dumps(self.depth_codec.stored_config()),
                 "depth_scale": repr(self.depth_scale),
             },
         )
@@ -265,30 +278,17 @@ class RecordingWriter:
         bad arrays; the frames already written stay intact.
         """
         self._check_open()
-        if timestamp is None:
-            timestamp = 0 if self._last_ts is None else self._last_ts + round(_NS / self.fps)
-        if isinstance(timestamp, bool) or not isinstance(timestamp, (int, np.integer)):
-            raise InputTypeError(f"timestamp must be an int (ns), got {type(timestamp).__name__}")
-        timestamp = int(timestamp)
-        if timestamp < 0:
-            raise InputError(f"timestamp must not be negative, got {timestamp}")
-        if self._last_ts is not None and timestamp <= self._last_ts:
-            raise InputError(
-                f"timestamp {timestamp} ns does not increase (previous frame: {self._last_ts} ns)"
-            )
+        if self._mode == "encoded":
+            raise InputError("this recording takes encoded color (write_encoded), not images")
+        timestamp = self._next_timestamp(timestamp)
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
         rgb: npt.NDArray[np.uint8] | None = None
         if self.color_codec is not None:
             if color is None:
                 raise InputError("this recording has color: pass a color image with each frame")
             rgb = check_color(color, d.shape, name="color")
-        if self._shape is None:
-            self._start_stream(d.shape[0], d.shape[1], timestamp)
-        elif d.shape != self._shape:
-            raise InputError(
-                f"depth is {d.shape[1]}x{d.shape[0]}, but this recording's frames are "
-                f"{self._shape[1]}x{self._shape[0]} (width x height)"
-            )
+        self._check_shape(d, timestamp)
+        self._mode = "frames"
         self._last_ts = timestamp
         # Copies: the caller may reuse its buffers while the threads encode.
         fut_color = (
@@ -296,6 +296,83 @@ class RecordingWriter:
             if rgb is not None
             else None
         )
+        self._enqueue(timestamp, fut_color, d)
+
+    def write_encoded(
+        self,
+        packets: Sequence[Packet],
+        depth: Any,
+        timestamp: int,
+        *,
+        extradata: bytes | None = None,
+    ) -> None:
+        """Add a frame whose color is already encoded: the muxing half of the writer.
+
+        ``packets`` are the color packets to store with this frame, in decode order, as this
+        recording's color codec (whose config is recorded) would have written them: usually
+        the frame's own packet, none for a frame whose packet came earlier, or several when a
+        B-frame arrives with a later frame. ``depth`` and ``timestamp`` are as for
+        :meth:`write`; ``extradata`` (the decoder's set-up bytes) is taken with the first
+        frame. The codec's encoder is never opened, so packets from hardware encoders, other
+        files or ROS bags go in unchanged. A recording takes either :meth:`write` frames or
+        encoded ones, not both. Raises :class:`~pcdcodec.InputError` for a recording without
+        color, items that are not :class:`~pcdcodec.color.base.Packet`, or the errors of
+        :meth:`write`.
+        """
+        self._check_open()
+        if self.color_codec is None:
+            raise InputError("this recording has no color codec: open it with the codec whose "
+                             "packets these are")  # fmt: skip
+        if self._mode == "frames":
+            raise InputError("this recording encodes images (write); it cannot take packets too")
+        group = list(packets)
+        for k, p in enumerate(group):
+            if not isinstance(p, Packet):
+                raise InputTypeError(f"packet {k} is a {type(p).__name__}, expected a Packet")
+        timestamp = self._next_timestamp(timestamp)
+        d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
+        self._check_shape(d, timestamp, encoded=True, extradata=extradata)
+        self._mode = "encoded"
+        self._last_ts = timestamp
+        done: Future[list[Packet]] = Future()
+        done.set_result(group)
+        self._enqueue(timestamp, done, d)
+
+    def _next_timestamp(self, timestamp: Any) -> int:
+        if timestamp is None:
+            timestamp = 0 if self._last_ts is None else self._last_ts + round(_NS / self.fps)
+        if isinstance(timestamp, bool) or not isinstance(timestamp, (int, np.integer)):
+            raise InputTypeError(f"timestamp must be an int (ns), got {type(timestamp).__name__}")
+        ts = int(timestamp)
+        if ts < 0:
+            raise InputError(f"timestamp must not be negative, got {ts}")
+        if self._last_ts is not None and ts <= self._last_ts:
+            raise InputError(
+                f"timestamp {ts} ns does not increase (previous frame: {self._last_ts} ns)"
+            )
+        return ts
+
+    def _check_shape(
+        self,
+        d: npt.NDArray[Any],
+        timestamp: int,
+        *,
+        encoded: bool = False,
+        extradata: bytes | None = None,
+    ) -> None:
+        if self._shape is None:
+            self._start_stream(
+                d.shape[0], d.shape[1], timestamp, encoded=encoded, extradata=extradata
+            )
+        elif d.shape != self._shape:
+            raise InputError(
+                f"depth is {d.shape[1]}x{d.shape[0]}, but this recording's frames are "
+                f"{self._shape[1]}x{self._shape[0]} (width x height)"
+            )
+
+    def _enqueue(
+        self, timestamp: int, fut_color: Future[list[Packet]] | None, d: npt.NDArray[Any]
+    ) -> None:
         fut_depth = self._depth_pool.submit(self.depth_codec.encode, d.copy())
         self._pending.append((timestamp, fut_color, fut_depth))
         while len(self._pending) > self.in_flight:
@@ -450,7 +527,7 @@ class RecordingWriter:
 
     def _write_packets(self, packets: list[Packet]) -> None:
         mcap = self._mcap
-        video_format = getattr(self.color_codec, "video_format", None)
+        video_format = self.color_codec.video_format if self.color_codec else None
         for packet in packets:
             if packet.keyframe:
                 mcap.add_message(
