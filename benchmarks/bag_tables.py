@@ -24,8 +24,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pcdcodec
+from benchmarks.data import SEQUENCES
 from pcdcodec.datasets import open_folder
-from tests.conftest import SEQUENCES
 
 CAMERAS = {
     "tum_fr1_rpy": pcdcodec.CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5),

@@ -15,8 +15,8 @@ from typing import Any
 import pytest
 
 import pcdcodec
+from benchmarks.data import SEQUENCES
 from pcdcodec.datasets import open_folder
-from tests.conftest import SEQUENCES
 
 FRAMES = 10
 CAMERAS = {

@@ -115,7 +115,7 @@ def test_join_reads_like_one_writer(tmp_path: Path, sample: RGBDSequence, color:
         assert rec.indexed
         assert len(rec) == 9
         assert rec.metadata == {"site": "lab"}
-        assert rec.codecs["color"] == color.get_config()
+        assert rec.codecs["color"] == color.stored_config()
         np.testing.assert_array_equal(rec.timestamps, [f.timestamp_ns for f in sample][:9])
         for frame, original, color_alone in zip(rec, sample.frames[:9], alone, strict=True):
             np.testing.assert_array_equal(frame.depth, original.depth)
