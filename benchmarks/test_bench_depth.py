@@ -1,71 +1,24 @@
-"""Encode and decode time of every depth codec on real frames.
+"""Encode and decode time of every depth codec on real 640×480 frames.
 
-``pytest benchmarks/ --benchmark-only`` prints pytest-benchmark's timing tables and then a
-table of ratio, encode and decode ms per codec and test set (``benchmarks/conftest.py``).
-The ratio is over the set's sampled frames and is kept in ``extra_info``.
-
-The test sets are the real sequences (640×480), their sparse variants (``-sparse``: large
-regions removed the way sensors lose depth, ``tests.conftest.sparsify_depth``) and the Spot
-depth frame (424×240, ``spot``). Every registered codec runs with its defaults; ``zstd-19``
-adds Zstandard at level 19, the strongest general-purpose baseline.
+Uses pcdcodec's pytest plugin as a user's benchmark would: ``rgbd_sequence`` is each present
+sequence (``benchmarks/data.py``, or ``--pcdcodec-data``), ``depth_codec`` each available depth
+codec. ``pytest benchmarks/ --benchmark-only`` prints pytest-benchmark's timing tables and
+then ratio, KiB per frame, encode and decode ms per codec and sequence.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-import pytest
-
-import pcdcodec
-from pcdcodec.depth import FrameCodec
-from tests.conftest import DEPTH_SETS, SEQUENCES, SPOT_BAG, load_frames
-
-CONFIGS: dict[str, dict[str, Any]] = {
-    name: {"id": name} for name in pcdcodec.list_codecs("depth", available_only=True)
-}
-CONFIGS["zstd-19"] = {"id": "zstd", "level": 19}
+from pcdcodec.testing import bench_depth
 
 
-def _present(name: str) -> bool:
-    if name == "spot":
-        return SPOT_BAG.is_file()
-    return SEQUENCES[name.removesuffix("-sparse")].present
+def test_encode(benchmark: Any, rgbd_sequence: Any, depth_codec: Any) -> None:
+    encoded = bench_depth(benchmark, depth_codec, rgbd_sequence, op="encode")
+    assert depth_codec.decode(encoded).shape == rgbd_sequence[0].depth.shape
 
 
-PRESENT = [name for name in DEPTH_SETS if _present(name)]
-FRAMES = 6
-
-
-def setup(label: str, sequence: str) -> tuple[FrameCodec, list[Any], list[bytes], dict[str, float]]:
-    codec = pcdcodec.get_codec(CONFIGS[label])
-    assert isinstance(codec, FrameCodec)
-    depths = load_frames(sequence, FRAMES)
-    encoded = [codec.encode(d) for d in depths]
-    for depth, data in zip(depths, encoded, strict=True):
-        np.testing.assert_array_equal(codec.decode(data), depth)  # correct before timed
-    raw = sum(d.nbytes for d in depths)
-    info = {"ratio": round(raw / sum(len(b) for b in encoded), 3), "frames": len(depths)}
-    return codec, depths, encoded, info
-
-
-@pytest.mark.parametrize("sequence", PRESENT)
-@pytest.mark.parametrize("label", CONFIGS)
-def test_encode(benchmark: Any, label: str, sequence: str) -> None:
-    benchmark.group = f"depth encode {sequence}"
-    codec, depths, encoded, info = setup(label, sequence)
-    benchmark.extra_info.update(info, codec=label, sequence=sequence, kind="depth", op="encode")
-    frame = depths[len(depths) // 2]
-    result = benchmark(codec.encode, frame)
-    assert len(result) == len(encoded[len(depths) // 2])
-
-
-@pytest.mark.parametrize("sequence", PRESENT)
-@pytest.mark.parametrize("label", CONFIGS)
-def test_decode(benchmark: Any, label: str, sequence: str) -> None:
-    benchmark.group = f"depth decode {sequence}"
-    codec, depths, encoded, info = setup(label, sequence)
-    benchmark.extra_info.update(info, codec=label, sequence=sequence, kind="depth", op="decode")
-    index = len(depths) // 2
-    result = benchmark(codec.decode, encoded[index])
-    np.testing.assert_array_equal(result, depths[index])
+def test_decode(benchmark: Any, rgbd_sequence: Any, depth_codec: Any) -> None:
+    decoded = bench_depth(benchmark, depth_codec, rgbd_sequence, op="decode")
+    middle = len(rgbd_sequence) // 2
+    assert (decoded == rgbd_sequence[middle].depth).all()

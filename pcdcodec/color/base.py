@@ -17,7 +17,7 @@ import zlib
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -68,10 +68,19 @@ class Packet:
 
 @dataclass(frozen=True)
 class DecodedFrame:
-    """A decoded RGB frame (H×W×3 uint8) and its timestamp in nanoseconds."""
+    """One picture out of a video decoder: RGB (H×W×3 uint8) and its pts in nanoseconds.
+
+    Color only, on the codec level; the RGB-D frame of sources and recordings is
+    :class:`pcdcodec.Frame`.
+    """
 
     rgb: npt.NDArray[np.uint8]
     timestamp: int
+
+    @property
+    def timestamp_ns(self) -> int:
+        """The same as ``timestamp``, under the name :class:`pcdcodec.Frame` uses."""
+        return self.timestamp
 
     def __iter__(self) -> Any:
         return iter((self.rgb, self.timestamp))
@@ -178,7 +187,14 @@ class VideoDecoder(ABC):
 
 
 class StreamCodec(ColorCodec):
-    """A color codec whose streams are packets (as opposed to whole video files)."""
+    """A color codec whose streams are packets (as opposed to whole video files).
+
+    ``video_format`` names the bitstream for ``foxglove_msgs/CompressedVideo`` (``"h264"``,
+    ``"h265"``, ``"av1"``, ``"vp9"``) when the codec writes one of those, else ``None``:
+    recordings store such packets as CompressedVideo messages, others as raw packets.
+    """
+
+    video_format: ClassVar[str | None] = None
 
     @abstractmethod
     def encoder(self, width: int, height: int, fps: float = 30.0) -> VideoEncoder:

@@ -6,7 +6,7 @@ import base64
 import json
 import os
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import IO, Any
@@ -18,10 +18,14 @@ from .._validate import check_color, check_depth
 from .._version import __version__
 from ..camera import CameraIntrinsics
 from ..codec import Codec
+from ..color import DEFAULT_COLOR_CODEC
 from ..color.base import Packet, StreamCodec, VideoEncoder
+from ..depth import DEFAULT_DEPTH_CODEC
 from ..depth.base import FrameCodec
 from ..errors import InputError, InputTypeError
+from ..frame import OPEN3D_DEPTH_SCALE
 from ..registry import get_codec
+from ..sources.base import Source
 from . import _index as fmt
 from ._ros import (
     CAMERA_CALIBRATION,
@@ -86,8 +90,8 @@ class RecordingWriter:
         *,
         intrinsics: Any,
         depth_scale: float = 1000.0,
-        color: Any = "h264",
-        depth: Any = "jpegxl",
+        color: Any = DEFAULT_COLOR_CODEC,
+        depth: Any = DEFAULT_DEPTH_CODEC,
         fps: float = 30.0,
         metadata: dict[str, Any] | None = None,
         overwrite: bool = False,
@@ -120,12 +124,13 @@ class RecordingWriter:
                     f"color codec {color_codec.name!r} writes whole video files, not packets; "
                     "recordings need a stream codec such as 'h264' or 'ffv1'"
                 )
-            color_codec._require_available()
             self.color_codec = color_codec
         self.depth_codec._require_available()
         user = {
             str(k): v if isinstance(v, str) else json.dumps(v) for k, v in (metadata or {}).items()
         }
+        if fmt.DIGEST_KEY in user:
+            raise InputError(f"metadata key {fmt.DIGEST_KEY!r} is reserved for the file's digest")
 
         if self.path.exists() and not overwrite:
             raise InputError(
@@ -147,25 +152,33 @@ class RecordingWriter:
         self._file: IO[bytes] = open(self._writing, mode)  # noqa: SIM115 - closed by close()
         # One chunk per message: each is on disk (with its CRC) as soon as it is written, and
         # MCAP's chunk index then gives every message's time and offset directly.
-        self._mcap = Writer(self._file, chunk_size=0, compression=CompressionType.NONE)
+        self._mcap = Writer(
+            self._file, chunk_size=0, compression=CompressionType.NONE, enable_data_crcs=True
+        )
         self._mcap.start(profile=fmt.PROFILE, library=f"pcdcodec {__version__}")
-        self._mcap.add_metadata(
-            fmt.METADATA_NAME,
-            {
+        # The settings the file is read with; each record is sealed with its digest, and the
+        # main record lists the others, so a reader notices any of them changed or missing.
+        records: dict[str, dict[str, str]] = {
+            fmt.METADATA_NAME: {
                 "format_version": str(fmt.FORMAT_VERSION),
                 "library": f"pcdcodec {__version__}",
                 "intrinsics": json.dumps(self.intrinsics.to_dict()),
                 "depth_scale": repr(self.depth_scale),
                 "fps": repr(self.fps),
-                "depth_codec": json.dumps(self.depth_codec.get_config()),
-                "color_codec": json.dumps(self.color_codec.get_config())
+                "depth_codec": json.dumps(self.depth_codec.stored_config()),
+                "color_codec": json.dumps(self.color_codec.stored_config())
                 if self.color_codec
                 else "",
                 "frame_id": frame_id,
             },
-        )
+        }
         if user:
-            self._mcap.add_metadata(fmt.USER_METADATA_NAME, user)
+            records[fmt.USER_METADATA_NAME] = user
+        records[fmt.METADATA_NAME][fmt.RECORDS_KEY] = json.dumps(
+            [name for name in records if name != fmt.METADATA_NAME]
+        )
+        for name, data in records.items():
+            self._mcap.add_metadata(name, fmt.seal(name, data))
         self._file.flush()
 
         self._encoder: VideoEncoder | None = None
@@ -184,11 +197,20 @@ class RecordingWriter:
         self.bytes_color = 0
         self.bytes_depth = 0
         self._sync: Any = None
+        self._mode: str | None = None  # "frames" (write) or "encoded" (write_encoded)
         self._closed = False
 
     # -- writing -----------------------------------------------------------------------
 
-    def _start_stream(self, height: int, width: int, timestamp: int) -> None:
+    def _start_stream(
+        self,
+        height: int,
+        width: int,
+        timestamp: int,
+        *,
+        encoded: bool = False,
+        extradata: bytes | None = None,
+    ) -> None:
         if (width, height) != (self.intrinsics.width, self.intrinsics.height):
             raise InputError(
                 f"frames are {width}x{height}, but the intrinsics are for "
@@ -197,14 +219,17 @@ class RecordingWriter:
         mcap = self._mcap
         size = {"width": str(width), "height": str(height)}
         if self.color_codec is not None:
-            self._encoder = self.color_codec.encoder(width, height, self.fps)
-            extradata = self._encoder.extradata
+            if not encoded:
+                # Packets encoded elsewhere need no encoder here (nor its library).
+                self.color_codec._require_available()
+                self._encoder = self.color_codec.encoder(width, height, self.fps)
+                extradata = self._encoder.extradata
             meta = {
                 **size,
-                "codec": json.dumps(self.color_codec.get_config()),
+                "codec": json.dumps(self.color_codec.stored_config()),
                 "extradata": base64.b64encode(extradata).decode() if extradata else "",
             }
-            video_format = getattr(self.color_codec, "video_format", None)
+            video_format = self.color_codec.video_format
             if video_format:
                 sid = mcap.register_schema(COMPRESSED_VIDEO, "ros2msg", COMPRESSED_VIDEO_SCHEMA)
                 meta["format"] = video_format
@@ -222,7 +247,7 @@ class RecordingWriter:
             0,
             {
                 **size,
-                "codec": json.dumps(self.depth_codec.get_config()),
+                "codec": json.dumps(self.depth_codec.stored_config()),
                 "depth_scale": repr(self.depth_scale),
             },
         )
@@ -253,30 +278,17 @@ class RecordingWriter:
         bad arrays; the frames already written stay intact.
         """
         self._check_open()
-        if timestamp is None:
-            timestamp = 0 if self._last_ts is None else self._last_ts + round(_NS / self.fps)
-        if isinstance(timestamp, bool) or not isinstance(timestamp, (int, np.integer)):
-            raise InputTypeError(f"timestamp must be an int (ns), got {type(timestamp).__name__}")
-        timestamp = int(timestamp)
-        if timestamp < 0:
-            raise InputError(f"timestamp must not be negative, got {timestamp}")
-        if self._last_ts is not None and timestamp <= self._last_ts:
-            raise InputError(
-                f"timestamp {timestamp} ns does not increase (previous frame: {self._last_ts} ns)"
-            )
+        if self._mode == "encoded":
+            raise InputError("this recording takes encoded color (write_encoded), not images")
+        timestamp = self._next_timestamp(timestamp)
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
         rgb: npt.NDArray[np.uint8] | None = None
         if self.color_codec is not None:
             if color is None:
                 raise InputError("this recording has color: pass a color image with each frame")
             rgb = check_color(color, d.shape, name="color")
-        if self._shape is None:
-            self._start_stream(d.shape[0], d.shape[1], timestamp)
-        elif d.shape != self._shape:
-            raise InputError(
-                f"depth is {d.shape[1]}x{d.shape[0]}, but this recording's frames are "
-                f"{self._shape[1]}x{self._shape[0]} (width x height)"
-            )
+        self._check_shape(d, timestamp)
+        self._mode = "frames"
         self._last_ts = timestamp
         # Copies: the caller may reuse its buffers while the threads encode.
         fut_color = (
@@ -284,6 +296,83 @@ class RecordingWriter:
             if rgb is not None
             else None
         )
+        self._enqueue(timestamp, fut_color, d)
+
+    def write_encoded(
+        self,
+        packets: Sequence[Packet],
+        depth: Any,
+        timestamp: int,
+        *,
+        extradata: bytes | None = None,
+    ) -> None:
+        """Add a frame whose color is already encoded: the muxing half of the writer.
+
+        ``packets`` are the color packets to store with this frame, in decode order, as this
+        recording's color codec (whose config is recorded) would have written them: usually
+        the frame's own packet, none for a frame whose packet came earlier, or several when a
+        B-frame arrives with a later frame. ``depth`` and ``timestamp`` are as for
+        :meth:`write`; ``extradata`` (the decoder's set-up bytes) is taken with the first
+        frame. The codec's encoder is never opened, so packets from hardware encoders, other
+        files or ROS bags go in unchanged. A recording takes either :meth:`write` frames or
+        encoded ones, not both. Raises :class:`~pcdcodec.InputError` for a recording without
+        color, items that are not :class:`~pcdcodec.color.base.Packet`, or the errors of
+        :meth:`write`.
+        """
+        self._check_open()
+        if self.color_codec is None:
+            raise InputError("this recording has no color codec: open it with the codec whose "
+                             "packets these are")  # fmt: skip
+        if self._mode == "frames":
+            raise InputError("this recording encodes images (write); it cannot take packets too")
+        group = list(packets)
+        for k, p in enumerate(group):
+            if not isinstance(p, Packet):
+                raise InputTypeError(f"packet {k} is a {type(p).__name__}, expected a Packet")
+        timestamp = self._next_timestamp(timestamp)
+        d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
+        self._check_shape(d, timestamp, encoded=True, extradata=extradata)
+        self._mode = "encoded"
+        self._last_ts = timestamp
+        done: Future[list[Packet]] = Future()
+        done.set_result(group)
+        self._enqueue(timestamp, done, d)
+
+    def _next_timestamp(self, timestamp: Any) -> int:
+        if timestamp is None:
+            timestamp = 0 if self._last_ts is None else self._last_ts + round(_NS / self.fps)
+        if isinstance(timestamp, bool) or not isinstance(timestamp, (int, np.integer)):
+            raise InputTypeError(f"timestamp must be an int (ns), got {type(timestamp).__name__}")
+        ts = int(timestamp)
+        if ts < 0:
+            raise InputError(f"timestamp must not be negative, got {ts}")
+        if self._last_ts is not None and ts <= self._last_ts:
+            raise InputError(
+                f"timestamp {ts} ns does not increase (previous frame: {self._last_ts} ns)"
+            )
+        return ts
+
+    def _check_shape(
+        self,
+        d: npt.NDArray[Any],
+        timestamp: int,
+        *,
+        encoded: bool = False,
+        extradata: bytes | None = None,
+    ) -> None:
+        if self._shape is None:
+            self._start_stream(
+                d.shape[0], d.shape[1], timestamp, encoded=encoded, extradata=extradata
+            )
+        elif d.shape != self._shape:
+            raise InputError(
+                f"depth is {d.shape[1]}x{d.shape[0]}, but this recording's frames are "
+                f"{self._shape[1]}x{self._shape[0]} (width x height)"
+            )
+
+    def _enqueue(
+        self, timestamp: int, fut_color: Future[list[Packet]] | None, d: npt.NDArray[Any]
+    ) -> None:
         fut_depth = self._depth_pool.submit(self.depth_codec.encode, d.copy())
         self._pending.append((timestamp, fut_color, fut_depth))
         while len(self._pending) > self.in_flight:
@@ -293,58 +382,115 @@ class RecordingWriter:
         assert self._encoder is not None
         return self._encoder.encode(rgb, timestamp)
 
-    def write_rgbd(self, rgbd: Any, timestamp: int | None = None) -> None:
-        """Add an ``open3d.geometry.RGBDImage`` made with ``convert_rgb_to_intensity=False``.
+    def write_rgbd(
+        self,
+        rgbd: Any,
+        timestamp: int | None = None,
+        *,
+        depth_scale: float = OPEN3D_DEPTH_SCALE,
+    ) -> None:
+        """Add an Open3D RGBDImage, legacy (``open3d.geometry``) or tensor (``open3d.t.geometry``).
 
-        Open3D keeps depth as float32 metres; it is turned back into depth units with this
-        recording's ``depth_scale`` and must come out as whole numbers (it does when the
-        RGBDImage was made from uint16 depth with the same scale).
+        ``depth_scale`` is the one the image was made with, in Open3D's convention (the
+        ``depth_scale`` given to ``create_from_color_and_depth``, or used with a tensor image;
+        Open3D's default is 1000). Depth in depth units must be at this recording's own depth
+        scale: a different one raises :class:`~pcdcodec.InputError` instead of storing depth
+        rescaled. Tensor images with float32 depth are metres after division by
+        ``depth_scale`` and need a depth codec that takes float32. Color must be 8-bit RGB
+        (``convert_rgb_to_intensity=False``). Note that a legacy image has already lost the
+        depth beyond its ``depth_trunc`` (Open3D's default 3 m).
         """
-        color = np.asarray(rgbd.color)
-        metres = np.asarray(rgbd.depth)
-        if color.dtype != np.uint8 or color.ndim != 3:
+        from ..frame import from_open3d_rgbd, open3d_rgbd_kind
+
+        kind = open3d_rgbd_kind(rgbd)
+        tensor_float = kind == "tensor" and str(rgbd.depth.dtype) == "Float32"
+        if kind is not None and not tensor_float and float(depth_scale) != self.depth_scale:
             raise InputError(
-                f"RGBDImage color is {color.dtype} {color.shape}; make it with "
-                "convert_rgb_to_intensity=False to keep 8-bit RGB"
+                f"this {kind} RGBDImage holds depth at depth_scale={float(depth_scale):g} "
+                f"(Open3D's default is {OPEN3D_DEPTH_SCALE:g} unless another was passed), but "
+                f"recording {str(self.path)!r} stores {self.depth_scale:g} units per metre; "
+                f"pass depth_scale= with the scale the image was made with, or open the "
+                f"recording with depth_scale={float(depth_scale):g}"
             )
-        units = metres.astype(np.float64) * self.depth_scale
-        rounded = np.rint(units)
-        if not np.allclose(units, rounded, atol=1e-3) or rounded.max(initial=0) > 65535:
-            raise InputError(
-                f"RGBDImage depth times depth_scale {self.depth_scale} is not whole depth units; "
-                "use write() with the original depth instead"
-            )
-        self.write(color, rounded.astype(np.uint16), timestamp)
+        color, depth = from_open3d_rgbd(rgbd, depth_scale=depth_scale)
+        self.write(color, depth, timestamp)
 
     def write_frames(
         self,
         frames: Iterable[Any],
         *,
         progress: Callable[[int], None] | None = None,
+        rgbd_depth_scale: float = OPEN3D_DEPTH_SCALE,
     ) -> int:
         """Write every frame of an iterable and return how many were written.
 
-        Items may be :class:`~pcdcodec.RGBDFrame` objects (as from :func:`pcdcodec.load_folder`),
-        ``(color, depth)`` or ``(color, depth, timestamp)`` tuples, or Open3D ``RGBDImage``
-        objects. ``progress`` is called with the number of frames written so far.
+        Items may be :class:`~pcdcodec.Frame` objects (from a source, :func:`pcdcodec.load_folder`
+        or another recording), ``(color, depth)`` or ``(color, depth, timestamp)`` tuples, or
+        Open3D RGBDImages, legacy or tensor, alone or as ``(rgbd, timestamp)`` tuples.
+        ``rgbd_depth_scale`` is the depth scale the RGBDImages were made with (see
+        :meth:`write_rgbd`). ``progress`` is called with the number of frames written so far.
+        To record a whole source with its camera, use :meth:`write_source` (or
+        :func:`pcdcodec.encode`).
         """
+        from ..frame import Frame, open3d_rgbd_kind
+
         count = 0
         for item in frames:
-            if hasattr(item, "depth") and hasattr(item, "timestamp_ns"):
+            if isinstance(item, Frame):
                 self.write(item.color, item.depth, item.timestamp_ns)
-            elif type(item).__name__ == "RGBDImage":
-                self.write_rgbd(item)
+            elif open3d_rgbd_kind(item) is not None:
+                self.write_rgbd(item, depth_scale=rgbd_depth_scale)
+            elif (
+                isinstance(item, tuple) and len(item) == 2 and open3d_rgbd_kind(item[0]) is not None
+            ):
+                self.write_rgbd(item[0], item[1], depth_scale=rgbd_depth_scale)
             elif isinstance(item, tuple) and len(item) in (2, 3):
                 self.write(*item)
             else:
                 raise InputTypeError(
-                    f"frame {count} is a {type(item).__name__}; expected an RGBDFrame, an "
-                    "RGBDImage or a (color, depth[, timestamp]) tuple"
+                    f"frame {count} is a {type(item).__name__}; expected a pcdcodec.Frame, an "
+                    "Open3D RGBDImage, an (rgbd, timestamp) or a (color, depth[, timestamp]) "
+                    "tuple"
                 )
             count += 1
             if progress is not None:
                 progress(count)
         return count
+
+    def write_source(self, source: Source, *, progress: Callable[[int], None] | None = None) -> int:
+        """Write every frame of a :class:`~pcdcodec.Source` and return how many were written.
+
+        The source's camera and depth scale must be this recording's (:func:`pcdcodec.encode`
+        opens the writer from the source, so they are). A source without color
+        (``source.has_color`` false) needs a writer opened with ``color=None``. Raises
+        :class:`~pcdcodec.InputError` when they disagree; frames already written stay intact.
+        """
+        from ..sources.base import Source
+
+        if not isinstance(source, Source):
+            raise InputTypeError(
+                f"write_source takes a pcdcodec.Source, got {type(source).__name__}; use "
+                "write_frames for other iterables"
+            )
+        if source.intrinsics is not None and source.intrinsics != self.intrinsics:
+            raise InputError(
+                f"source {str(source.path)!r} has camera {source.intrinsics.to_dict()}, this "
+                f"recording {self.intrinsics.to_dict()}"
+            )
+        if float(source.depth_scale) != self.depth_scale:
+            raise InputError(
+                f"source {str(source.path)!r} has depth scale {source.depth_scale} per metre, this "
+                f"recording {self.depth_scale}"
+            )
+        if not source.has_color and self.color_codec is not None:
+            raise InputError(
+                f"source {str(source.path)!r} has no color; open the recording with color=None"
+            )
+        if source.has_color and self.color_codec is None:
+            frames: Iterable[Any] = ((None, f.depth, f.timestamp_ns) for f in source)
+        else:
+            frames = source
+        return self.write_frames(frames, progress=progress)
 
     def _synchronizer(self) -> Any:
         if self._sync is None:
@@ -381,7 +527,7 @@ class RecordingWriter:
 
     def _write_packets(self, packets: list[Packet]) -> None:
         mcap = self._mcap
-        video_format = getattr(self.color_codec, "video_format", None)
+        video_format = self.color_codec.video_format if self.color_codec else None
         for packet in packets:
             if packet.keyframe:
                 mcap.add_message(
