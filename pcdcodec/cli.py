@@ -146,6 +146,14 @@ def _add_topic_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--color-topic", help="color topic ('' for depth only)")
     g.add_argument("--info-topic", help="CameraInfo topic")
     g.add_argument("--cloud-topic", help="organized PointCloud2 topic (read instead of images)")
+    g.add_argument(
+        "--passthrough",
+        nargs="?",
+        const=True,
+        default=False,
+        metavar="TOPIC",
+        help="record the bag's h264/h265 video packets as they are (CompressedVideo, FFMPEGPacket)",
+    )
 
 
 def _mib(n: float) -> str:
@@ -268,6 +276,7 @@ def _cmd_encode(args: argparse.Namespace) -> int:
                 fps=args.fps,
                 overwrite=args.overwrite,
                 progress=bar.update,
+                passthrough=args.passthrough,
             )
     n = summary.frames
     print(

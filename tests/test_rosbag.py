@@ -81,9 +81,11 @@ def _info(store: Any, ros2: bool, ns: int, w: int, h: int, f: float = 300.0) -> 
     )  # fmt: skip
 
 
-def write_bag(path: Path, messages: list[tuple[str, int, Any]], *, ros2: bool = False) -> Path:
+def write_bag(
+    path: Path, messages: list[tuple[str, int, Any]], *, ros2: bool = False, store: Any = None
+) -> Path:
     """Write ``(topic, log time ns, message)`` triples into a ROS 1 bag or a ROS 2 mcap bag."""
-    store = _store(ros2)
+    store = store or _store(ros2)
     if ros2:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
@@ -720,3 +722,53 @@ def test_real_sequence_cloud_bag_colors_exact_and_xyz_within_1e6(tmp_path: Path)
             assert np.array_equal(valid, np.isfinite(got[..., 2]))
             assert np.abs(got[valid] - want[valid]).max() <= 1e-6
             assert np.array_equal(frame.color, c)
+
+
+# -- pass-through of encoded video -------------------------------------------------------------
+
+_VIDEO_MSG = "builtin_interfaces/Time timestamp\nstring frame_id\nuint8[] data\nstring format\n"
+
+
+def test_compressed_video_passes_through_without_reencoding(tmp_path: Path) -> None:
+    from rosbags.typesys import get_types_from_msg
+
+    from pcdcodec.color.base import encode_frames
+
+    store = _store(True)
+    store.register(get_types_from_msg(_VIDEO_MSG, "foxglove_msgs/msg/CompressedVideo"))
+    frames = _small(6)
+    stamps = [NS + k * 33_333_333 for k in range(6)]
+    codec = pcdcodec.get_codec("h264", kind="color", gop=3)
+    packets, _ = encode_frames(codec, [c for c, _ in frames], stamps)  # type: ignore[arg-type]
+    assert len(packets) == 6
+    video = store.types["foxglove_msgs/msg/CompressedVideo"]
+    time_t = store.types["builtin_interfaces/msg/Time"]
+    msgs = [("/cam/depth/camera_info", 1, _info(store, True, NS, 160, 120))]
+    for k, (p, (_, d)) in enumerate(zip(packets, frames, strict=True)):
+        if k != 4:  # video 4 has no depth: it is kept, since video 5 is decoded from it
+            img = _image(store, True, stamps[k], d, "16UC1")
+            msgs.append(("/cam/depth/image_raw", stamps[k], img))
+        ts = stamps[k] + 2_000_000
+        msg = video(
+            timestamp=time_t(sec=ts // NS, nanosec=ts % NS), frame_id="cam",
+            data=np.frombuffer(p.data, np.uint8), format="h264",
+        )  # fmt: skip
+        msgs.append(("/cam/color/video", ts, msg))
+    msgs.sort(key=lambda m: m[1])
+    bag = write_bag(tmp_path / "v", msgs, ros2=True, store=store)
+    with pcdcodec.open_source(bag) as src:
+        assert "/cam/color/video" in src.video_topics()
+    out = tmp_path / "v.pcdc"
+    summary = pcdcodec.encode(bag, out, passthrough=True)
+    assert summary.frames == 5
+    assert summary.dropped == {"color": 1, "depth": 0}
+    with pcdcodec.open(out) as rec:
+        assert rec.codecs["color"]["id"] == "h264"  # type: ignore[index]
+        # The bag's packets, byte for byte, in order, with the keyframes found in the bitstream.
+        got = list(rec.packets())
+        assert [p.data for p in got] == [p.data for p in packets]
+        assert rec.keyframes == [0, 3]
+        decoded = {f.timestamp_ns: f.color for f in rec}
+    direct = pcdcodec.color.base.decode_packets(codec, packets, 160, 120)
+    for k in (0, 1, 2, 3, 5):
+        assert np.array_equal(decoded[stamps[k]], direct[k].rgb)

@@ -678,6 +678,85 @@ class RosbagSource(Source):
         self._cloud_units = None
         self.depth_scale = 1.0
 
+    # -- pass-through of encoded video -------------------------------------------------------
+
+    def video_topics(self) -> list[str]:
+        """Topics holding encoded video (Foxglove CompressedVideo, ffmpeg_image_transport)."""
+        return [c.topic for c in self._reader.connections if c.msgtype in VIDEO_TYPES]
+
+    def encoded_frames(self, video_topic: str | None = None) -> Iterator[tuple[str, Any, Any, int]]:
+        """Frames whose color is the bag's encoded video, not decoded: ``(video_format,
+        packets, depth, timestamp)`` for :meth:`pcdcodec.RecordingWriter.write_encoded`.
+
+        Each video message is one packet, paired with a depth image by stamp as images are.
+        The paired packet takes the depth's stamp; packets without a depth partner are kept
+        (later packets may need them to decode) and go with the next frame, at their own
+        stamps. Raises :class:`~pcdcodec.InputError` without a video topic or for a format
+        other than h264/h265.
+        """
+        from ..color.base import Packet
+        from ..sync import Synchronizer
+
+        topics = self.video_topics()
+        if video_topic is None:
+            if not topics:
+                raise InputError(
+                    f"bag {str(self.path)!r} has no encoded video topic (foxglove_msgs/"
+                    "CompressedVideo or ffmpeg_image_transport_msgs/FFMPEGPacket)"
+                )
+            video_topic = topics[0]
+        vconn = self._conn(video_topic, "video")
+        if vconn.msgtype not in VIDEO_TYPES:
+            raise InputError(f"video topic {video_topic!r} is a {vconn.msgtype}")
+        if self.mode != "images":
+            raise InputError("pass-through pairs video with depth images, not with clouds")
+        dconn = self._depth_conn
+        self.color_topic = video_topic
+        self.stats = _Stats()
+        sync: Synchronizer[Any, Any] = Synchronizer(max_difference=self.max_difference)
+        waiting: list[tuple[int, bytes, bool]] = []  # video packets not yet written
+        last = {"depth": -1, "video": -1}
+        fmt_seen: str | None = None
+
+        def groups(ready: list[Any]) -> Iterator[tuple[str, Any, Any, int]]:
+            for cts, _, dts, dmsg in ready:
+                group = []
+                while waiting and waiting[0][0] <= cts:
+                    ts, data, key = waiting.pop(0)
+                    pts = dts if ts == cts else ts
+                    group.append(Packet.create(data, pts, pts, key))
+                depth = self._decode(dmsg, dconn, "depth")
+                self.stats.frames += 1
+                assert fmt_seen is not None
+                yield fmt_seen, group, depth, dts
+
+        for conn, t, msg in self._messages([dconn, vconn]):
+            role = "depth" if conn.topic == dconn.topic else "video"
+            ts = self._stamp(msg, t)
+            if ts <= last[role]:
+                self.stats.out_of_order += 1
+                continue
+            last[role] = ts
+            if role == "video":
+                fmt, data, key = rm.video_packet(msg, video_topic)
+                if fmt_seen is not None and fmt != fmt_seen:
+                    raise InputError(
+                        f"video topic {video_topic!r} changes from {fmt_seen} to {fmt}"
+                    )
+                fmt_seen = fmt
+                waiting.append((ts, data, key))
+                ready = sync.add_color(ts, None)
+            else:
+                ready = sync.add_depth(ts, msg)
+            self.stats.dropped_color = len(sync.dropped_color)
+            self.stats.dropped_depth = len(sync.dropped_depth)
+            yield from groups(ready)
+            if self.max_frames is not None and self.stats.frames >= self.max_frames:
+                return
+        yield from groups(sync.flush())
+        self.stats.dropped_color = len(sync.dropped_color)
+        self.stats.dropped_depth = len(sync.dropped_depth)
+
     def close(self) -> None:
         reader = getattr(self, "_reader", None)
         if reader is not None:
