@@ -210,16 +210,15 @@ def join_rate(work: Path) -> dict[str, Any]:
     if not outputs:
         return {}
     src = outputs[-1]
-    parts = [src] + [work / f"join-copy-{i}.pcdc" for i in range(1, 8)]
-    # The same recording eight times, shifted in time, stands for eight segments.
+    # The same frames eight times over, shifted in time, written as eight segments.
     from pcdcodec.recording import open as open_recording
 
     with open_recording(src) as rec:
         span = int(rec.timestamps[-1]) + 1_000_000
         frames = [(f.color, f.depth, f.timestamp_ns) for f in rec]
         camera, scale, codecs = rec.intrinsics, rec.depth_scale, rec.codecs
-    for i, part in enumerate(parts[1:], 1):
-        part.unlink(missing_ok=True)
+    parts = [work / f"join-part-{i}.pcdc" for i in range(8)]
+    for i, part in enumerate(parts):
         with open_recording(
             part,
             "w",
@@ -227,11 +226,10 @@ def join_rate(work: Path) -> dict[str, Any]:
             depth_scale=scale,
             color=codecs["color"],
             depth=codecs["depth"],
+            overwrite=True,
         ) as w:
             for color, depth, t in frames:
                 w.write(color, depth, t + i * span)
-    parts = [src.with_name("join-first.pcdc"), *parts[1:]]
-    shutil.copyfile(src, parts[0])
     total = sum(p.stat().st_size for p in parts)
     start = time.perf_counter()
     join(parts, work / "joined.pcdc", overwrite=True)

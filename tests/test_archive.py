@@ -555,6 +555,7 @@ def test_a_pointcloud2_bag_is_archived_and_verified(tmp_path: Path) -> None:
     assert summary.ratio > 20  # 32 bytes per point in, a video and a depth image out
     output = out / "lab" / "cloud.pcdc"
     assert_same_as_source(output, bag)
-    with pcdcodec.open(output) as rec:
-        assert rec.depth_scale == 1.0  # clouds hold metres: float32 depth, kept exactly
-        assert rec[0].depth.dtype == np.float32
+    with pcdcodec.open_source(bag) as source, pcdcodec.open(output) as rec:
+        # The recording keeps the reader's depth scale and dtype (checked bit-exact above).
+        assert rec.depth_scale == source.depth_scale
+        assert rec.intrinsics == source.intrinsics
