@@ -70,6 +70,8 @@ def main() -> int:
         signal.alarm(0)
         done += n
         batch += 1
+        if done % 10_000 == 0:
+            print(f"  {done} cases, {time.perf_counter() - start:.0f} s", flush=True)
     elapsed = time.perf_counter() - start
     raised = sum(v for k, v in total.items() if not k.endswith(":exact"))
     exact = done - raised
