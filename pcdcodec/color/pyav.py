@@ -55,6 +55,24 @@ def _context(name: str, mode: Literal["r", "w"]) -> Any:
     return av.CodecContext.create(name, mode)
 
 
+def ffmpeg_packet(data: bytes | bytearray | memoryview) -> Any:
+    """An ``av.Packet`` holding a copy of ``data`` in memory that FFmpeg allocated and owns.
+
+    ``av.Packet(data)`` would lend FFmpeg the Python object's memory, released through a
+    callback that takes the GIL. Threaded codecs (dav1d, frame-threaded decoders, muxers)
+    release packets on their own worker threads, and one that does so while the main thread
+    holds the GIL and waits for those workers (``avcodec_free_context`` -> ``dav1d_flush``)
+    deadlocks the process. A packet FFmpeg owns is freed without Python, on any thread.
+    """
+    import av
+
+    size = len(memoryview(data).cast("B"))
+    packet = av.Packet(size)
+    if size:
+        memoryview(packet)[:] = memoryview(data).cast("B")
+    return packet
+
+
 @functools.cache
 def _probe(
     encoder: str, decoder: str, pix_fmt: str, options: tuple[tuple[str, str], ...]
@@ -260,9 +278,7 @@ class _PyAVDecoder(VideoDecoder):
             ) from exc
 
     def _decode(self, packet: Packet) -> list[DecodedFrame]:
-        import av
-
-        avp = av.Packet(packet.data)
+        avp = ffmpeg_packet(packet.data)
         avp.pts, avp.dts = packet.pts, packet.dts
         return self._run(avp, packet.pts)
 
