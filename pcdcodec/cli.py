@@ -178,7 +178,8 @@ def _cmd_encode(args: argparse.Namespace) -> int:
     )
     first = next(iter(source))
     h, w = first.depth.shape
-    intrinsics = _intrinsics_from_args(args, w, h) or source.intrinsics
+    from_args = _intrinsics_from_args(args, w, h)
+    intrinsics = from_args or source.intrinsics
     if intrinsics is None:
         raise InputError(
             f"no intrinsics for {args.src!r}: pass --fx --fy --cx --cy, or put a camera.json "
@@ -199,8 +200,15 @@ def _cmd_encode(args: argparse.Namespace) -> int:
     ):
         count = writer.write_frames(source, progress=bar.update)
     size = Path(args.output).stat().st_size
+    scale_from = "--depth-scale" if args.depth_scale is not None else source.depth_scale_origin
+    camera_from = "--fx/--fy/--cx/--cy" if from_args is not None else "camera.json"
     print(
         f"wrote {count} frames to {args.output} ({_mib(size)}, {size / count / 1024:.1f} KiB/frame)"
+    )
+    print(f"  depth scale: {source.depth_scale:g} units per metre (from {scale_from})")
+    print(
+        f"  intrinsics:  {intrinsics.width}x{intrinsics.height}, fx={intrinsics.fx:g} "
+        f"fy={intrinsics.fy:g} cx={intrinsics.cx:g} cy={intrinsics.cy:g} (from {camera_from})"
     )
     return 0
 
@@ -336,12 +344,14 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from .evaluation import evaluate, parse_list
 
     frames = args.frames
+    if frames < 1:
+        raise InputError(f"--frames must be at least 1, got {frames}")
     source: Any = args.src
     intrinsics = None
     if any(getattr(args, k) is not None for k in ("fx", "fy", "cx", "cy")):
         from .datasets import open_folder
 
-        first = next(iter(open_folder(args.src, max_frames=1)))
+        first = next(iter(open_folder(args.src, max_frames=1, depth_scale=args.depth_scale)))
         h, w = first.depth.shape
         intrinsics = _intrinsics_from_args(args, w, h)
     quiet = args.quiet or not sys.stderr.isatty()

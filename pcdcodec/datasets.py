@@ -9,7 +9,10 @@ Two folder layouts are understood:
   sorted file-name order; timestamps are then the frame index at ``fps``.
 
 Intrinsics and depth scale come from the arguments or, when not given, from a ``camera.json``
-in the folder (``width``, ``height``, ``fx``, ``fy``, ``cx``, ``cy``, ``depth_scale``).
+in the folder (``width``, ``height``, ``fx``, ``fy``, ``cx``, ``cy``, ``depth_scale``). Without
+either, the depth scale of a TUM RGB-D dataset folder (its ``depth.txt`` names the dataset's
+``rgbd_dataset_…`` bag) is TUM's 5000 units per metre; for any other folder the scale cannot
+be known, and opening it raises :class:`~pcdcodec.InputError` asking for ``depth_scale``.
 """
 
 from __future__ import annotations
@@ -40,6 +43,8 @@ __all__ = [
 ]
 
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
+#: Depth units per metre of the TUM RGB-D benchmark's 16-bit depth PNGs.
+TUM_DEPTH_SCALE = 5000.0
 _NS_PER_S = 1_000_000_000
 
 
@@ -180,6 +185,9 @@ class FolderSource(Source):
     intrinsics: CameraIntrinsics | None
     depth_scale: float
     metadata: dict[str, str] = field(default_factory=dict)
+    #: Where :attr:`depth_scale` came from: ``"given"``, ``"camera.json"`` or
+    #: ``"TUM RGB-D dataset"``.
+    depth_scale_origin: str = "given"
 
     @property
     def path(self) -> Path:  # type: ignore[override]
@@ -205,6 +213,35 @@ class FolderSource(Source):
                 )
             shape = frame.depth.shape
             yield frame
+
+
+def _is_tum_dataset(root: Path) -> bool:
+    """Whether ``depth.txt`` is one of the TUM RGB-D benchmark's own lists.
+
+    TUM writes ``# file: 'rgbd_dataset_freiburg…bag'`` in its header. Other recordings use the
+    same list layout with other units (RealSense millimetres), so the layout alone says nothing.
+    """
+    try:
+        with open(root / "depth.txt", encoding="utf-8", errors="replace") as fh:
+            head = [fh.readline() for _ in range(3)]
+    except OSError:
+        return False
+    return any(line.startswith("# file:") and "rgbd_dataset_" in line for line in head)
+
+
+def _depth_scale(root: Path, given: float | None, meta: dict[str, Any]) -> tuple[float, str]:
+    """The folder's depth scale and where it came from."""
+    if given is not None:
+        return float(given), "given"
+    if "depth_scale" in meta:
+        return float(meta["depth_scale"]), "camera.json"
+    if _is_tum_dataset(root):
+        return TUM_DEPTH_SCALE, "TUM RGB-D dataset"
+    raise InputError(
+        f"no depth scale for {str(root)!r}: nothing in the folder says how many depth units make "
+        "a metre; pass depth_scale= (--depth-scale on the command line), e.g. 1000 for "
+        "millimetres, or put depth_scale in a camera.json in the folder"
+    )
 
 
 def open_folder(
@@ -245,9 +282,8 @@ def open_folder(
     if intrinsics is None and {"fx", "fy", "cx", "cy"} <= meta.keys():
         keys = ("width", "height", "fx", "fy", "cx", "cy")
         intrinsics = CameraIntrinsics.from_dict({k: meta[k] for k in keys if k in meta})
-    if depth_scale is None:
-        depth_scale = float(meta.get("depth_scale", 1000.0))
-    return FolderSource(root, pairs, intrinsics, depth_scale)
+    scale, origin = _depth_scale(root, depth_scale, meta)
+    return FolderSource(root, pairs, intrinsics, scale, depth_scale_origin=origin)
 
 
 def load_folder(
@@ -264,9 +300,11 @@ def load_folder(
 
     ``layout`` is ``"auto"``, ``"tum"`` or ``"folders"``; ``max_dt`` is the largest color/depth
     time difference in seconds accepted when pairing TUM lists without ``associations.txt``.
-    Intrinsics and depth scale default to the folder's ``camera.json`` (depth scale 1000
-    without one). Raises :class:`~pcdcodec.InputError` for a missing folder, an unknown
-    layout, an empty sequence, unreadable images or frames of different sizes.
+    Intrinsics and depth scale default to the folder's ``camera.json``; without a depth scale
+    there, a TUM RGB-D dataset folder gets TUM's 5000 and any other folder raises
+    :class:`~pcdcodec.InputError` asking for ``depth_scale``. Raises
+    :class:`~pcdcodec.InputError` for a missing folder, an unknown layout, an empty sequence,
+    an unknown depth scale, unreadable images or frames of different sizes.
     """
     source = open_folder(
         path,

@@ -35,6 +35,31 @@ from ._ros import (
 __all__ = ["RecordingWriter"]
 
 _NS = 1_000_000_000
+#: The latest timestamp a recording holds: the ROS messages it stores (camera calibration,
+#: CompressedVideo) keep time as int32 seconds, so 2038-01-19 03:14:07.999999999 UTC.
+MAX_TIMESTAMP_NS = (2**31) * _NS - 1
+
+
+def _user_metadata(metadata: Any) -> dict[str, str]:
+    """User metadata as MCAP's str -> str map: strings kept, other values as JSON."""
+    if metadata is None:
+        return {}
+    if not isinstance(metadata, dict):
+        raise InputTypeError(f"metadata must be a dict, got {type(metadata).__name__}")
+    out: dict[str, str] = {}
+    for key, value in metadata.items():
+        if not isinstance(key, str):
+            raise InputTypeError(f"metadata key {key!r} must be a str, got {type(key).__name__}")
+        if isinstance(value, str):
+            out[key] = value
+            continue
+        try:
+            out[key] = json.dumps(value, allow_nan=False)
+        except (TypeError, ValueError) as exc:
+            raise InputError(
+                f"metadata[{key!r}] = {value!r} is not a str and cannot be stored as JSON ({exc})"
+            ) from None
+    return out
 
 
 def _codec(spec: Any, kind: str) -> Codec:
@@ -107,6 +132,8 @@ class RecordingWriter:
         if not isinstance(in_flight, int) or in_flight < 1:
             raise InputError(f"in_flight must be a positive int, got {in_flight!r}")
         self.in_flight = in_flight
+        if not isinstance(frame_id, str):
+            raise InputTypeError(f"frame_id must be a str, got {frame_id!r}")
         self.frame_id = frame_id
         depth_codec = _codec(depth, "depth")
         if not isinstance(depth_codec, FrameCodec):
@@ -123,9 +150,7 @@ class RecordingWriter:
             color_codec._require_available()
             self.color_codec = color_codec
         self.depth_codec._require_available()
-        user = {
-            str(k): v if isinstance(v, str) else json.dumps(v) for k, v in (metadata or {}).items()
-        }
+        user = _user_metadata(metadata)
 
         if self.path.exists() and not overwrite:
             raise InputError(
@@ -141,33 +166,15 @@ class RecordingWriter:
             if self.path.exists()
             else self.path
         )
-        from mcap.writer import CompressionType, Writer
-
         mode = "xb" if self._writing == self.path else "wb"
         self._file: IO[bytes] = open(self._writing, mode)  # noqa: SIM115 - closed by close()
-        # One chunk per message: each is on disk (with its CRC) as soon as it is written, and
-        # MCAP's chunk index then gives every message's time and offset directly.
-        self._mcap = Writer(self._file, chunk_size=0, compression=CompressionType.NONE)
-        self._mcap.start(profile=fmt.PROFILE, library=f"pcdcodec {__version__}")
-        self._mcap.add_metadata(
-            fmt.METADATA_NAME,
-            {
-                "format_version": str(fmt.FORMAT_VERSION),
-                "library": f"pcdcodec {__version__}",
-                "intrinsics": json.dumps(self.intrinsics.to_dict()),
-                "depth_scale": repr(self.depth_scale),
-                "fps": repr(self.fps),
-                "depth_codec": json.dumps(self.depth_codec.get_config()),
-                "color_codec": json.dumps(self.color_codec.get_config())
-                if self.color_codec
-                else "",
-                "frame_id": frame_id,
-            },
-        )
-        if user:
-            self._mcap.add_metadata(fmt.USER_METADATA_NAME, user)
-        self._file.flush()
-
+        try:
+            self._start(user)
+        except BaseException:
+            # A writer that never started leaves nothing behind, so a retry finds no file.
+            self._file.close()
+            self._writing.unlink(missing_ok=True)
+            raise
         self._encoder: VideoEncoder | None = None
         self._shape: tuple[int, int] | None = None
         self._last_ts: int | None = None
@@ -185,6 +192,33 @@ class RecordingWriter:
         self.bytes_depth = 0
         self._sync: Any = None
         self._closed = False
+
+    def _start(self, user: dict[str, str]) -> None:
+        """Write the file's header and metadata."""
+        from mcap.writer import CompressionType, Writer
+
+        # One chunk per message: each is on disk (with its CRC) as soon as it is written, and
+        # MCAP's chunk index then gives every message's time and offset directly.
+        self._mcap = Writer(self._file, chunk_size=0, compression=CompressionType.NONE)
+        self._mcap.start(profile=fmt.PROFILE, library=f"pcdcodec {__version__}")
+        self._mcap.add_metadata(
+            fmt.METADATA_NAME,
+            {
+                "format_version": str(fmt.FORMAT_VERSION),
+                "library": f"pcdcodec {__version__}",
+                "intrinsics": json.dumps(self.intrinsics.to_dict()),
+                "depth_scale": repr(self.depth_scale),
+                "fps": repr(self.fps),
+                "depth_codec": json.dumps(self.depth_codec.get_config()),
+                "color_codec": json.dumps(self.color_codec.get_config())
+                if self.color_codec
+                else "",
+                "frame_id": self.frame_id,
+            },
+        )
+        if user:
+            self._mcap.add_metadata(fmt.USER_METADATA_NAME, user)
+        self._file.flush()
 
     # -- writing -----------------------------------------------------------------------
 
@@ -260,12 +294,22 @@ class RecordingWriter:
         timestamp = int(timestamp)
         if timestamp < 0:
             raise InputError(f"timestamp must not be negative, got {timestamp}")
+        if timestamp > MAX_TIMESTAMP_NS:
+            raise InputError(
+                f"timestamp {timestamp} ns is later than a recording can hold: at most "
+                f"{MAX_TIMESTAMP_NS} ns (2038-01-19 03:14:07 UTC; ROS time has int32 seconds)"
+            )
         if self._last_ts is not None and timestamp <= self._last_ts:
             raise InputError(
                 f"timestamp {timestamp} ns does not increase (previous frame: {self._last_ts} ns)"
             )
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
         rgb: npt.NDArray[np.uint8] | None = None
+        if self.color_codec is None and color is not None:
+            raise InputError(
+                "this recording is depth only (color=None); pass None as color, or open it "
+                "with a color codec to keep the color images"
+            )
         if self.color_codec is not None:
             if color is None:
                 raise InputError("this recording has color: pass a color image with each frame")
@@ -430,25 +474,48 @@ class RecordingWriter:
             raise InputError(f"recording {str(self.path)!r} is closed")
 
     def close(self) -> None:
-        """Write what is still pending, the index and the summary, and close the file."""
+        """Write what is still pending, the index and the summary, and close the file.
+
+        Every step is tried even when an earlier one fails (a frame that cannot be encoded, a
+        full disk), so the frames already written stay readable and the file gets its index
+        whenever it can; the first error is raised at the end. When replacing a file, the old
+        one is kept unless the new one closed without error (the new one's frames then stay in
+        the partial file the error names).
+        """
         if self._closed:
             return
-        try:
-            if self._sync is not None:
-                for _, rgb, depth_ts, depth in self._sync.flush():
-                    self.write(rgb, depth, depth_ts)
-        finally:
-            self._closed = True
-        try:
-            while self._pending:
-                self._drain_one()
-            if self._encoder is not None:
-                self._write_packets(self._encoder.flush())
-            self._mcap.finish()  # type: ignore[no-untyped-call]
-        finally:
-            self._color_pool.shutdown(wait=True)
-            self._depth_pool.shutdown(wait=True)
-            self._file.close()
+        errors: list[BaseException] = []
+
+        def attempt(step: Callable[[], Any]) -> None:
+            try:
+                step()
+            except BaseException as exc:  # every step is tried; the first error is raised
+                errors.append(exc)
+
+        def flush_sync() -> None:
+            for _, rgb, depth_ts, depth in self._sync.flush():
+                self.write(rgb, depth, depth_ts)
+
+        if self._sync is not None:
+            attempt(flush_sync)
+        self._closed = True
+        while self._pending:
+            attempt(self._drain_one)
+        encoder = self._encoder
+        if encoder is not None:
+            attempt(lambda: self._write_packets(encoder.flush()))
+        attempt(self._mcap.finish)
+        self._color_pool.shutdown(wait=True)
+        self._depth_pool.shutdown(wait=True)
+        attempt(self._file.close)
+        if errors:
+            add_note = getattr(errors[0], "add_note", None)  # Python 3.11+
+            if self._writing != self._target and add_note is not None:
+                add_note(
+                    f"{str(self._target)!r} was left as it was; the frames written are in "
+                    f"{str(self._writing)!r}"
+                )
+            raise errors[0]
         if self._writing != self._target:
             os.replace(self._writing, self._target)
 
