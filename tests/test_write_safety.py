@@ -13,6 +13,7 @@ import numpy.typing as npt
 import pytest
 
 import pcdcodec
+from pcdcodec.color import PyAVCodec, StreamCodec
 from pcdcodec.datasets import RGBDSequence, load_folder, load_sample, sample_dir
 from pcdcodec.depth import Zstd
 from pcdcodec.errors import InputError, InputTypeError
@@ -267,3 +268,45 @@ def test_cli_bench_refuses_zero_frames() -> None:
     assert result.returncode == 1
     assert "--frames must be at least 1, got 0" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+# -- crash loss at the defaults ---------------------------------------------------------------
+
+
+def _held_back(spec: Any, frames: int = 20) -> int:
+    """The most frames the codec's encoder held back at once while frames went in."""
+    codec = pcdcodec.get_codec(spec, kind="color")
+    assert isinstance(codec, StreamCodec)
+    encoder = codec.encoder(64, 64, 30.0)
+    rng = np.random.default_rng(0)
+    out = held = 0
+    for i in range(frames):
+        rgb = rng.integers(0, 256, (64, 64, 3), dtype=np.uint8)
+        out += len(encoder.encode(rgb, i * 33_000_000))
+        held = max(held, i + 1 - out)
+    assert out + len(encoder.flush()) == frames
+    return held
+
+
+STREAM_CODECS = [
+    name
+    for name in pcdcodec.list_codecs("color", available_only=True)
+    if issubclass(pcdcodec.codec_class(name), PyAVCodec)
+]
+
+
+@pytest.mark.parametrize("name", STREAM_CODECS)
+def test_default_encoders_hold_no_frame_back(name: str) -> None:
+    if name == "av1":  # documented exception: low delay costs AV1 78-121 % in size
+        assert _held_back("av1") > 10
+        assert _held_back({"id": "av1", "low_delay": True}) == 0
+        return
+    assert _held_back(name) == 0
+
+
+@pytest.mark.parametrize("name", ["h264", "h265", "vp9"])
+def test_without_low_delay_the_lookahead_holds_frames(name: str) -> None:
+    if name not in STREAM_CODECS:
+        pytest.skip(f"{name} is unavailable here")
+    assert _held_back({"id": name, "low_delay": False}) > 3
+    assert pcdcodec.get_codec(name).get_config()["low_delay"] is True

@@ -101,8 +101,8 @@ class RecordingWriter:
     Each message is written and flushed as soon as it is encoded: if the process dies, every
     frame whose messages were written (``frames_complete``) can be read back, and
     ``pcdcodec recover`` rewrites the file with an index. Frames still in flight are lost: the
-    ``in_flight`` queue plus the frames a video encoder holds back (x264 at its defaults keeps
-    about a dozen for its lookahead and threads).
+    ``in_flight`` queue plus the frames a video encoder holds back, which at the codecs'
+    defaults (``low_delay=True``) is none, except for AV1 (about 55; see ``docs/format.md``).
     """
 
     def __init__(
