@@ -1,4 +1,7 @@
-"""After a timed benchmark run, print summary tables: the codecs' ratios, quality and speed."""
+"""The repository's benchmarks use pcdcodec's own pytest plugin (as a user's would): its
+fixtures, codec parametrisation and codec summary table. The inputs are the sequences of
+``benchmarks/data.py`` that are present; ``--pcdcodec-data`` replaces them. After a timed run
+this file adds the projector and recording tables."""
 
 from __future__ import annotations
 
@@ -7,26 +10,17 @@ from typing import Any
 
 import pytest
 
+from benchmarks.data import PRESENT, SEQUENCES
 
-def _collect(session: Any, kind: str) -> dict[tuple[str, str], dict[str, Any]]:
-    rows: dict[tuple[str, str], dict[str, Any]] = defaultdict(dict)
-    for bench in session.benchmarks:
-        info = bench.extra_info
-        if info.get("kind") != kind or bench.stats is None:
-            continue
-        row = rows[(info["sequence"], info["codec"])]
-        row.update(info)
-        per_frame = bench.stats.median * 1000 / (info["frames"] if kind == "color" else 1)
-        row[info["op"]] = per_frame
-    return rows
+pytest_plugins = ["pcdcodec.bench.pytest_plugin"]
 
 
-def _ms(row: dict[str, Any], op: str) -> str:
-    return f"{row[op]:9.2f}" if op in row else f"{'':9}"
+def pytest_configure(config: pytest.Config) -> None:
+    from pcdcodec.testing import add_data  # after pytest_plugins, so pytest rewrites its asserts
 
-
-def _psnr(value: Any) -> str:
-    return f"{value:7.2f}" if isinstance(value, float) else f"{value!s:>7}"
+    for name in PRESENT:
+        seq = SEQUENCES[name]
+        add_data(config, name, seq.root, **seq.reader_options())
 
 
 @pytest.hookimpl(trylast=True)
@@ -35,35 +29,6 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
     if session is None or getattr(session, "disabled", False):
         return
     write = terminalreporter.write_line
-    depth = _collect(session, "depth")
-    if depth:
-        write("")
-        write("depth codecs: ratio against raw uint16, median ms per frame")
-        write(
-            f"| {'sequence':18} | {'codec':7} | {'ratio':>6} | {'encode ms':>9} "
-            f"| {'decode ms':>9} |"
-        )
-        write(f"|{'-' * 20}|{'-' * 9}|{'-' * 8}|{'-' * 11}|{'-' * 11}|")
-        for (sequence, codec), row in sorted(depth.items()):
-            write(
-                f"| {sequence:18} | {codec:7} | {row['ratio']:6.2f} | {_ms(row, 'encode')} "
-                f"| {_ms(row, 'decode')} |"
-            )
-    color = _collect(session, "color")
-    if color:
-        write("")
-        write("color codecs: size, ratio against raw RGB24, mean PSNR, median ms per frame")
-        write(
-            f"| {'sequence':18} | {'codec':13} | {'KiB/frame':>9} | {'ratio':>6} | {'PSNR dB':>7} "
-            f"| {'encode ms':>9} | {'decode ms':>9} |"
-        )
-        write(f"|{'-' * 20}|{'-' * 15}|{'-' * 11}|{'-' * 8}|{'-' * 9}|{'-' * 11}|{'-' * 11}|")
-        for (sequence, codec), row in sorted(color.items()):
-            write(
-                f"| {sequence:18} | {codec:13} | {row['bytes_per_frame'] / 1024:9.1f} "
-                f"| {row['ratio']:6.1f} | {_psnr(row['psnr'])} | {_ms(row, 'encode')} "
-                f"| {_ms(row, 'decode')} |"
-            )
 
     projector: dict[str, dict[str, float]] = defaultdict(dict)
     for b in session.benchmarks:

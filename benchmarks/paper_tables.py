@@ -16,8 +16,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pcdcodec
+from benchmarks.data import SEQUENCES
 from pcdcodec.datasets import load_folder
-from tests.conftest import SEQUENCES
 
 CAMERAS = {
     "realsense_d435": pcdcodec.CameraIntrinsics(640, 480, 615.0, 615.0, 320.0, 240.0),

@@ -16,9 +16,9 @@ import numpy.typing as npt
 import open3d as o3d
 import pytest
 
+from benchmarks.data import SEQUENCES, load_colors, load_depths
 from pcdcodec.camera import CameraIntrinsics
 from pcdcodec.projector import Projector
-from tests.conftest import SEQUENCES, load_colors, load_depths
 
 #: Intrinsics per sequence (TUM's recommended values; typical D435 and 7-Scenes values).
 CAMERAS = {

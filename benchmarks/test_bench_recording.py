@@ -16,8 +16,8 @@ from typing import Any
 import pytest
 
 import pcdcodec
+from benchmarks.data import SEQUENCES
 from pcdcodec.datasets import RGBDSequence, load_folder, load_sample
-from tests.conftest import SEQUENCES
 
 FRAMES = 30
 PRESENT = [name for name in ("sample", "tum_fr1_rpy", "realsense_d435") if SEQUENCES[name].present]

@@ -24,16 +24,28 @@ from .color import DEFAULT_COLOR_CODEC
 from .datasets import RGBDFrame, RGBDSequence, load_folder, load_sample
 from .depth import DEFAULT_DEPTH_CODEC, FrameCodec, decode_depth
 from .errors import (
+    ArchiveLockedError,
     CodecUnavailableError,
     DecodeError,
+    DiskFullError,
     InputError,
     InputTypeError,
     PcdcodecError,
     UnknownCodecError,
+    VerificationError,
 )
 from .evaluation import Evaluation, evaluate
+from .frame import Frame
 from .projector import Projector, Reprojection
-from .recording import Frame, Recording, RecordingWriter, open
+from .recording import (
+    EncodeSummary,
+    Recording,
+    RecordingWriter,
+    encode,
+    export_bag,
+    open,
+    recover,
+)
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
 
@@ -41,11 +53,14 @@ __all__ = [
     "DEFAULT_COLOR_CODEC",
     "DEFAULT_DEPTH_CODEC",
     "KINDS",
+    "ArchiveLockedError",
     "CameraIntrinsics",
     "Codec",
     "CodecUnavailableError",
     "ColorCodec",
     "DecodeError",
+    "DiskFullError",
+    "EncodeSummary",
     "Evaluation",
     "Frame",
     "FrameCodec",
@@ -60,11 +75,14 @@ __all__ = [
     "Reprojection",
     "Source",
     "UnknownCodecError",
+    "VerificationError",
     "__version__",
     "as_uint16_depth",
     "codec_class",
     "decode_depth",
+    "encode",
     "evaluate",
+    "export_bag",
     "get_codec",
     "list_codecs",
     "load_folder",
@@ -72,5 +90,6 @@ __all__ = [
     "metrics",
     "open",
     "open_source",
+    "recover",
     "register_codec",
 ]

@@ -8,11 +8,14 @@ dict and a plain JSON dict. Open3D is imported only by :meth:`CameraIntrinsics.t
 
 from __future__ import annotations
 
+import json
 import math
 import numbers
 import operator
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -20,7 +23,15 @@ import numpy.typing as npt
 
 from .errors import InputError, InputTypeError
 
-__all__ = ["CameraIntrinsics"]
+__all__ = [
+    "CAMERA_PRESETS",
+    "INTRINSICS_FILE_NAMES",
+    "CameraIntrinsics",
+    "CameraPreset",
+    "camera_preset",
+    "find_intrinsics_file",
+    "read_intrinsics",
+]
 
 _DICT_KEYS = ("width", "height", "fx", "fy", "cx", "cy")
 
@@ -209,7 +220,11 @@ class CameraIntrinsics:
                 f"camera info has distortion D={distortion.tolist()}; CameraIntrinsics models an "
                 "undistorted pinhole camera: rectify the images and use D = zeros"
             )
-        return cls.from_K(np.reshape(np.asarray(k, dtype=np.float64), (3, 3)), width, height)
+        try:
+            matrix = np.reshape(np.asarray(k, dtype=np.float64), (3, 3))
+        except (TypeError, ValueError):
+            raise InputError(f"camera info K must be 9 numbers, got {k!r}") from None
+        return cls.from_K(matrix, width, height)
 
     # -- plain dict ---------------------------------------------------------------------
 
@@ -238,3 +253,211 @@ class CameraIntrinsics:
                 f"{list(_DICT_KEYS)}"
             )
         return cls(**{k: data[k] for k in _DICT_KEYS})
+
+
+# -- presets ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CameraPreset:
+    """A dataset camera's published intrinsics, and the depth scale the dataset fixes."""
+
+    name: str
+    intrinsics: CameraIntrinsics
+    depth_scale: float | None
+    source: str
+
+
+def _preset(
+    name: str, fx: float, fy: float, cx: float, cy: float, scale: float | None, source: str
+) -> CameraPreset:
+    return CameraPreset(name, CameraIntrinsics(640, 480, fx, fy, cx, cy), scale, source)
+
+
+#: Named cameras (640×480) from the datasets' published values; ``--camera NAME`` on the CLI.
+CAMERA_PRESETS: dict[str, CameraPreset] = {
+    p.name: p
+    for p in (
+        _preset(
+            "tum-fr1",
+            517.3,
+            516.5,
+            318.6,
+            255.3,
+            5000.0,
+            "TUM RGB-D, freiburg1 color camera (distortion not modelled)",
+        ),
+        _preset(
+            "tum-fr2",
+            520.9,
+            521.0,
+            325.1,
+            249.7,
+            5000.0,
+            "TUM RGB-D, freiburg2 color camera (distortion not modelled)",
+        ),
+        _preset(
+            "tum-fr3",
+            535.4,
+            539.2,
+            320.1,
+            247.6,
+            5000.0,
+            "TUM RGB-D, freiburg3 color camera (undistorted images)",
+        ),
+        _preset(
+            "tum-ros",
+            525.0,
+            525.0,
+            319.5,
+            239.5,
+            5000.0,
+            "TUM RGB-D, the ROS defaults TUM recommends for its registered depth",
+        ),
+        _preset(
+            "kinect-v1",
+            525.0,
+            525.0,
+            319.5,
+            239.5,
+            1000.0,
+            "Microsoft Kinect v1 / PrimeSense, OpenNI and Open3D defaults (millimetres)",
+        ),
+        _preset(
+            "7scenes",
+            585.0,
+            585.0,
+            320.0,
+            240.0,
+            1000.0,
+            "Microsoft 7-Scenes (Kinect v1), the dataset's published approximation",
+        ),
+    )
+}
+
+
+def camera_preset(name: str) -> CameraPreset:
+    """The preset called ``name`` (see :data:`CAMERA_PRESETS`); an unknown name raises
+    :class:`~pcdcodec.InputError` listing the known ones."""
+    try:
+        return CAMERA_PRESETS[name]
+    except KeyError:
+        raise InputError(
+            f"unknown camera {name!r}; known cameras: {', '.join(CAMERA_PRESETS)}"
+        ) from None
+
+
+# -- intrinsics files ---------------------------------------------------------------------------
+
+#: File names looked for in RGB-D folders, in this order.
+INTRINSICS_FILE_NAMES = (
+    "camera.json",
+    "intrinsics.K.txt",
+    "camera-intrinsics.txt",
+    "intrinsics.txt",
+    "K.txt",
+    "camera_info.yaml",
+    "camera_info.yml",
+    "camera.yaml",
+    "intrinsic.json",
+    "camera_intrinsic.json",
+)
+
+
+def find_intrinsics_file(folder: str | os.PathLike[str]) -> Path | None:
+    """The first intrinsics file of :data:`INTRINSICS_FILE_NAMES` in ``folder``, or ``None``."""
+    root = Path(folder)
+    for name in INTRINSICS_FILE_NAMES:
+        if (root / name).is_file():
+            return root / name
+    return None
+
+
+def _k_text(path: Path, width: int | None, height: int | None) -> CameraIntrinsics:
+    try:
+        values = [float(v) for v in path.read_text().replace(",", " ").split()]
+    except ValueError:
+        raise InputError(f"{str(path)!r} is not a 3x3 camera matrix of numbers") from None
+    if len(values) != 9:
+        raise InputError(
+            f"{str(path)!r} holds {len(values)} numbers; a camera matrix K has 9 (3 rows of 3)"
+        )
+    if width is None or height is None:
+        raise InputError(
+            f"{str(path)!r} is a camera matrix without the image size; give width and height"
+        )
+    return CameraIntrinsics.from_K(np.reshape(values, (3, 3)), width, height)
+
+
+def _yaml(path: Path) -> Any:
+    try:
+        import yaml
+    except ImportError:
+        raise InputError(f"reading {str(path)!r} needs PyYAML: pip install pyyaml") from None
+    try:
+        return yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise InputError(f"{str(path)!r} is not valid YAML: {exc}") from None
+
+
+def _from_mapping(data: Any, path: Path, width: int | None, height: int | None) -> CameraIntrinsics:
+    if not isinstance(data, Mapping):
+        raise InputError(f"{str(path)!r} holds no camera description (expected a mapping)")
+    if "camera_matrix" in data:  # ROS camera_calibration_parsers YAML
+        matrix = data["camera_matrix"]
+        k = matrix.get("data") if isinstance(matrix, Mapping) else matrix
+        info = {
+            "width": data.get("image_width", width),
+            "height": data.get("image_height", height),
+            "K": k,
+            "D": (data.get("distortion_coefficients") or {}).get("data"),
+        }
+        return CameraIntrinsics.from_camera_info(info)
+    if "intrinsic_matrix" in data:  # Open3D PinholeCameraIntrinsic JSON, column-major
+        m = np.asarray(data["intrinsic_matrix"], dtype=np.float64)
+        if m.size != 9:
+            raise InputError(f"{str(path)!r}: intrinsic_matrix must have 9 numbers")
+        return CameraIntrinsics.from_K(
+            m.reshape(3, 3).T, data.get("width", width), data.get("height", height)
+        )
+    if any(k in data for k in ("K", "k")):  # a sensor_msgs/CameraInfo dump
+        return CameraIntrinsics.from_camera_info({"width": width, "height": height, **dict(data)})
+    if {"fx", "fy", "cx", "cy"} <= set(data):  # pcdcodec's camera.json
+        size = {"width": width, "height": height}
+        return CameraIntrinsics.from_dict({k: data.get(k, size.get(k)) for k in _DICT_KEYS})
+    raise InputError(
+        f"{str(path)!r} is not an intrinsics file pcdcodec reads: expected a ROS CameraInfo "
+        "YAML (camera_matrix), an Open3D intrinsic JSON (intrinsic_matrix), a CameraInfo dump "
+        "(K) or fx/fy/cx/cy keys"
+    )
+
+
+def read_intrinsics(
+    path: str | os.PathLike[str], width: int | None = None, height: int | None = None
+) -> CameraIntrinsics:
+    """Camera intrinsics from a file datasets ship with.
+
+    Read by content: a 3×3 camera matrix ``K`` as text (``intrinsics.K.txt``,
+    ``camera-intrinsics.txt``; the image size then comes from ``width``/``height``), a ROS
+    ``camera_calibration`` YAML (``image_width``, ``camera_matrix``, ...), a
+    ``sensor_msgs/CameraInfo`` dump (``K``), an Open3D ``PinholeCameraIntrinsic`` JSON
+    (``intrinsic_matrix``, column-major) or pcdcodec's ``camera.json``. ``width`` and
+    ``height`` fill in a size the file does not give. Raises :class:`~pcdcodec.InputError` for
+    a missing or unreadable file, naming it and what was expected.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"intrinsics file {str(p)!r} does not exist")
+    text = p.read_text(errors="replace").lstrip()
+    if text.startswith("{"):
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise InputError(f"{str(p)!r} is not valid JSON: {exc}") from None
+        return _from_mapping(data, p, width, height)
+    first = text.split(None, 1)[0] if text else ""
+    try:
+        float(first.rstrip(","))
+    except ValueError:
+        return _from_mapping(_yaml(p), p, width, height)
+    return _k_text(p, width, height)

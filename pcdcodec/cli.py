@@ -8,38 +8,26 @@ from __future__ import annotations
 
 import argparse
 import json
+import operator
 import sys
 import tempfile
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from . import __version__
 from ._progress import Progress
-from .codec import KINDS, Codec
+from .codec import KINDS
+from .color import DEFAULT_COLOR_CODEC
+from .depth import DEFAULT_DEPTH_CODEC
 from .errors import InputError, PcdcodecError
-from .registry import codec_class, get_codec, list_codecs
+from .registry import codec_class, list_codecs, parse_codec_spec, parse_codec_specs
 
 # -- helpers ---------------------------------------------------------------------------------
 
 
-def parse_codec(spec: str, kind: str) -> Codec:
-    """``"h264"`` or ``"h264:crf=20,preset=fast"`` to a codec; values are read as JSON when
-    they parse (numbers, true/false/null), else as strings."""
-    name, _, rest = spec.partition(":")
-    params: dict[str, Any] = {}
-    for item in filter(None, rest.split(",")):
-        key, eq, value = item.partition("=")
-        if not eq:
-            raise InputError(f"codec option {item!r} in {spec!r} is not key=value")
-        try:
-            params[key.strip()] = json.loads(value)
-        except json.JSONDecodeError:
-            params[key.strip()] = value
-    return get_codec(name.strip(), kind=kind, **params)
+#: ``"h264:crf=20,preset=fast"`` to a codec (:func:`pcdcodec.registry.parse_codec_spec`).
+parse_codec = parse_codec_spec
 
 
 def _intrinsics_from_args(args: argparse.Namespace, width: int, height: int) -> Any:
@@ -54,8 +42,94 @@ def _intrinsics_from_args(args: argparse.Namespace, width: int, height: int) -> 
     return CameraIntrinsics(width, height, given["fx"], given["fy"], given["cx"], given["cy"])
 
 
+def _frame_size(src: str, depth_scale: float | None) -> tuple[int, int]:
+    """(width, height) of the input's frames: a recording's camera, or a folder's first frame."""
+    from .sources.base import detect_kind
+
+    path = Path(src)
+    if path.is_file() and detect_kind(src) is None:
+        from .recording import open as open_recording
+
+        with open_recording(path) as rec:
+            return rec.intrinsics.width, rec.intrinsics.height
+    from .sources import open_source
+
+    with open_source(path, max_frames=1, depth_scale=depth_scale or 1000.0) as source:
+        first = next(iter(source), None)
+    if first is None:
+        raise InputError(f"{src!r} gives no frames")
+    h, w = first.depth.shape
+    return w, h
+
+
+def _camera_from_args(args: argparse.Namespace) -> tuple[Any, float | None]:
+    """The camera flags, one rule for ``encode`` and ``bench``: at most one of --fx/--fy/--cx/--cy,
+    --intrinsics FILE and --camera NAME; without them the input's own camera (a recording's, or
+    the intrinsics file a folder ships with). Returns (intrinsics or None, depth scale or None);
+    --depth-scale wins over a preset's."""
+    from .camera import camera_preset, read_intrinsics
+
+    by_values = any(getattr(args, k) is not None for k in ("fx", "fy", "cx", "cy"))
+    chosen = [
+        flag
+        for flag, on in (
+            ("--fx/--fy/--cx/--cy", by_values),
+            ("--intrinsics", args.intrinsics is not None),
+            ("--camera", args.camera is not None),
+        )
+        if on
+    ]
+    if len(chosen) > 1:
+        raise InputError(f"give the camera one way: {' and '.join(chosen)} were both given")
+    scale = args.depth_scale
+    if args.camera is not None:
+        preset = camera_preset(args.camera)
+        return preset.intrinsics, scale if scale is not None else preset.depth_scale
+    if args.intrinsics is not None:
+        w, h = _frame_size(args.src, scale)
+        return read_intrinsics(args.intrinsics, w, h), scale
+    if by_values:
+        w, h = _frame_size(args.src, scale)
+        return _intrinsics_from_args(args, w, h), scale
+    return None, scale
+
+
+#: Library wording (keyword arguments) and the CLI flag that says the same.
+_CLI_WORDS = (
+    ("pass overwrite=True", "pass --overwrite"),
+    ("overwrite=True", "--overwrite"),
+    (
+        "pass intrinsics=pcdcodec.CameraIntrinsics(width, height, fx, fy, cx, cy)",
+        "pass --intrinsics FILE, --camera NAME or --fx --fy --cx --cy",
+    ),
+    ("pass depth_scale=", "pass --depth-scale "),
+)
+
+
+def cli_message(message: str) -> str:
+    """A library error message in the CLI's words: flags instead of keyword arguments."""
+    for library, flag in _CLI_WORDS:
+        message = message.replace(library, flag)
+    return message
+
+
 def _add_camera_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("camera (default: camera.json in the folder)")
+    from .camera import CAMERA_PRESETS
+
+    g = p.add_argument_group(
+        "camera (default: the input's own: a recording's camera, or a folder's camera.json, "
+        "intrinsics.K.txt, camera-intrinsics.txt, CameraInfo YAML or Open3D intrinsic JSON)"
+    )
+    g.add_argument(
+        "--intrinsics",
+        metavar="FILE",
+        help="intrinsics file: 3x3 K text, ROS CameraInfo YAML, Open3D intrinsic JSON",
+    )
+    g.add_argument(
+        "--camera",
+        metavar="NAME",
+        help=f"a dataset camera's published intrinsics: {', '.join(CAMERA_PRESETS)}",
+    )
     for k, what in (
         ("fx", "focal length x"),
         ("fy", "focal length y"),
@@ -64,6 +138,14 @@ def _add_camera_options(p: argparse.ArgumentParser) -> None:
     ):
         g.add_argument(f"--{k}", type=float, help=f"{what} in pixels")
     g.add_argument("--depth-scale", type=float, help="depth units per metre (1000 for mm)")
+
+
+def _add_topic_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("bag topics (default: chosen by type and namespace)")
+    g.add_argument("--depth-topic", help="depth Image or CompressedImage topic")
+    g.add_argument("--color-topic", help="color topic ('' for depth only)")
+    g.add_argument("--info-topic", help="CameraInfo topic")
+    g.add_argument("--cloud-topic", help="organized PointCloud2 topic (read instead of images)")
 
 
 def _mib(n: float) -> str:
@@ -91,6 +173,7 @@ def _cmd_codecs(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
+    from .bench.roundtrip import measure_roundtrip
     from .datasets import load_sample
     from .recording import open as open_recording
 
@@ -102,53 +185,18 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     print(f"bundled sample: {n} frames of {w}x{h} RGB-D (TUM fr1_rpy, CC BY 4.0)")
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "sample.pcdc"
-
-        def record(target: Path, frames: Any) -> Any:
-            with open_recording(
-                target, "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale
-            ) as writer:
-                writer.write_frames(frames)
-            return writer
-
-        # A short warm-up loads the codec libraries, so the timings below are steady-state.
-        record(Path(tmp) / "warmup.pcdc", seq.frames[:2])
-        start = time.perf_counter()
-        writer = record(path, seq)
-        t_encode = time.perf_counter() - start
-        size = path.stat().st_size
-        exact = True
+        m = measure_roundtrip(seq, path)
         with open_recording(path) as rec:
-            codecs = rec.codecs
-            for frame, original in zip(rec, seq, strict=True):  # warm-up pass, checked
-                exact &= bool(np.array_equal(frame.depth, original.depth))
-                frame.to_points()
-        # Steady-state rates: from the second frame on (the first pays the decoders' start-up).
-        with open_recording(path) as rec:
-            rec[0]
-            start = time.perf_counter()
-            for i in range(1, n):
-                rec[i]
-            t_decode = time.perf_counter() - start
-        with open_recording(path) as rec:
-            points = len(rec[0].to_points()[0])
-            start = time.perf_counter()
-            for i in range(1, n):
-                points += len(rec[i].to_points()[0])
-            t_cloud = time.perf_counter() - start
             import open3d as o3d
 
             ply = out_dir / "frame0000.ply"
             o3d.io.write_point_cloud(ply, rec[0].to_point_cloud())
-    raw = n * h * w * (3 + 2)
-    color_id = str((codecs["color"] or {}).get("id", "none"))
-    depth_id = str((codecs["depth"] or {}).get("id"))
-    pc2 = n * h * w * 32
     rows = [
-        ("color stream", writer.bytes_color, color_id),
-        ("depth stream", writer.bytes_depth, depth_id),
-        ("whole .pcdc file", size, "container, index, camera"),
-        ("raw RGB-D (RGB24 + uint16)", raw, ""),
-        ("PointCloud2 XYZRGB, 32 B/point", pc2, "organized, as ROS publishes it"),
+        ("color stream", m.bytes_color, m.color_codec),
+        ("depth stream", m.bytes_depth, m.depth_codec),
+        ("whole .pcdc file", m.bytes_file, "container, index, camera"),
+        ("raw RGB-D (RGB24 + uint16)", m.bytes_raw, ""),
+        ("PointCloud2 XYZRGB, 32 B/point", m.bytes_pointcloud2, "organized, as ROS publishes it"),
     ]
     print()
     print(f"| {'what':32} | {'size':>11} | {'per frame':>10} | note")
@@ -156,108 +204,127 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     for what, nbytes, note in rows:
         print(f"| {what:32} | {_mib(nbytes):>11} | {nbytes / n / 1024:7.1f} KiB | {note}")
     print()
-    print(f"ratio against raw RGB-D:        {raw / size:6.1f}x")
-    print(f"ratio against PointCloud2:      {pc2 / size:6.1f}x")
-    print(f"encode:                         {n / t_encode:6.1f} fps")
-    print(f"decode (color + depth):         {n / t_decode:6.1f} fps")
+    print(f"ratio against raw RGB-D:        {m.ratio_raw:6.1f}x")
+    print(f"ratio against PointCloud2:      {m.ratio_pointcloud2:6.1f}x")
+    print(f"encode:                         {m.encode_fps:6.1f} fps")
+    print(f"decode (color + depth):         {m.decode_fps:6.1f} fps")
     print(
-        f"decode + point cloud:           {n / (t_decode + t_cloud):6.1f} fps "
-        f"({points / n:,.0f} points per frame)"
+        f"decode + point cloud:           {m.decode_cloud_fps:6.1f} fps "
+        f"({m.points_per_frame:,.0f} points per frame)"
     )
-    print(f"depth bit-exact:                {'yes' if exact else 'NO'}")
+    print(f"depth bit-exact:                {'yes' if m.depth_exact else 'NO'}")
     print(f"point cloud of frame 0:         {ply}")
-    return 0 if exact else 1
+    return 0 if m.depth_exact else 1
+
+
+def _source_options(args: argparse.Namespace) -> dict[str, Any]:
+    from .sources.base import detect_kind
+
+    opts: dict[str, Any] = {}
+    if args.max_frames is not None:
+        opts["max_frames"] = args.max_frames
+    if args.depth_scale is not None:
+        opts["depth_scale"] = args.depth_scale
+    kind = detect_kind(args.src)
+    if kind == "folder":
+        opts["fps"] = args.fps
+    topics = {
+        "depth_topic": args.depth_topic,
+        "color_topic": args.color_topic,
+        "info_topic": args.info_topic,
+        "cloud_topic": args.cloud_topic,
+    }
+    given = {k: v for k, v in topics.items() if v is not None}
+    if given and kind != "rosbag" and kind is not None:
+        flags = " ".join("--" + k.replace("_", "-") for k in given)
+        raise InputError(f"{flags} apply to bags; {args.src!r} is a {kind}")
+    opts.update(given)
+    return opts
 
 
 def _cmd_encode(args: argparse.Namespace) -> int:
-    from .datasets import open_folder
-    from .recording import open as open_recording
+    from .recording import encode
+    from .sources import open_source
 
-    source = open_folder(
-        args.src, max_frames=args.max_frames, depth_scale=args.depth_scale, fps=args.fps
+    camera, depth_scale = _camera_from_args(args)
+    options = _source_options(args)
+    if depth_scale is not None:
+        options["depth_scale"] = depth_scale
+    with open_source(args.src, **options) as source:
+        intrinsics = camera
+        if intrinsics is None and source.intrinsics is None:
+            raise InputError(
+                f"no intrinsics for {args.src!r}: pass --intrinsics FILE, --camera NAME or --fx "
+                "--fy --cx --cy, or put a camera.json or intrinsics.K.txt in the folder"
+            )
+        total = operator.length_hint(source) or None
+        with Progress(total, "encoding", enabled=None if not args.quiet else False) as bar:
+            summary = encode(
+                source,
+                args.output,
+                color=parse_codec(args.color, "color"),
+                depth=parse_codec(args.depth, "depth"),
+                intrinsics=intrinsics,
+                fps=args.fps,
+                overwrite=args.overwrite,
+                progress=bar.update,
+            )
+        # encode() put the camera and scale it recorded into the source.
+        used_camera, used_scale = source.intrinsics, source.depth_scale
+        assert used_camera is not None  # encode() refuses a source without a camera
+        if args.depth_scale is not None:
+            scale_from = "--depth-scale"
+        elif args.camera is not None:
+            scale_from = f"--camera {args.camera}"
+        else:
+            scale_from = getattr(source, "depth_scale_origin", None) or "the input"
+    camera_from = "the input" if camera is None else "the camera flags"
+    n = summary.frames
+    print(
+        f"wrote {n} frames to {args.output} ({_mib(summary.bytes)}, "
+        f"{summary.bytes / n / 1024:.1f} KiB/frame, {summary.fps:.1f} fps)"
     )
-    first = next(iter(source))
-    h, w = first.depth.shape
-    from_args = _intrinsics_from_args(args, w, h)
-    intrinsics = from_args or source.intrinsics
-    if intrinsics is None:
-        raise InputError(
-            f"no intrinsics for {args.src!r}: pass --fx --fy --cx --cy, or put a camera.json "
-            "with width, height, fx, fy, cx, cy (and depth_scale) in the folder"
+    print(f"  depth scale  {used_scale:g} units per metre (from {scale_from})")
+    print(
+        f"  intrinsics   {used_camera.width}x{used_camera.height}, fx={used_camera.fx:g} "
+        f"fy={used_camera.fy:g} cx={used_camera.cx:g} cy={used_camera.cy:g} (from {camera_from})"
+    )
+    info = summary.source
+    for key in ("depth_topic", "color_topic", "info_topic", "cloud_topic"):
+        if info.get(key):
+            print(f"  {key.replace('_', ' '):12} {info[key]}")
+    dropped = summary.dropped
+    if any(dropped.values()):
+        print(
+            f"  dropped      {dropped.get('color', 0)} color and {dropped.get('depth', 0)} depth "
+            "images without a partner"
         )
-    with (
-        open_recording(
-            args.output,
-            "w",
-            intrinsics=intrinsics,
-            depth_scale=source.depth_scale,
-            color=parse_codec(args.color, "color"),
-            depth=parse_codec(args.depth, "depth"),
-            fps=args.fps,
-            overwrite=args.overwrite,
-        ) as writer,
-        Progress(len(source), "encoding", enabled=None if not args.quiet else False) as bar,
-    ):
-        count = writer.write_frames(source, progress=bar.update)
-    size = Path(args.output).stat().st_size
-    scale_from = "--depth-scale" if args.depth_scale is not None else source.depth_scale_origin
-    camera_from = "--fx/--fy/--cx/--cy" if from_args is not None else "camera.json"
-    print(
-        f"wrote {count} frames to {args.output} ({_mib(size)}, {size / count / 1024:.1f} KiB/frame)"
-    )
-    print(f"  depth scale: {source.depth_scale:g} units per metre (from {scale_from})")
-    print(
-        f"  intrinsics:  {intrinsics.width}x{intrinsics.height}, fx={intrinsics.fx:g} "
-        f"fy={intrinsics.fy:g} cx={intrinsics.cx:g} cy={intrinsics.cy:g} (from {camera_from})"
-    )
+    if info.get("out_of_order"):
+        print(f"  skipped      {info['out_of_order']} messages whose stamp did not increase")
+    for note in info.get("notes", []):
+        print(f"  note         {note}")
     return 0
 
 
 def _cmd_decode(args: argparse.Namespace) -> int:
-    import imagecodecs
-
+    from .datasets import write_folder
     from .recording import open as open_recording
 
-    out = Path(args.output)
-    if out.exists() and any(out.iterdir()) and not args.overwrite:
-        raise InputError(f"{str(out)!r} is not empty; pass --overwrite to write into it")
-    with open_recording(args.input) as rec:
-        (out / "rgb").mkdir(parents=True, exist_ok=True)
-        (out / "depth").mkdir(exist_ok=True)
-        if args.ply or args.pcd:
-            (out / "clouds").mkdir(exist_ok=True)
-        rgb_list, depth_list = (
-            ["# color images", "# timestamp filename"],
-            ["# depth maps", "# timestamp filename"],
+    clouds = tuple(ext for ext, on in (("ply", args.ply), ("pcd", args.pcd)) if on)
+    with (
+        open_recording(args.input) as rec,
+        Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar,
+    ):
+        count = write_folder(
+            rec,
+            args.output,
+            intrinsics=rec.intrinsics,
+            depth_scale=rec.depth_scale,
+            clouds=clouds,
+            overwrite=args.overwrite,
+            progress=bar.update,
         )
-        with Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar:
-            for frame in rec:
-                stamp = f"{frame.timestamp // 1_000_000_000}.{frame.timestamp % 1_000_000_000:09d}"
-                name = f"{frame.index:06d}"
-                if frame.color is not None:
-                    (out / "rgb" / f"{name}.png").write_bytes(imagecodecs.png_encode(frame.color))
-                    rgb_list.append(f"{stamp} rgb/{name}.png")
-                if frame.depth.dtype == np.uint16:
-                    depth_file = f"depth/{name}.png"
-                    data = imagecodecs.png_encode(frame.depth)
-                else:
-                    depth_file = f"depth/{name}.tiff"
-                    data = imagecodecs.tiff_encode(frame.depth)
-                (out / depth_file).write_bytes(data)
-                depth_list.append(f"{stamp} {depth_file}")
-                if args.ply or args.pcd:
-                    import open3d as o3d
-
-                    cloud = frame.to_point_cloud()
-                    for flag, ext in ((args.ply, "ply"), (args.pcd, "pcd")):
-                        if flag:
-                            o3d.io.write_point_cloud(out / "clouds" / f"{name}.{ext}", cloud)
-                bar.update(frame.index + 1)
-        (out / "rgb.txt").write_text("\n".join(rgb_list) + "\n")
-        (out / "depth.txt").write_text("\n".join(depth_list) + "\n")
-        camera = {**rec.intrinsics.to_dict(), "depth_scale": rec.depth_scale}
-        (out / "camera.json").write_text(json.dumps(camera, indent=2) + "\n")
-        print(f"wrote {len(rec)} frames to {out}")
+    print(f"wrote {count} frames to {args.output}")
     return 0
 
 
@@ -280,9 +347,47 @@ def _info(rec: Any) -> dict[str, Any]:
     }
 
 
-def _cmd_info(args: argparse.Namespace) -> int:
-    from .recording import open as open_recording
+def _cmd_info_source(args: argparse.Namespace) -> int:
+    from .sources import open_source
 
+    with open_source(args.input) as source:
+        info = source.describe()
+        candidates = getattr(source, "candidates", None)
+        topics = [c.to_dict() for c in candidates()] if callable(candidates) else []
+    if args.json:
+        print(json.dumps({**info, "topics": topics}, indent=2, default=str))
+        return 0
+    print(f"{args.input}: {info['source']}")
+    if topics:
+        print("  topics (role from the type and the first message):")
+        for t in topics:
+            role = t["role"] or "-"
+            extra = " ".join(x for x in (t["encoding"], t["size"], t["note"]) if x)
+            print(f"    {role:6} {t['topic']}  [{t['type']}, {t['messages']} msgs] {extra}")
+    print("  chosen:")
+    for key in ("mode", "depth_topic", "color_topic", "info_topic", "cloud_topic"):
+        if info.get(key):
+            print(f"    {key.replace('_', ' '):12} {info[key]}")
+    cam = info.get("intrinsics")
+    if cam:
+        print(
+            f"    camera       {cam['width']}x{cam['height']}, fx={cam['fx']:.6g} "
+            f"fy={cam['fy']:.6g} cx={cam['cx']:.6g} cy={cam['cy']:.6g}"
+        )
+    print(f"    depth scale  {info['depth_scale']} per metre")
+    for note in info.get("notes", []):
+        print(f"    note         {note}")
+    return 0
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from .recording import _index
+    from .recording import open as open_recording
+    from .sources.base import detect_kind, read_magic
+
+    path = Path(args.input)
+    if read_magic(path, 8) != _index.MAGIC and detect_kind(path) is not None:
+        return _cmd_info_source(args)
     with open_recording(args.input) as rec:
         info = _info(rec)
     if args.json:
@@ -301,9 +406,15 @@ def _cmd_info(args: argparse.Namespace) -> int:
     )
     print(f"  color      {json.dumps(info['codecs']['color'])}")
     print(f"  depth      {json.dumps(info['codecs']['depth'])}")
+    stamps = info["metadata"].get("timestamps", "")
+    if stamps.startswith("not recorded"):
+        print(f"  times      {stamps} (the input had no timestamps)")
     if info["metadata"]:
         print(f"  metadata   {json.dumps(info['metadata'])}")
-    if not info["indexed"]:
+    problem = rec.index.summary_problem
+    if problem:
+        print(f"  index      unusable ({problem}); frames found by reading the whole file")
+    elif not info["indexed"]:
         print("  index      missing: the writer did not finish; `pcdcodec recover` rewrites it")
     return 0
 
@@ -331,6 +442,31 @@ def _cmd_recover(args: argparse.Namespace) -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
+    if args.output is not None and args.output_pos is not None:
+        raise InputError("give the output folder once: as -o/--output or as the second argument")
+    args.output = args.output if args.output is not None else args.output_pos
+    if args.output is None:
+        raise InputError("export needs an output: a second argument or -o/--output")
+    if args.to is not None:
+        from .recording.rosbag_export import export_bag
+
+        with Progress(None, "exporting", enabled=None if not args.quiet else False) as bar:
+            summary = export_bag(
+                args.input,
+                args.output,
+                to=args.to,
+                storage=args.storage,
+                cloud=args.cloud,
+                compressed_depth=args.compressed_depth,
+                overwrite=args.overwrite,
+                progress=bar.update,
+            )
+        print(
+            f"exported {summary['frames']} frames to {args.output} ({args.to}"
+            + (f", {args.storage}" if args.to == "rosbag2" else "")
+            + f", {_mib(summary['bytes'])}): {', '.join(summary['topics'])}"
+        )
+        return 0
     from .recording.paper import export_paper
 
     if args.layout != "paper":
@@ -341,19 +477,13 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from .evaluation import evaluate, parse_list
+    from .evaluation import evaluate
 
     frames = args.frames
     if frames < 1:
         raise InputError(f"--frames must be at least 1, got {frames}")
     source: Any = args.src
-    intrinsics = None
-    if any(getattr(args, k) is not None for k in ("fx", "fy", "cx", "cy")):
-        from .datasets import open_folder
-
-        first = next(iter(open_folder(args.src, max_frames=1, depth_scale=args.depth_scale)))
-        h, w = first.depth.shape
-        intrinsics = _intrinsics_from_args(args, w, h)
+    intrinsics, depth_scale = _camera_from_args(args)
     quiet = args.quiet or not sys.stderr.isatty()
 
     def say(step: str) -> None:
@@ -362,11 +492,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     result = evaluate(
         source,
-        depth=parse_list(args.depth) if args.depth else None,
-        color=parse_list(args.color),
+        depth=parse_codec_specs(args.depth, "depth") if args.depth else None,
+        color=parse_codec_specs(args.color, "color"),
         frames=frames,
         intrinsics=intrinsics,
-        depth_scale=args.depth_scale,
+        depth_scale=depth_scale,
         rd=not args.no_rd,
         peers=args.peers,
         progress=say,
@@ -385,6 +515,45 @@ def _cmd_import(args: argparse.Namespace) -> int:
         args.input, args.output, depth=parse_codec(args.depth, "depth"), overwrite=args.overwrite
     )
     print(f"imported {count} frames into {args.output}")
+    return 0
+
+
+def _cmd_archive(args: argparse.Namespace) -> int:
+    from .archive import archive
+
+    summary = archive(
+        args.src,
+        args.output,
+        scheduler=args.scheduler,
+        workers=args.workers,
+        color=parse_codec(args.color, "color") if args.color != "none" else None,
+        depth=parse_codec(args.depth, "depth"),
+        fps=args.fps,
+        segment_frames=args.segment_frames,
+        verify=args.verify,
+        delete_source_after_verify=args.delete_source_after_verify,
+        processes=not args.threads,
+        progress=False if args.quiet else None,
+    )
+    print(json.dumps(summary.to_dict(), indent=2) if args.json else summary.to_text())
+    return 0 if summary.ok else 1
+
+
+def _cmd_view(args: argparse.Namespace) -> int:
+    from .viewer import view, view_open3d
+
+    if args.open3d:
+        view_open3d(args.input, every=args.every)
+        return 0
+    saved = view(
+        args.input,
+        save=args.save,
+        every=args.every,
+        max_frames=args.max_frames,
+        stride=args.stride,
+    )
+    if saved is not None:
+        print(f"wrote {saved} (open it with: rerun {saved})")
     return 0
 
 
@@ -409,16 +578,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=None, help="use only the first N frames")
     p.set_defaults(func=_cmd_demo)
 
-    p = sub.add_parser("encode", help="encode an RGB-D folder (TUM layout or rgb/ + depth/)")
-    p.add_argument("src", help="folder with rgb.txt/depth.txt, or rgb/ and depth/ images")
+    p = sub.add_parser("encode", help="encode any input: RGB-D folder, ROS 1 or ROS 2 bag, ...")
+    p.add_argument("src", help="an RGB-D folder, a ROS 1 bag, a ROS 2 bag folder or file, ...")
     p.add_argument("-o", "--output", required=True, help="the .pcdc file to write")
-    p.add_argument("--color", default="h264", help="color codec, e.g. h264 or h264:crf=20")
-    p.add_argument("--depth", default="jpegxl", help="depth codec, e.g. jpegxl or zstd:level=9")
+    p.add_argument(
+        "--color", default=DEFAULT_COLOR_CODEC, help="color codec, e.g. h264 or h264:crf=20"
+    )
+    p.add_argument(
+        "--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec, e.g. jpegxl or zstd:level=9"
+    )
     p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
     p.add_argument("--max-frames", type=int, default=None, help="encode only the first N")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     _add_camera_options(p)
+    _add_topic_options(p)
     p.set_defaults(func=_cmd_encode)
 
     p = sub.add_parser("decode", help="write PNG color, 16-bit PNG depth and point clouds")
@@ -430,7 +604,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=_cmd_decode)
 
-    p = sub.add_parser("info", help="describe a recording")
+    p = sub.add_parser("info", help="describe a recording, or a bag's topics and choices")
     p.add_argument("input")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=_cmd_info)
@@ -445,24 +619,37 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true")
     p.set_defaults(func=_cmd_recover)
 
-    p = sub.add_parser("export", help="write a recording in another layout")
+    p = sub.add_parser("export", help="write a recording as a ROS bag or in the paper's layout")
     p.add_argument("input")
-    p.add_argument("output", help="output folder")
-    p.add_argument("--layout", default="paper", help="paper: video + LZ4 depth + JSON")
+    p.add_argument(
+        "output_pos",
+        nargs="?",
+        metavar="OUTPUT",
+        help="output bag (file for rosbag1, folder for rosbag2) or folder (or -o OUTPUT)",
+    )
+    p.add_argument("-o", "--output", help="the output, as the second argument says")
+    p.add_argument("--to", choices=("rosbag1", "rosbag2"), help="write a ROS bag")
+    p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap", help="ROS 2 storage")
+    p.add_argument("--cloud", action="store_true", help="add the organized PointCloud2 XYZRGB")
+    p.add_argument(
+        "--compressed-depth", action="store_true", help="depth as compressedDepth (16UC1 mm)"
+    )
+    p.add_argument("--layout", default="paper", help="without --to: paper (video + LZ4 + JSON)")
     p.add_argument("--overwrite", action="store_true")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=_cmd_export)
 
     p = sub.add_parser("import", help="read the paper layout back into a .pcdc file")
     p.add_argument("input", help="folder written by `export --layout paper`")
     p.add_argument("-o", "--output", required=True)
-    p.add_argument("--depth", default="jpegxl", help="depth codec for the new file")
+    p.add_argument("--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec for the new file")
     p.add_argument("--overwrite", action="store_true")
     p.set_defaults(func=_cmd_import)
 
     p = sub.add_parser("bench", help="compare codecs on a recording or an RGB-D folder")
     p.add_argument("src", help="a .pcdc recording or a folder that `encode` accepts")
     p.add_argument("--depth", default=None, help="depth codecs, comma-separated (default: all)")
-    p.add_argument("--color", default="h264", help="color codecs, comma-separated")
+    p.add_argument("--color", default=DEFAULT_COLOR_CODEC, help="color codecs, comma-separated")
     p.add_argument("--frames", type=int, default=30, help="frames to use (default: %(default)s)")
     p.add_argument("-o", "--output", default=None, help="folder for report, CSV, JSON and plots")
     p.add_argument("--no-rd", action="store_true", help="skip the color quality sweep")
@@ -471,6 +658,43 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     _add_camera_options(p)
     p.set_defaults(func=_cmd_bench)
+
+    p = sub.add_parser("archive", help="compress many inputs on a Dask cluster, resumably")
+    p.add_argument("src", nargs="+", help="inputs, or folders searched for inputs")
+    p.add_argument("-o", "--output", required=True, help="output folder (mirrors the sources)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", help="address of a running Dask scheduler")
+    where.add_argument("--workers", type=int, help="local workers (default: one per core)")
+    p.add_argument("--threads", action="store_true", help="local workers as threads")
+    p.add_argument("--color", default="h264", help="color codec, or none for depth only")
+    p.add_argument("--depth", default="jpegxl", help="depth codec, e.g. jpegxl or zstd:level=9")
+    p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
+    p.add_argument(
+        "--segment-frames",
+        type=int,
+        default=300,
+        help="frames per parallel segment of a long input (default: %(default)s)",
+    )
+    p.add_argument("--verify", action="store_true", help="decode and compare every output")
+    p.add_argument(
+        "--delete-source-after-verify",
+        action="store_true",
+        help="delete each source once its output is verified (implies --verify)",
+    )
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=_cmd_archive)
+
+    p = sub.add_parser("view", help="show a recording in the Rerun viewer (pcdcodec[view])")
+    p.add_argument("input", help="the .pcdc file")
+    p.add_argument("--save", metavar="OUT.rrd", help="write a Rerun file instead of a window")
+    p.add_argument("--every", type=int, default=1, help="show every n-th frame")
+    p.add_argument("--max-frames", type=int, default=None, help="show at most N frames")
+    p.add_argument(
+        "--stride", type=int, default=2, help="point cloud of every n-th pixel (default: 2)"
+    )
+    p.add_argument("--open3d", action="store_true", help="play in Open3D's window instead")
+    p.set_defaults(func=_cmd_view)
 
     p = sub.add_parser("codecs", help="list the registered codecs and their defaults")
     p.add_argument("--kind", choices=KINDS, help="only codecs of this kind")
@@ -484,7 +708,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         status: int = args.func(args)
     except PcdcodecError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {cli_message(str(exc))}", file=sys.stderr)
         return 1
     except OSError as exc:
         print(f"error: {exc}", file=sys.stderr)

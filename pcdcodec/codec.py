@@ -80,6 +80,19 @@ class Codec(ABC):
             cls._param_names_cache = cached  # type: ignore[attr-defined]
         return cached
 
+    #: Parameters that belong to the machine, not to the data (worker threads): they are kept
+    #: out of the configs written into files (:meth:`stored_config`), and whoever reads a file
+    #: chooses their own (:func:`pcdcodec.registry.codec_for_reading`).
+    runtime_params: ClassVar[tuple[str, ...]] = ()
+
+    def stored_config(self) -> dict[str, Any]:
+        """What a file records about this codec: :meth:`get_config` without
+        :attr:`runtime_params`."""
+        config = self.get_config()
+        for pname in self.runtime_params:
+            config.pop(pname, None)
+        return config
+
     def get_config(self) -> dict[str, Any]:
         """A JSON-serialisable dict with ``"id"`` and every parameter of this codec."""
         config: dict[str, Any] = {"id": self.name}

@@ -17,7 +17,9 @@ be known, and opening it raises :class:`~pcdcodec.InputError` asking for ``depth
 
 from __future__ import annotations
 
+import itertools
 import json
+import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +29,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import InputError
+from .frame import Frame
 from .sources.base import Source
 
 if TYPE_CHECKING:
@@ -40,6 +43,7 @@ __all__ = [
     "load_sample",
     "open_folder",
     "sample_dir",
+    "write_folder",
 ]
 
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
@@ -48,16 +52,12 @@ TUM_DEPTH_SCALE = 5000.0
 _NS_PER_S = 1_000_000_000
 
 
-@dataclass
-class RGBDFrame:
-    """One color/depth pair: RGB uint8 H×W×3, depth H×W (uint16 units or float32 metres)."""
-
-    color: npt.NDArray[np.uint8]
-    depth: npt.NDArray[Any]
-    timestamp_ns: int
+#: The frame type of sources, recordings and evaluation (see :class:`pcdcodec.Frame`);
+#: ``RGBDFrame(color=..., depth=..., timestamp_ns=...)``.
+RGBDFrame = Frame
 
 
-@dataclass
+@dataclass(repr=False)
 class RGBDSequence:
     """Frames in time order, with the camera that took them."""
 
@@ -82,7 +82,21 @@ class RGBDSequence:
 
     @property
     def colors(self) -> list[npt.NDArray[np.uint8]]:
-        return [f.color for f in self.frames]
+        return [f.color for f in self.frames if f.color is not None]
+
+    def __repr__(self) -> str:
+        size = ""
+        if self.frames:
+            h, w = self.frames[0].depth.shape[:2]
+            size = f", {w}x{h} {self.frames[0].depth.dtype}"
+        name = f" {self.name!r}" if self.name else ""
+        span = ""
+        if len(self.frames) > 1:
+            span = f", {(self.frames[-1].timestamp_ns - self.frames[0].timestamp_ns) / 1e9:.2f} s"
+        return (
+            f"<pcdcodec.RGBDSequence{name}: {len(self.frames)} frames{size}{span}, "
+            f"depth_scale={self.depth_scale:g}, intrinsics={self.intrinsics!r}>"
+        )
 
 
 def sample_dir() -> Path:
@@ -173,7 +187,54 @@ def _folder_pairs(root: Path, fps: float) -> list[tuple[int, Path, Path]]:
             "plain folders must pair up one to one"
         )
     step = _NS_PER_S / fps
-    return [(round(i * step), c, d) for i, (c, d) in enumerate(zip(colors, depths, strict=True))]
+    # Frame numbers in the names (frame-000012.png) keep the gaps of dropped frames.
+    numbers = _frame_numbers(colors) or range(len(colors))
+    return [
+        (round((n - numbers[0]) * step), c, d)
+        for n, c, d in zip(numbers, colors, depths, strict=True)
+    ]
+
+
+def _frame_numbers(paths: list[Path]) -> list[int] | None:
+    """The last number in each file name, when every name has one and they increase."""
+    import re
+
+    numbers = []
+    for p in paths:
+        found = re.findall(r"\d+", p.stem)
+        if not found:
+            return None
+        numbers.append(int(found[-1]))
+    if any(b <= a for a, b in itertools.pairwise(numbers)):
+        return None
+    return numbers
+
+
+def _timestamp_note(root: Path, tum: bool, pairs: list[tuple[int, Path, Path]], fps: float) -> str:
+    """How a folder's timestamps were made, kept in the recording's metadata."""
+    if tum:
+        return "recorded (TUM lists)"
+    if _frame_numbers([c for _, c, _ in pairs]) is not None:
+        return f"not recorded: frame numbers in the file names at {fps:g} fps, from 0"
+    return f"not recorded: file order at {fps:g} fps, from 0"
+
+
+def _folder_camera(
+    root: Path,
+    intrinsics: Any,
+    pairs: list[tuple[int, Path, Path]],
+) -> tuple[CameraIntrinsics | None, str]:
+    """The intrinsics given (a CameraIntrinsics or a file), or found in the folder
+    (:data:`~pcdcodec.camera.INTRINSICS_FILE_NAMES`); and where they came from."""
+    from .camera import CameraIntrinsics, find_intrinsics_file, read_intrinsics
+
+    if isinstance(intrinsics, CameraIntrinsics):
+        return intrinsics, "given"
+    path = Path(intrinsics) if intrinsics is not None else find_intrinsics_file(root)
+    if path is None:
+        return None, ""
+    h, w = _read_depth(pairs[0][2]).shape
+    return read_intrinsics(path, w, h), str(path)
 
 
 @dataclass
@@ -197,9 +258,19 @@ class FolderSource(Source):
         return len(self.pairs)
 
     def __iter__(self) -> Iterator[RGBDFrame]:
+        return self.frames()
+
+    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[RGBDFrame]:
+        """Frames ``start`` to ``stop`` (exclusive); only their images are read."""
         shape: tuple[int, ...] | None = None
-        for t, c, d in self.pairs:
-            frame = RGBDFrame(_read_color(c), _read_depth(d), t)
+        projector = None
+        if self.intrinsics is not None:
+            from .projector import Projector
+
+            projector = Projector(self.intrinsics, self.depth_scale)
+        for i, (t, c, d) in enumerate(self.pairs[start:stop], start):
+            frame = RGBDFrame(_read_color(c), _read_depth(d), t, index=i, projector=projector)
+            assert frame.color is not None
             if frame.color.shape[:2] != frame.depth.shape:
                 raise InputError(
                     f"{str(c)!r} is {frame.color.shape[1]}x{frame.color.shape[0]} but "
@@ -239,8 +310,8 @@ def _depth_scale(root: Path, given: float | None, meta: dict[str, Any]) -> tuple
         return TUM_DEPTH_SCALE, "TUM RGB-D dataset"
     raise InputError(
         f"no depth scale for {str(root)!r}: nothing in the folder says how many depth units make "
-        "a metre; pass depth_scale= (--depth-scale on the command line), e.g. 1000 for "
-        "millimetres, or put depth_scale in a camera.json in the folder"
+        "a metre; pass depth_scale=UNITS_PER_METRE (1000 for millimetres), or put depth_scale "
+        "in a camera.json in the folder"
     )
 
 
@@ -248,7 +319,7 @@ def open_folder(
     path: str | Path,
     *,
     max_frames: int | None = None,
-    intrinsics: CameraIntrinsics | None = None,
+    intrinsics: CameraIntrinsics | str | os.PathLike[str] | None = None,
     depth_scale: float | None = None,
     layout: str = "auto",
     fps: float = 30.0,
@@ -283,14 +354,20 @@ def open_folder(
         keys = ("width", "height", "fx", "fy", "cx", "cy")
         intrinsics = CameraIntrinsics.from_dict({k: meta[k] for k in keys if k in meta})
     scale, origin = _depth_scale(root, depth_scale, meta)
-    return FolderSource(root, pairs, intrinsics, scale, depth_scale_origin=origin)
+    intrinsics, camera_from = _folder_camera(root, intrinsics, pairs)
+    source = FolderSource(root, pairs, intrinsics, scale, depth_scale_origin=origin)
+    is_tum_pairs = layout == "tum" or (layout == "auto" and is_tum)
+    source.metadata["timestamps"] = _timestamp_note(root, is_tum_pairs, pairs, fps)
+    if camera_from and camera_from != "given":
+        source.metadata["intrinsics_file"] = Path(camera_from).name
+    return source
 
 
 def load_folder(
     path: str | Path,
     *,
     max_frames: int | None = None,
-    intrinsics: CameraIntrinsics | None = None,
+    intrinsics: CameraIntrinsics | str | os.PathLike[str] | None = None,
     depth_scale: float | None = None,
     layout: str = "auto",
     fps: float = 30.0,
@@ -302,7 +379,13 @@ def load_folder(
     time difference in seconds accepted when pairing TUM lists without ``associations.txt``.
     Intrinsics and depth scale default to the folder's ``camera.json``; without a depth scale
     there, a TUM RGB-D dataset folder gets TUM's 5000 and any other folder raises
-    :class:`~pcdcodec.InputError` asking for ``depth_scale``. Raises
+    :class:`~pcdcodec.InputError` asking for ``depth_scale``. ``intrinsics`` may also be an
+    intrinsics file
+    (:func:`~pcdcodec.camera.read_intrinsics`), and without either, a file the folder ships
+    with (``intrinsics.K.txt``, ``camera-intrinsics.txt``, a CameraInfo YAML, an Open3D
+    intrinsic JSON) is read. Plain folders without time lists are timed at ``fps`` from the
+    frame numbers in their file names, so dropped frames keep their gap; the source's
+    ``metadata["timestamps"]`` says how the times were made. Raises
     :class:`~pcdcodec.InputError` for a missing folder, an unknown layout, an empty sequence,
     an unknown depth scale, unreadable images or frames of different sizes.
     """
@@ -322,3 +405,94 @@ def load_folder(
         name=source.root.name,
         paths=[(c, d) for _, c, d in source.pairs],
     )
+
+
+def write_folder(
+    frames: Any,
+    path: str | os.PathLike[str],
+    *,
+    intrinsics: CameraIntrinsics | None = None,
+    depth_scale: float = 1000.0,
+    clouds: tuple[str, ...] = (),
+    overwrite: bool = False,
+    progress: Any = None,
+) -> int:
+    """Write frames as a TUM RGB-D folder that :func:`load_folder` reads back.
+
+    ``rgb/NNNNNN.png`` (8-bit RGB), ``depth/NNNNNN.png`` (16-bit depth units; float32 depth as
+    ``.tiff`` metres), ``rgb.txt`` and ``depth.txt`` with the timestamps in seconds, and
+    ``camera.json`` (intrinsics and depth scale) when ``intrinsics`` is given. ``clouds`` names
+    point-cloud formats to write per frame into ``clouds/`` (``"ply"``, ``"pcd"``; the frames
+    need a projector, as frames of a recording have). The folder is written beside its target
+    and moved into place when complete; an existing non-empty folder needs ``overwrite``.
+    ``progress`` is called with the number of frames written. Returns that number.
+    """
+    import shutil
+
+    import imagecodecs
+
+    out = Path(path)
+    for fmt_name in clouds:
+        if fmt_name not in ("ply", "pcd"):
+            raise InputError(f"point cloud format must be 'ply' or 'pcd', got {fmt_name!r}")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{str(out)!r} is a file, not a folder")
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
+        raise InputError(f"{str(out)!r} is not empty; pass overwrite=True to write into it")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        (tmp / "rgb").mkdir(parents=True)
+        (tmp / "depth").mkdir()
+        if clouds:
+            (tmp / "clouds").mkdir()
+        rgb_list = ["# color images", "# timestamp filename"]
+        depth_list = ["# depth maps", "# timestamp filename"]
+        count = 0
+        for i, frame in enumerate(frames):
+            t = int(frame.timestamp_ns)
+            stamp = f"{t // _NS_PER_S}.{t % _NS_PER_S:09d}"
+            name = f"{i:06d}"
+            if frame.color is not None:
+                (tmp / "rgb" / f"{name}.png").write_bytes(imagecodecs.png_encode(frame.color))
+                rgb_list.append(f"{stamp} rgb/{name}.png")
+            if frame.depth.dtype == np.uint16:
+                depth_file = f"depth/{name}.png"
+                data = imagecodecs.png_encode(frame.depth)
+            else:
+                depth_file = f"depth/{name}.tiff"
+                data = imagecodecs.tiff_encode(frame.depth)
+            (tmp / depth_file).write_bytes(data)
+            depth_list.append(f"{stamp} {depth_file}")
+            if clouds:
+                import open3d as o3d
+
+                cloud = frame.to_point_cloud()
+                for ext in clouds:
+                    o3d.io.write_point_cloud(tmp / "clouds" / f"{name}.{ext}", cloud)
+            count = i + 1
+            if progress is not None:
+                progress(count)
+        (tmp / "rgb.txt").write_text("\n".join(rgb_list) + "\n")
+        (tmp / "depth.txt").write_text("\n".join(depth_list) + "\n")
+        if intrinsics is not None:
+            camera = {**intrinsics.to_dict(), "depth_scale": depth_scale}
+            (tmp / "camera.json").write_text(json.dumps(camera, indent=2) + "\n")
+        if not out.exists():
+            os.replace(tmp, out)
+        elif not any(out.iterdir()):
+            out.rmdir()
+            os.replace(tmp, out)
+        else:  # overwrite: replace the files written, leave others alone
+            for item in sorted(tmp.rglob("*")):
+                target = out / item.relative_to(tmp)
+                if item.is_dir():
+                    target.mkdir(exist_ok=True)
+                else:
+                    os.replace(item, target)
+            shutil.rmtree(tmp)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return count

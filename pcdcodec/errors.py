@@ -8,12 +8,15 @@ one also derives from the builtin exception a caller would naturally catch, so
 from __future__ import annotations
 
 __all__ = [
+    "ArchiveLockedError",
     "CodecUnavailableError",
     "DecodeError",
+    "DiskFullError",
     "InputError",
     "InputTypeError",
     "PcdcodecError",
     "UnknownCodecError",
+    "VerificationError",
 ]
 
 
@@ -43,3 +46,15 @@ class InputError(PcdcodecError, ValueError):
 
 class InputTypeError(InputError, TypeError):
     """An argument has a wrong type or dtype. Also a ``TypeError`` and a ``ValueError``."""
+
+
+class ArchiveLockedError(PcdcodecError, RuntimeError):
+    """Another ``pcdcodec archive`` run holds the output folder."""
+
+
+class DiskFullError(PcdcodecError, OSError):
+    """The disk being written to is full; nothing half-written is left under a final name."""
+
+
+class VerificationError(PcdcodecError, ValueError):
+    """A written recording does not give back what its source holds."""

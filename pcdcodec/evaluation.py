@@ -26,6 +26,8 @@ import numpy as np
 import numpy.typing as npt
 
 from .camera import CameraIntrinsics
+from .codec import Codec
+from .color import DEFAULT_COLOR_CODEC
 from .color.base import StreamCodec, decode_packets, encode_frames
 from .datasets import RGBDFrame, RGBDSequence, open_folder
 from .depth.base import FrameCodec
@@ -317,7 +319,7 @@ def _frames_of(
                 f = rec[i]
                 if f.color is None:
                     raise InputError(f"{str(path)!r} has no color stream to compare codecs on")
-                out.append(RGBDFrame(f.color, f.depth, f.timestamp))
+                out.append(f)
             return path.stem, out, intrinsics or rec.intrinsics, depth_scale or rec.depth_scale
     folder = open_folder(path, max_frames=frames, intrinsics=intrinsics, depth_scale=depth_scale)
     return path.name, list(folder), folder.intrinsics, folder.depth_scale
@@ -326,8 +328,8 @@ def _frames_of(
 def evaluate(
     source: Any,
     *,
-    depth: Sequence[str | dict[str, Any]] | None = None,
-    color: Sequence[str | dict[str, Any]] = ("h264",),
+    depth: Sequence[str | dict[str, Any] | Codec] | None = None,
+    color: Sequence[str | dict[str, Any] | Codec] = (DEFAULT_COLOR_CODEC,),
     frames: int | None = 30,
     intrinsics: CameraIntrinsics | None = None,
     depth_scale: float | None = None,
@@ -354,7 +356,9 @@ def evaluate(
         raise InputError("evaluate compares codecs on uint16 depth; this sequence is float32")
     result = Evaluation(name, len(items), width, height)
     depths = [f.depth for f in items]
-    colors = [f.color for f in items]
+    colors = [f.color for f in items if f.color is not None]
+    if len(colors) != len(items):
+        raise InputError(f"{name!r} has frames without color; evaluate compares color codecs too")
     depth_specs = list(depth) if depth is not None else list_codecs("depth", available_only=True)
     depth_codecs = [
         get_codec(s, kind="depth") if isinstance(s, (str, dict)) else s for s in depth_specs

@@ -2,7 +2,7 @@
 
 :class:`Projector` turns a depth image (and optionally an RGB image) into 3-D points in the
 camera frame, the same points Open3D's ``create_from_rgbd_image`` makes, and turns points back
-into a depth and a color image with :meth:`Projector.to_rgbd`.
+into a depth and a color image with :meth:`Projector.to_rgbd_arrays`.
 
 The camera frame is Open3D's and OpenCV's: x to the right, y down, z forward, in metres. A pixel
 ``(u, v)`` (column, row) with depth ``d`` is the point::
@@ -29,6 +29,7 @@ import numpy.typing as npt
 from ._validate import check_color, check_depth
 from .camera import CameraIntrinsics
 from .errors import InputError, InputTypeError
+from .frame import open3d_rgbd_kind
 
 __all__ = ["Projector", "Reprojection"]
 
@@ -41,10 +42,10 @@ _OUTPUT_DTYPES: dict[str, np.dtype[Any]] = {
 
 @dataclass(frozen=True, eq=False)
 class Reprojection:
-    """What :meth:`Projector.to_rgbd` returns: the two images and how many points were left out.
+    """What :meth:`Projector.to_rgbd_arrays` returns: two numpy images and the points left out.
 
-    Unpacks as ``color, depth = projector.to_rgbd(points)``. ``color`` is an H × W × 3 uint8
-    image (black where no point landed), or ``None`` when no colors were given; ``depth`` is
+    Unpacks as ``color, depth = projector.to_rgbd_arrays(points)``. ``color`` is an H × W × 3
+    uint8 image (black where no point landed), or ``None`` when no colors were given; ``depth`` is
     H × W uint16 (depth units, 0 = no depth) or float32 (depth units, NaN = no depth).
     """
 
@@ -72,6 +73,16 @@ class Reprojection:
     def dropped(self) -> int:
         """All points that are not in ``depth``: the sum of the four counts."""
         return self.behind_camera + self.outside_image + self.out_of_range + self.hidden
+
+    def __repr__(self) -> str:
+        color = "None" if self.color is None else "x".join(map(str, self.color.shape))
+        h, w = self.depth.shape[:2]
+        return (
+            f"Reprojection(color={color}, depth={w}x{h} {self.depth.dtype}, "
+            f"valid={int(np.count_nonzero(self.depth > 0))}, behind_camera={self.behind_camera}, "
+            f"outside_image={self.outside_image}, out_of_range={self.out_of_range}, "
+            f"hidden={self.hidden})"
+        )
 
 
 class Projector:
@@ -282,7 +293,9 @@ class Projector:
 
     # -- points to depth ---------------------------------------------------------------
 
-    def to_rgbd(self, points: Any, colors: Any = None, dtype: Any = "uint16") -> Reprojection:
+    def to_rgbd_arrays(
+        self, points: Any, colors: Any = None, dtype: Any = "uint16"
+    ) -> Reprojection:
         """Project points (metres, camera frame) to a depth image and a color image.
 
         ``points`` is an organized H × W × 3 cloud of the intrinsics size, as made by
@@ -293,10 +306,10 @@ class Projector:
         the points (H × W × 3 or N × 3).
 
         ``dtype`` is ``"uint16"`` (depth units ``round(z * depth_scale)``, 0 = no depth) or
-        ``"float32"`` (``z * depth_scale``, NaN = no depth). For an organized cloud the round trip
-        ``to_rgbd(to_organized(depth))`` gives ``depth`` back bit-exact, for uint16 depth and for
-        float32 depth with ``depth_scale`` 1.0, when no depth lies beyond ``depth_trunc``.
-        The same holds for the points of :meth:`to_points` in any order.
+        ``"float32"`` (``z * depth_scale``, NaN = no depth). For an organized cloud the round
+        trip ``to_rgbd_arrays(to_organized(depth))`` gives ``depth`` back bit-exact, for uint16
+        depth and for float32 depth with ``depth_scale`` 1.0, when no depth lies beyond
+        ``depth_trunc``. The same holds for the points of :meth:`to_points` in any order.
 
         Returns a :class:`Reprojection` that unpacks as ``color, depth`` and counts the points
         left out: behind the camera (z <= 0 or non-finite), outside the image, out of range
@@ -338,6 +351,17 @@ class Projector:
 
     # -- internals ---------------------------------------------------------------------
 
+    def to_rgbd(self, points: Any, colors: Any = None, dtype: Any = "uint16") -> Reprojection:
+        """Deprecated name of :meth:`to_rgbd_arrays` (numpy images, not an Open3D RGBDImage)."""
+        import warnings
+
+        warnings.warn(
+            "Projector.to_rgbd is deprecated; use Projector.to_rgbd_arrays",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.to_rgbd_arrays(points, colors, dtype)
+
     def _buf(self, name: str, shape: tuple[int, ...], dtype: Any) -> npt.NDArray[Any]:
         """A per-thread scratch array, made on first use and reused afterwards."""
         bufs: dict[str, npt.NDArray[Any]] = self._local.__dict__
@@ -353,7 +377,7 @@ class Projector:
         self, depth: Any, color: Any
     ) -> tuple[npt.NDArray[Any], float, npt.NDArray[np.uint8] | None]:
         """Validated (depth, its depth units per metre, color) from arrays or an RGBDImage."""
-        kind = _open3d_rgbd_kind(depth)
+        kind = open3d_rgbd_kind(depth)
         if kind is not None:
             if color is not None:
                 raise InputError("color must be None when depth is an RGBDImage (it has a color)")
@@ -558,14 +582,6 @@ def _output_dtype(dtype: Any) -> np.dtype[Any]:
     if out is None:
         raise InputError(f"dtype must be 'uint16' or 'float32', got {dtype!r}")
     return out
-
-
-def _open3d_rgbd_kind(obj: Any) -> str | None:
-    """``"legacy"`` or ``"tensor"`` for an Open3D RGBDImage, else None (no open3d import)."""
-    cls = type(obj)
-    if cls.__name__ != "RGBDImage" or not cls.__module__.startswith("open3d"):
-        return None
-    return "tensor" if ".t." in cls.__module__ else "legacy"
 
 
 def _split_rgbd(rgbd: Any, kind: str, depth_scale: float) -> tuple[Any, float, Any]:

@@ -19,7 +19,16 @@ from typing import Any
 from .codec import KINDS, Codec
 from .errors import InputError, InputTypeError, UnknownCodecError
 
-__all__ = ["ENTRY_POINT_GROUP", "codec_class", "get_codec", "list_codecs", "register_codec"]
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "codec_class",
+    "codec_for_reading",
+    "get_codec",
+    "list_codecs",
+    "parse_codec_spec",
+    "parse_codec_specs",
+    "register_codec",
+]
 
 ENTRY_POINT_GROUP = "pcdcodec.codecs"
 
@@ -152,3 +161,57 @@ def get_codec(
         return cls.from_config(config)
     cls = codec_class(name_or_config, kind)
     return cls.from_config({"id": cls.name, **params})
+
+
+def parse_codec_spec(spec: str, kind: str | None = None) -> Codec:
+    """A codec from a command-line spec: ``"h264"`` or ``"h264:crf=20,preset=fast"``.
+
+    Values are read as JSON where they parse (numbers, ``true``/``false``/``null``), else as
+    strings. Raises :class:`~pcdcodec.InputError` for an option that is not ``key=value`` and
+    the errors of :func:`get_codec` for unknown codecs or parameters.
+    """
+    import json
+
+    name, _, rest = spec.partition(":")
+    params: dict[str, Any] = {}
+    for item in filter(None, rest.split(",")):
+        key, eq, value = item.partition("=")
+        if not eq:
+            raise InputError(f"codec option {item!r} in {spec!r} is not key=value")
+        try:
+            params[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            params[key.strip()] = value
+    return get_codec(name.strip(), kind=kind, **params)
+
+
+def parse_codec_specs(text: str, kind: str | None = None) -> list[Codec]:
+    """Codecs from a comma-separated list of specs: ``"zstd:level=9,lz4,h264:crf=20,preset=fast"``
+    (an item with ``=`` but no ``:`` continues the options of the codec before it)."""
+    specs: list[str] = []
+    for item in (part.strip() for part in text.split(",")):
+        if not item:
+            continue
+        if "=" in item and ":" not in item and specs:
+            specs[-1] += "," + item
+        else:
+            specs.append(item)
+    if not specs:
+        raise InputError(f"no codec in {text!r}")
+    return [parse_codec_spec(s, kind) for s in specs]
+
+
+def codec_for_reading(
+    config: Mapping[str, Any], /, *, kind: str | None = None, threads: int | None = None
+) -> Codec:
+    """The codec a file's recorded ``config`` describes, with this machine's settings.
+
+    Runtime parameters (:attr:`Codec.runtime_params`, such as ``threads``) are a property of the
+    machine, not of the data: any the file recorded (older files did) are dropped, and
+    ``threads`` applies to the codecs that take it (``None``: the codec's default).
+    """
+    codec = get_codec(config, kind=kind)
+    stored = codec.stored_config()
+    if threads is not None and "threads" in codec.runtime_params:
+        stored["threads"] = threads
+    return get_codec(stored, kind=kind)

@@ -147,7 +147,10 @@ def test_encode_errors(tmp_path: Path) -> None:
     empty.mkdir()
     out = run("encode", str(empty), "-o", str(tmp_path / "e.pcdc"))
     assert out.returncode == 1
-    assert "not an RGB-D folder" in out.stderr
+    # Any input kind is accepted, so the error lists what would have been read.
+    assert "is not an input pcdcodec reads" in out.stderr
+    assert "RGB-D folder" in out.stderr
+    assert "ROS 1 bag" in out.stderr
     bad_codec = run("encode", str(sample_dir()), "-o", str(tmp_path / "b.pcdc"), "--color", "h263")
     assert bad_codec.returncode == 1
     assert "unknown codec 'h263'" in bad_codec.stderr

@@ -42,3 +42,28 @@ def test_compare_codecs(tmp_path: Path) -> None:
     assert out.returncode == 0, out.stderr
     assert "Table IV" in out.stdout
     assert (tmp_path / "codec-report" / "stream_sizes.png").exists()
+
+
+def _python_blocks(doc: Path) -> list[str]:
+    text = doc.read_text()
+    return [block.split("```", 1)[0] for block in text.split("```python\n")[1:]]
+
+
+def test_open3d_example(tmp_path: Path) -> None:
+    out = run("open3d_rgbd.py", str(tmp_path / "r.pcdc"), cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "legacy depth equal to the written image: True" in out.stdout
+    assert "Frame(index=0, timestamp_ns=1305031229528748000" in out.stdout
+
+
+def test_open3d_doc_example(tmp_path: Path) -> None:
+    (code,) = _python_blocks(EXAMPLES.parent / "docs" / "open3d.md")
+    script = tmp_path / "doc.py"
+    script.write_text(code)
+    out = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path, timeout=600
+    )
+    assert out.returncode == 0, out.stderr
+    assert "refused:" in out.stdout
+    assert "depth_scale=1000" in out.stdout
+    assert (tmp_path / "tensor.pcdc").exists()

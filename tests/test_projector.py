@@ -276,7 +276,7 @@ def test_to_organized_matches_to_points(projector: Projector, frame: Frame) -> N
 
 def test_organized_round_trip_uint16_is_bit_exact(projector: Projector, frame: Frame) -> None:
     color, depth = frame
-    result = projector.to_rgbd(projector.to_organized(depth), color)
+    result = projector.to_rgbd_arrays(projector.to_organized(depth), color)
     back_color, back = result
     assert back is not None
     assert back.dtype == np.uint16
@@ -295,11 +295,11 @@ def test_organized_round_trip_every_uint16_value(scale: float) -> None:
     expected_z = (np.arange(1, 65536) / scale).astype(np.float32)  # Open3D: float(d) / scale
     np.testing.assert_array_equal(organized[..., 2].ravel()[1:], expected_z)
     np.testing.assert_array_equal(proj.to_points(depth)[0][:, 2], expected_z)
-    color, back = proj.to_rgbd(organized)
+    color, back = proj.to_rgbd_arrays(organized)
     assert color is None
     np.testing.assert_array_equal(back, depth)
     # Unorganized, in reverse order.
-    np.testing.assert_array_equal(proj.to_rgbd(proj.to_points(depth)[0][::-1]).depth, depth)
+    np.testing.assert_array_equal(proj.to_rgbd_arrays(proj.to_points(depth)[0][::-1]).depth, depth)
 
 
 def test_organized_round_trip_float32_is_bit_exact(frame: Frame) -> None:
@@ -307,7 +307,7 @@ def test_organized_round_trip_float32_is_bit_exact(frame: Frame) -> None:
     metres = (depth / TUM_SCALE).astype(np.float32)
     metres[depth == 0] = np.nan
     proj = Projector(TUM, depth_scale=1.0)
-    result = proj.to_rgbd(proj.to_organized(metres), dtype="float32")
+    result = proj.to_rgbd_arrays(proj.to_organized(metres), dtype="float32")
     assert result.depth.dtype == np.float32
     assert np.array_equal(np.isnan(result.depth), depth == 0)
     np.testing.assert_array_equal(result.depth.view(np.uint32), metres.view(np.uint32))
@@ -322,11 +322,11 @@ def test_organized_counts_invalid_z(projector: Projector) -> None:
     organized[0, 3, 2] = np.inf  # not finite
     organized[0, 4, 2] = 100.0  # 500000 units: does not fit uint16
     organized[0, 5, 2] = 1e-5  # rounds to 0 units
-    result = projector.to_rgbd(organized)
+    result = projector.to_rgbd_arrays(organized)
     assert (result.behind_camera, result.out_of_range, result.outside_image) == (3, 2, 0)
     assert np.count_nonzero(result.depth) == 1
     assert result.depth[0, 0] == 5000
-    as_float = projector.to_rgbd(organized, dtype=np.float32)
+    as_float = projector.to_rgbd_arrays(organized, dtype=np.float32)
     assert (as_float.behind_camera, as_float.out_of_range) == (3, 0)
     tiny = float(np.float32(1e-5)) * TUM_SCALE
     expected = np.array([5000.0, np.nan, np.nan, np.nan, 5e5, tiny], np.float32)
@@ -341,7 +341,7 @@ def test_unorganized_round_trip_shuffled(projector: Projector, frame: Frame) -> 
     points, colors = projector.to_points(depth, color)
     assert colors is not None
     perm = np.random.default_rng(1).permutation(len(points))
-    result = projector.to_rgbd(points[perm], colors[perm])
+    result = projector.to_rgbd_arrays(points[perm], colors[perm])
     np.testing.assert_array_equal(result.depth, depth)
     assert result.color is not None
     valid = depth > 0
@@ -350,7 +350,7 @@ def test_unorganized_round_trip_shuffled(projector: Projector, frame: Frame) -> 
     assert result.dropped == 0
     # float64 points, float32 output in metres.
     proj = Projector(TUM, depth_scale=1.0)
-    back = proj.to_rgbd(points[perm].astype(np.float64), dtype="float32").depth
+    back = proj.to_rgbd_arrays(points[perm].astype(np.float64), dtype="float32").depth
     np.testing.assert_array_equal(back[valid], points[:, 2])
     assert np.isnan(back[~valid]).all()
 
@@ -375,7 +375,7 @@ def test_unorganized_drops_are_counted(projector: Projector, frame0: Frame) -> N
         ]
     )
     extra_colors = np.full((len(extra), 3), 7, np.uint8)
-    result = projector.to_rgbd(
+    result = projector.to_rgbd_arrays(
         np.concatenate([points, extra]), np.concatenate([colors, extra_colors])
     )
     assert isinstance(result, Reprojection)
@@ -388,7 +388,7 @@ def test_unorganized_drops_are_counted(projector: Projector, frame0: Frame) -> N
     assert result.color is not None
     assert tuple(result.color.reshape(-1, 3)[row]) == tuple(color.reshape(-1, 3)[row])
     # A nearer point on the same pixel wins, and the one it covers is counted as hidden.
-    nearer = projector.to_rgbd(np.concatenate([points, [p * 0.5]]))
+    nearer = projector.to_rgbd_arrays(np.concatenate([points, [p * 0.5]]))
     assert nearer.hidden == 1
     assert nearer.depth.ravel()[row] == np.rint(p[2] * 0.5 * TUM_SCALE)
 
@@ -396,27 +396,28 @@ def test_unorganized_drops_are_counted(projector: Projector, frame0: Frame) -> N
 def test_unorganized_equal_depth_first_point_wins(projector: Projector) -> None:
     pts = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]], np.float32)
     cols = np.array([[10, 20, 30], [40, 50, 60], [70, 80, 90]], np.uint8)
-    color, depth = projector.to_rgbd(pts, cols)
+    color, depth = projector.to_rgbd_arrays(pts, cols)
     assert color is not None
     center = (int(TUM.cy + 0.5), int(TUM.cx + 0.5))  # (240, 320): round half up
     assert depth[center] == 5000
     assert np.count_nonzero(depth) == 1
     assert tuple(color[center]) == (10, 20, 30)
-    assert projector.to_rgbd(pts, cols).hidden == 2
+    assert projector.to_rgbd_arrays(pts, cols).hidden == 2
 
 
 def test_unorganized_depth_trunc(frame0: Frame) -> None:
     _, depth = frame0
     proj = Projector(TUM, depth_scale=TUM_SCALE, depth_trunc=1.5)
     points, _ = Projector(TUM, depth_scale=TUM_SCALE).to_points(depth)
-    result = proj.to_rgbd(points)
+    result = proj.to_rgbd_arrays(points)
     far = (depth / TUM_SCALE > 1.5) & (depth > 0)
     assert result.out_of_range == np.count_nonzero(far) > 0
     np.testing.assert_array_equal(result.depth, np.where(far, 0, depth))
 
 
 def test_empty_point_cloud(projector: Projector) -> None:
-    color, depth = projector.to_rgbd(np.empty((0, 3), np.float32), np.empty((0, 3), np.uint8))
+    empty = np.empty((0, 3), np.float32)
+    color, depth = projector.to_rgbd_arrays(empty, np.empty((0, 3), np.uint8))
     assert depth.shape == (480, 640)
     assert not depth.any()
     assert color is not None
@@ -431,7 +432,7 @@ def test_empty_point_cloud(projector: Projector) -> None:
 
 def test_reprojection_unpacks() -> None:
     proj = Projector(CameraIntrinsics(4, 3, 2.0, 2.0, 2.0, 1.5), depth_scale=1000.0)
-    result = proj.to_rgbd(np.array([[0.0, 0.0, 1.0]]))
+    result = proj.to_rgbd_arrays(np.array([[0.0, 0.0, 1.0]]))
     color, depth = result
     assert color is None
     assert depth is result.depth
@@ -467,15 +468,15 @@ def test_views_and_layouts(projector: Projector, frame0: Frame) -> None:
         np.testing.assert_array_equal(projector.to_organized(d), organized)
         pcd = projector.to_point_cloud(d, c)
         np.testing.assert_array_equal(np.asarray(pcd.points), legacy)
-    # Non-contiguous points and colors for to_rgbd.
+    # Non-contiguous points and colors for to_rgbd_arrays.
     wide = np.zeros((len(expected), 5), np.float64)
     wide[:, 1:4] = expected
     rgba = np.zeros((len(expected), 4), np.uint8)
     rgba[:, :3] = expected_colors
-    _color_back, depth_back = projector.to_rgbd(wide[:, 1:4], rgba[:, :3])
+    _color_back, depth_back = projector.to_rgbd_arrays(wide[:, 1:4], rgba[:, :3])
     np.testing.assert_array_equal(depth_back, depth)
     fortran = np.asfortranarray(organized)
-    np.testing.assert_array_equal(projector.to_rgbd(fortran).depth, depth)
+    np.testing.assert_array_equal(projector.to_rgbd_arrays(fortran).depth, depth)
 
 
 def test_float_depth_is_not_modified(frame0: Frame) -> None:
@@ -607,21 +608,21 @@ def test_projector_needs_camera_intrinsics() -> None:
     assert Projector(TUM, depth_trunc=float("inf")).depth_trunc is None
 
 
-def test_to_rgbd_errors(projector: Projector) -> None:
+def test_to_rgbd_arrays_errors(projector: Projector) -> None:
     pts = np.zeros((10, 3), np.float32)
     with pytest.raises(InputError, match="dtype must be 'uint16' or 'float32', got 'int32'"):
-        projector.to_rgbd(pts, dtype="int32")
+        projector.to_rgbd_arrays(pts, dtype="int32")
     with pytest.raises(InputError, match="got 'metres'"):
-        projector.to_rgbd(pts, dtype="metres")
+        projector.to_rgbd_arrays(pts, dtype="metres")
     with pytest.raises(InputTypeError, match=r"points must be float32 or float64 .* got int64"):
-        projector.to_rgbd(np.zeros((10, 3), np.int64))
+        projector.to_rgbd_arrays(np.zeros((10, 3), np.int64))
     with pytest.raises(InputError, match=r"points must have shape \(N, 3\) .* got \(10, 2\)"):
-        projector.to_rgbd(np.zeros((10, 2), np.float32))
+        projector.to_rgbd_arrays(np.zeros((10, 2), np.float32))
     with pytest.raises(InputError, match=r"organized points size 320x240 differs .* 640x480"):
-        projector.to_rgbd(np.zeros((240, 320, 3), np.float32))
+        projector.to_rgbd_arrays(np.zeros((240, 320, 3), np.float32))
     with pytest.raises(InputTypeError, match="colors must be uint8, got float64"):
-        projector.to_rgbd(pts, np.zeros((10, 3)))
+        projector.to_rgbd_arrays(pts, np.zeros((10, 3)))
     with pytest.raises(InputError, match=r"shape of the points \(10, 3\), got \(9, 3\)"):
-        projector.to_rgbd(pts, np.zeros((9, 3), np.uint8))
+        projector.to_rgbd_arrays(pts, np.zeros((9, 3), np.uint8))
     with pytest.raises(InputError, match="colors size 320x240 differs"):
-        projector.to_rgbd(np.zeros((480, 640, 3)), np.zeros((240, 320, 3), np.uint8))
+        projector.to_rgbd_arrays(np.zeros((480, 640, 3)), np.zeros((240, 320, 3), np.uint8))

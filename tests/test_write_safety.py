@@ -235,7 +235,7 @@ def test_a_tum_dataset_folder_without_camera_json_gets_tums_scale(tmp_path: Path
 
 def test_a_folder_that_does_not_say_its_scale_is_refused(tmp_path: Path) -> None:
     root = _tum_copy(tmp_path, camera=False, tum_header=False)
-    with pytest.raises(InputError, match=r"no depth scale.*depth_scale=.*--depth-scale"):
+    with pytest.raises(InputError, match=r"no depth scale.*pass depth_scale=UNITS_PER_METRE"):
         load_folder(root)
     assert load_folder(root, max_frames=1, depth_scale=1000.0).depth_scale == 1000.0
 

@@ -68,10 +68,19 @@ class Packet:
 
 @dataclass(frozen=True)
 class DecodedFrame:
-    """A decoded RGB frame (H×W×3 uint8) and its timestamp in nanoseconds."""
+    """One picture out of a video decoder: RGB (H×W×3 uint8) and its pts in nanoseconds.
+
+    Color only, on the codec level; the RGB-D frame of sources and recordings is
+    :class:`pcdcodec.Frame`.
+    """
 
     rgb: npt.NDArray[np.uint8]
     timestamp: int
+
+    @property
+    def timestamp_ns(self) -> int:
+        """The same as ``timestamp``, under the name :class:`pcdcodec.Frame` uses."""
+        return self.timestamp
 
     def __iter__(self) -> Any:
         return iter((self.rgb, self.timestamp))

@@ -108,6 +108,7 @@ class PyAVCodec(StreamCodec):
     #: Pixel formats the codec may be asked for; the first is the default.
     pix_fmts: ClassVar[tuple[str, ...]] = ("yuv420p",)
     install_hint: ClassVar[str] = _INSTALL
+    runtime_params: ClassVar[tuple[str, ...]] = ("threads",)
 
     pix_fmt: str
     threads: int

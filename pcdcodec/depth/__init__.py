@@ -9,6 +9,7 @@ import numpy as np
 
 from ..registry import register_codec
 from .base import DEFAULT_MAX_PIXELS, FORMAT_VERSION, FrameCodec, FrameHeader, read_header
+from .depthac import DepthAC
 from .jpegxl import JPEGXL
 from .lz4 import LZ4
 from .png16 import PNG16
@@ -23,6 +24,7 @@ __all__ = [
     "LZ4",
     "PNG16",
     "RVL",
+    "DepthAC",
     "FrameCodec",
     "FrameHeader",
     "Zstd",
@@ -33,7 +35,7 @@ __all__ = [
 #: The depth codec used when none is named.
 DEFAULT_DEPTH_CODEC = "jpegxl"
 
-for _cls in (LZ4, Zstd, PNG16, RVL, JPEGXL):
+for _cls in (LZ4, Zstd, PNG16, RVL, JPEGXL, DepthAC):
     register_codec(_cls)
 
 

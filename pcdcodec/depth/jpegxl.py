@@ -97,6 +97,7 @@ class JPEGXL(FrameCodec):
 
     name: ClassVar[str] = "jpegxl"
     dtypes: ClassVar[tuple[str, ...]] = ("uint16", "float32")
+    runtime_params: ClassVar[tuple[str, ...]] = ("threads",)
     install_hint: ClassVar[str] = (
         "install imagecodecs with JPEG XL support (pip install -U imagecodecs)"
     )

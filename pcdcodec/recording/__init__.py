@@ -10,25 +10,45 @@ from typing import Any, Literal, overload
 
 from ..errors import InputError
 from ._index import FORMAT_VERSION
+from .encode import EncodeSummary, encode
 from .reader import Frame, Recording, VerifyReport
 from .recover import recover
+from .rosbag_export import export_bag
 from .writer import RecordingWriter
 
 __all__ = [
     "FORMAT_VERSION",
+    "EncodeSummary",
     "Frame",
     "Recording",
     "RecordingWriter",
     "VerifyReport",
+    "encode",
+    "export_bag",
     "open",
     "recover",
 ]
 
 
 @overload
-def open(path: str | os.PathLike[str], mode: Literal["r"] = "r") -> Recording: ...
+def open(
+    path: str | os.PathLike[str], mode: Literal["r"] = "r", *, threads: int | None = None
+) -> Recording: ...
 @overload
-def open(path: str | os.PathLike[str], mode: Literal["w"], **options: Any) -> RecordingWriter: ...
+def open(
+    path: str | os.PathLike[str],
+    mode: Literal["w"],
+    *,
+    intrinsics: Any,
+    depth_scale: float = ...,
+    color: Any = ...,
+    depth: Any = ...,
+    fps: float = ...,
+    metadata: dict[str, Any] | None = ...,
+    overwrite: bool = ...,
+    in_flight: int = ...,
+    frame_id: str = ...,
+) -> RecordingWriter: ...
 
 
 def open(path: str | os.PathLike[str], mode: str = "r", **options: Any) -> Any:
@@ -52,9 +72,10 @@ def open(path: str | os.PathLike[str], mode: str = "r", **options: Any) -> Any:
                 cloud = frame.to_point_cloud()
     """
     if mode == "r":
-        if options:
-            raise InputError(f"reading takes no options, got {sorted(options)}")
-        return Recording(path)
+        unknown = sorted(set(options) - {"threads"})
+        if unknown:
+            raise InputError(f"reading takes only the option threads, got {unknown}")
+        return Recording(path, **options)
     if mode == "w":
         return RecordingWriter(path, **options)
     raise InputError(f"mode must be 'r' or 'w', got {mode!r}")

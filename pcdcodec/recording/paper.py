@@ -37,6 +37,7 @@ from .._validate import check_depth
 from ..camera import CameraIntrinsics
 from ..color.base import Packet, StreamCodec, VideoDecoder, VideoEncoder
 from ..color.pyav import PyAVCodec, ffmpeg_packet
+from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import CodecUnavailableError, DecodeError, InputError, PcdcodecError
 from ..registry import codec_class, get_codec
 from .reader import Recording
@@ -423,6 +424,9 @@ class _Preencoded(StreamCodec):
     def get_config(self) -> dict[str, Any]:
         return self.codec.get_config()
 
+    def stored_config(self) -> dict[str, Any]:
+        return self.codec.stored_config()
+
     def encoder(self, width: int, height: int, fps: float = 30.0) -> VideoEncoder:
         return _PreencodedEncoder(self, width, height, fps)
 
@@ -797,7 +801,7 @@ def import_paper(
     in_dir: str | os.PathLike[str],
     out_path: str | os.PathLike[str],
     *,
-    depth: Any = "jpegxl",
+    depth: Any = DEFAULT_DEPTH_CODEC,
     overwrite: bool = False,
     progress: Callable[[int], None] | None = None,
 ) -> int:

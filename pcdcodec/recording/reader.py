@@ -9,7 +9,7 @@ import os
 import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
@@ -18,51 +18,15 @@ import numpy.typing as npt
 
 from ..camera import CameraIntrinsics
 from ..color.base import Packet, StreamCodec, VideoDecoder
-from ..depth.base import FrameCodec
+from ..depth.base import FrameCodec, read_header
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
+from ..frame import Frame
 from ..projector import Projector
-from ..registry import get_codec
+from ..registry import codec_for_reading
 from . import _index as fmt
-from ._ros import CompressedVideo
+from ._ros import CameraCalibration, CompressedVideo
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
-
-
-@dataclass
-class Frame:
-    """One decoded frame of a recording.
-
-    ``color`` is H×W×3 uint8 RGB (``None`` for depth-only recordings), ``depth`` the exact
-    depth image that was written, ``timestamp`` nanoseconds.
-    """
-
-    index: int
-    timestamp: int
-    color: npt.NDArray[np.uint8] | None = field(repr=False)
-    depth: npt.NDArray[Any] = field(repr=False)
-    recording: Recording = field(repr=False)
-
-    def to_points(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8] | None]:
-        """N×3 float32 points in metres and their N×3 uint8 colors (see :class:`Projector`)."""
-        return self.recording.projector.to_points(self.depth, self.color)
-
-    def to_point_cloud(self, tensor: bool = False) -> Any:
-        """The frame as an Open3D point cloud (``open3d.t.geometry.PointCloud`` if ``tensor``)."""
-        return self.recording.projector.to_point_cloud(self.depth, self.color, tensor=tensor)
-
-    def to_rgbd(self) -> Any:
-        """The frame as an ``open3d.geometry.RGBDImage`` (depth in metres, RGB colors)."""
-        import open3d as o3d
-
-        geometry: Any = o3d.geometry
-        color = self.color if self.color is not None else np.zeros((*self.depth.shape, 3), np.uint8)
-        return geometry.RGBDImage.create_from_color_and_depth(
-            geometry.Image(np.ascontiguousarray(color)),
-            geometry.Image(np.ascontiguousarray(self.depth)),
-            depth_scale=self.recording.depth_scale,
-            depth_trunc=float(np.finfo(np.float32).max),
-            convert_rgb_to_intensity=False,
-        )
 
 
 @dataclass
@@ -87,7 +51,13 @@ class Recording:
     plus the color packets from the keyframe before it; iteration decodes each packet once.
     """
 
-    def __init__(self, path: str | os.PathLike[str]) -> None:
+    def __init__(self, path: str | os.PathLike[str], *, threads: int | None = None) -> None:
+        if threads is not None and (
+            isinstance(threads, bool) or not isinstance(threads, int) or threads < 0
+        ):
+            raise InputError(f"threads must be a non-negative int (0: automatic), got {threads!r}")
+        #: Decoder threads per codec chosen by this reader (``None``: each codec's default).
+        self.threads = threads
         self.path = Path(path)
         if not self.path.exists():
             raise InputError(f"recording {str(self.path)!r} does not exist")
@@ -97,6 +67,14 @@ class Recording:
         self._lock = threading.RLock()
         try:
             self._load()
+        except PcdcodecError:
+            self._file.close()
+            raise
+        except Exception as exc:  # whatever damaged bytes make a parser raise
+            self._file.close()
+            raise DecodeError(
+                f"{str(self.path)!r} could not be read ({type(exc).__name__}: {exc})"
+            ) from exc
         except BaseException:
             self._file.close()
             raise
@@ -107,40 +85,88 @@ class Recording:
         if head != fmt.MAGIC:
             raise DecodeError(f"{name!r} is not a pcdcodec recording (not an MCAP file)")
         self._file.seek(0)
-        index = fmt.from_summary(self._file) or fmt.scan(self._file)
+        try:
+            index = fmt.load(self._file)
+        except DecodeError as exc:
+            raise DecodeError(f"{name!r}: {exc}") from exc
+        except Exception as exc:  # whatever a damaged file makes the MCAP records raise
+            raise DecodeError(f"{name!r} could not be read ({type(exc).__name__}: {exc})") from exc
         self.index = index
+        if index.damaged_at is not None:
+            summary = f"; its summary is unusable: {index.summary_problem}" * bool(
+                index.summary_problem
+            )
+            raise DecodeError(
+                f"{name!r} is damaged at byte offset {index.damaged_at}: {index.damage}{summary}; "
+                "`pcdcodec recover` copies the frames before the damage into a new file"
+            )
         meta = index.metadata.get(fmt.METADATA_NAME)
         if index.profile != fmt.PROFILE or meta is None:
             raise DecodeError(
                 f"{name!r} is an MCAP file but not a pcdcodec recording "
                 f"(profile {index.profile!r}, no {fmt.METADATA_NAME!r} metadata)"
             )
+        fmt.check_metadata(index, repr(name))
+        where = f"{name!r}: the {fmt.METADATA_NAME!r} metadata at byte offset " + str(
+            index.metadata_offsets.get(fmt.METADATA_NAME)
+        )
         try:
-            version = int(meta.get("format_version", ""))
-        except ValueError:
-            raise DecodeError(f"{name!r} has no valid format_version") from None
+            version = int(meta["format_version"])
+            if version < 1:
+                raise ValueError(f"format_version {version} is not a version")
+        except (KeyError, ValueError):
+            raise DecodeError(f"{where} has no valid format_version") from None
         if version > fmt.FORMAT_VERSION:
             raise DecodeError(
                 f"{name!r} is format version {version}, newer than this pcdcodec reads "
                 f"(version {fmt.FORMAT_VERSION}); upgrade pcdcodec to read it"
             )
         self.format_version = version
-        self.intrinsics = CameraIntrinsics.from_dict(json.loads(meta["intrinsics"]))
-        self.depth_scale = float(meta["depth_scale"])
-        self.fps = float(meta.get("fps", "30"))
-        self.metadata: dict[str, str] = dict(index.metadata.get(fmt.USER_METADATA_NAME, {}))
         try:
-            depth_codec = get_codec(json.loads(meta["depth_codec"]), kind="depth")
+            self.intrinsics = CameraIntrinsics.from_dict(json.loads(meta["intrinsics"]))
+            self.depth_scale = float(meta["depth_scale"])
+            self.fps = float(meta.get("fps", "30"))
+            if not (np.isfinite(self.depth_scale) and self.depth_scale > 0):
+                raise ValueError(f"depth_scale {self.depth_scale} is not positive and finite")
+            if not (np.isfinite(self.fps) and self.fps > 0):
+                raise ValueError(f"fps {self.fps} is not positive and finite")
+            depth_config = json.loads(meta["depth_codec"])
+            color_config = json.loads(meta["color_codec"]) if meta.get("color_codec") else None
+        except Exception as exc:
+            raise DecodeError(
+                f"{where} is not valid ({type(exc).__name__}: {exc}); expected the intrinsics, "
+                "depth_scale, fps and codec configs a pcdcodec writer stores"
+            ) from exc
+        self.metadata: dict[str, str] = {
+            k: v
+            for k, v in index.metadata.get(fmt.USER_METADATA_NAME, {}).items()
+            if k != fmt.DIGEST_KEY
+        }
+        try:
+            depth_codec = codec_for_reading(depth_config, kind="depth", threads=self.threads)
             color_codec = (
-                get_codec(json.loads(meta["color_codec"]), kind="color")
-                if meta.get("color_codec")
+                codec_for_reading(color_config, kind="color", threads=self.threads)
+                if color_config
                 else None
             )
         except UnknownCodecError as exc:
             raise UnknownCodecError(
                 f"{name!r} was written with a codec not available here: {exc}"
             ) from None
-        assert isinstance(depth_codec, FrameCodec)
+        except PcdcodecError as exc:
+            raise DecodeError(f"{where} names codecs that cannot be made: {exc}") from exc
+        except Exception as exc:
+            raise DecodeError(
+                f"{where} names codecs that cannot be made ({type(exc).__name__}: {exc})"
+            ) from exc
+        self._check_channels(name, depth_config, color_config)
+        if fmt.DIGEST_KEY not in meta:
+            # Written before digests: the CRC-checked calibration message vouches for the camera.
+            wrong = self._check_calibration(index, readable_only=True)
+            if wrong:
+                raise DecodeError(f"{name!r}: {wrong[0]}")
+        if not isinstance(depth_codec, FrameCodec):
+            raise DecodeError(f"{where}: depth codec {depth_codec.name!r} is not a frame codec")
         self.depth_codec = depth_codec
         if color_codec is not None and not isinstance(color_codec, StreamCodec):
             raise DecodeError(
@@ -169,13 +195,16 @@ class Recording:
             self._is_cdr = channel is not None and channel.encoding == "cdr"
             # A frame exists when both its depth and a decodable color packet were written.
             first_key = self._packet_pts[self._keyframes[0]] if self._keyframes else None
-            keep = [
+            good = [
                 i
                 for i, t in enumerate(d_times.tolist())
                 if t in self._packet_of_pts
                 and first_key is not None
                 and self._packet_of_pts[t] >= self._keyframes[0]
             ]
+            # Frames after the last complete one were in flight when the writer stopped. One
+            # missing its packet before that is damage: it stays, and reading it fails.
+            keep = list(range(good[-1] + 1)) if good else []
             d_times, d_offsets = d_times[keep], d_offsets[keep]
         self._times = d_times
         self._offsets = d_offsets
@@ -184,14 +213,47 @@ class Recording:
         self._decoded: dict[int, npt.NDArray[np.uint8]] = {}
         self._projector: Projector | None = None
 
+    def _check_channels(
+        self, name: str, depth_config: Any, color_config: dict[str, Any] | None
+    ) -> None:
+        """The channels (inside CRC-checked chunks) must agree with the recording's metadata."""
+        cam = self.intrinsics
+        expected = {
+            fmt.TOPIC_DEPTH: {
+                "width": cam.width,
+                "height": cam.height,
+                "codec": depth_config,
+                "depth_scale": self.depth_scale,
+            },
+            fmt.TOPIC_COLOR: {"width": cam.width, "height": cam.height, "codec": color_config},
+        }
+        for topic, want in expected.items():
+            channel = self.index.channel(topic)
+            if channel is None:
+                continue
+            for key, value in want.items():
+                if key not in channel.metadata:
+                    continue
+                text = channel.metadata[key]
+                try:
+                    got: Any = json.loads(text) if key == "codec" else float(text)
+                except ValueError:
+                    got = text
+                if got != value:
+                    raise DecodeError(
+                        f"{name!r}: channel {topic!r} says {key} is {text}, but the recording's "
+                        f"metadata says {value!r}"
+                    )
+
     # -- description ---------------------------------------------------------------------
 
     @property
     def codecs(self) -> dict[str, dict[str, Any] | None]:
-        """The configs of the codecs that wrote the recording."""
+        """The configs of the codecs that wrote the recording (as stored: without the reader's
+        own settings such as ``threads``)."""
         return {
-            "color": self.color_codec.get_config() if self.color_codec else None,
-            "depth": self.depth_codec.get_config(),
+            "color": self.color_codec.stored_config() if self.color_codec else None,
+            "depth": self.depth_codec.stored_config(),
         }
 
     @property
@@ -231,37 +293,65 @@ class Recording:
     def _depth(self, i: int) -> npt.NDArray[Any]:
         offset = int(self._offsets[i])
         ts = int(self._times[i])
+        what = f"{str(self.path)!r}: frame {i} (t={ts} ns): depth at byte offset {offset}"
         with self._lock:
-            messages = fmt.read_chunk_messages(self._file, offset, what=f"frame {i} depth")
+            messages = fmt.read_chunk_messages(
+                self._file, offset, what=what, size=self.index.size or None
+            )
         channel = self.index.channel(fmt.TOPIC_DEPTH)
         for m in messages:
             if channel is not None and m.channel_id == channel.id and m.log_time == ts:
                 try:
-                    return self.depth_codec.decode(m.data)
+                    # Checked before decoding, so a frame that claims to be huge is never made.
+                    header = read_header(m.data)
+                    cam = self.intrinsics
+                    if header.shape != (cam.height, cam.width):
+                        raise DecodeError(
+                            f"the frame is {header.width}x{header.height}, but the recording's "
+                            f"camera is {cam.width}x{cam.height}"
+                        )
+                    if header.dtype.name not in self.depth_codec.dtypes:
+                        raise DecodeError(
+                            f"the frame is {header.dtype}, but {self.depth_codec.name!r} writes "
+                            f"{' or '.join(str(d) for d in self.depth_codec.dtypes)}"
+                        )
+                    # The camera bounds the frame; no further pixel limit applies.
+                    depth = self.depth_codec.decode(m.data, max_pixels=None)
+                    if depth.shape != header.shape or depth.dtype != header.dtype:
+                        raise DecodeError(
+                            f"decoded to {depth.dtype} {depth.shape}, expected "
+                            f"{header.dtype} {header.shape}"
+                        )
+                    return depth
                 except DecodeError as exc:
-                    raise DecodeError(
-                        f"frame {i} (t={ts} ns): depth at byte offset {offset}: {exc}"
-                    ) from exc
-        raise DecodeError(f"frame {i}: no depth message at byte offset {offset}")
+                    raise DecodeError(f"{what}: {exc}") from exc
+        raise DecodeError(f"{what}: no depth message with that time in the chunk there")
 
     def _packet(self, j: int) -> Packet:
         offset = int(self._packet_offsets[j])
         pts = int(self._packet_pts[j])
+        what = f"{str(self.path)!r}: color packet {j} (pts {pts}) at byte offset {offset}"
         with self._lock:
-            messages = fmt.read_chunk_messages(self._file, offset, what=f"color packet {j}")
+            messages = fmt.read_chunk_messages(
+                self._file, offset, what=what, size=self.index.size or None
+            )
         channel = self.index.channel(fmt.TOPIC_COLOR)
         for m in messages:
             if channel is not None and m.channel_id == channel.id and m.log_time == pts:
                 data = CompressedVideo.decode(m.data).data if self._is_cdr else m.data
                 keyframe = j in self._keyframe_set
                 return Packet(data, pts, int(m.publish_time), keyframe)
-        raise DecodeError(f"color packet {j}: no color message at byte offset {offset}")
+        raise DecodeError(f"{what}: no color message with that time in the chunk there")
 
     def _color(self, i: int) -> npt.NDArray[np.uint8] | None:
         if self.color_codec is None:
             return None
         ts = int(self._times[i])
-        j = self._packet_of_pts[ts]
+        j = self._packet_of_pts.get(ts, -1)
+        if j < 0 or j < self._keyframes[0]:
+            raise DecodeError(
+                f"{str(self.path)!r}: frame {i} (t={ts} ns): no decodable color packet has its time"
+            )
         with self._lock:
             if ts in self._decoded:
                 return self._decoded.pop(ts)
@@ -305,7 +395,28 @@ class Recording:
         if not -n <= i < n:
             raise IndexError(f"frame index {i} is out of range for {n} frames")
         i = int(i) % n
-        return Frame(i, int(self._times[i]), self._color(i), self._depth(i), self)
+        try:
+            color = self._color(i)
+            cam = self.intrinsics
+            if color is not None and color.shape != (cam.height, cam.width, 3):
+                raise DecodeError(
+                    f"{str(self.path)!r}: frame {i}: color decoded to {color.shape}, expected "
+                    f"({cam.height}, {cam.width}, 3) for the recording's camera"
+                )
+            return Frame(
+                color,
+                self._depth(i),
+                int(self._times[i]),
+                index=i,
+                projector=self.projector,
+            )
+        except PcdcodecError:
+            raise
+        except Exception as exc:  # a backend or a record parser meeting damaged bytes
+            raise DecodeError(
+                f"{str(self.path)!r}: frame {i} (t={int(self._times[i])} ns) could not be "
+                f"decoded ({type(exc).__name__}: {exc})"
+            ) from exc
 
     def __getitem__(self, key: int | slice) -> Any:
         if isinstance(key, slice):
@@ -344,12 +455,22 @@ class Recording:
             yield self.frame(i)
 
     def verify(self) -> VerifyReport:
-        """Decode every frame and check every checksum; report problems by frame and offset."""
+        """Check the whole file and decode every frame; report problems by frame and offset.
+
+        Besides decoding each frame (which checks every CRC on its way), the file is read from
+        start to end without the summary, and what that finds (channels, messages, their times,
+        the data section's CRC, the metadata) is compared with what the index said.
+        """
         errors: list[str] = []
-        if self.index.truncated_at is not None:
+        index = self.index
+        if index.truncated_at is not None:
+            errors.append(f"the file is cut short: records end at byte offset {index.truncated_at}")
+        if index.summary_problem:
             errors.append(
-                f"the file is cut short: records end at byte offset {self.index.truncated_at}"
+                f"the summary (index) is unusable: {index.summary_problem}; the frames were "
+                "found by reading the whole file"
             )
+        errors.extend(self._check_structure())
         for i in range(len(self)):
             try:
                 self.frame(i)
@@ -357,7 +478,113 @@ class Recording:
                 errors.append(str(exc))
                 with self._lock:
                     self._decoder = None
-        return VerifyReport(len(self), errors, self.index.indexed, self.index.truncated_at)
+        return VerifyReport(len(self), errors, index.indexed, index.truncated_at)
+
+    def _check_structure(self) -> list[str]:
+        """Problems found by reading every record, compared with the index the frames use."""
+        index = self.index
+        try:
+            with self._lock:
+                scanned = fmt.scan(self._file, skip_damaged_chunks=True)
+        except PcdcodecError as exc:
+            return [f"reading the whole file failed: {exc}"]
+        errors: list[str] = []
+        # Damaged chunks of frames are reported when those frames are decoded.
+        used = {
+            o for topic in (fmt.TOPIC_DEPTH, fmt.TOPIC_COLOR) for o in index.offsets.get(topic, [])
+        }
+        skipped = {offset for offset, _ in scanned.damaged_chunks}
+        errors.extend(text for offset, text in scanned.damaged_chunks if offset not in used)
+        if scanned.damaged_at is not None:
+            errors.append(f"damaged record at byte offset {scanned.damaged_at}: {scanned.damage}")
+        if scanned.duplicates:
+            errors.append(f"{scanned.duplicates} message(s) are stored twice")
+        crc = scanned.data_crc
+        if crc is not None and crc[0] not in (0, crc[1]) and not scanned.damaged_chunks:
+            stored, computed = crc
+            errors.append(
+                f"the data section fails its CRC ({stored:#010x} stored, {computed:#010x} "
+                "computed): bytes outside the chunks were changed"
+            )
+        if index.indexed and scanned.data_crc is None and scanned.damaged_at is None:
+            errors.append("the data section has no end record, although the file has a summary")
+        if index.indexed:
+            if scanned.metadata != index.metadata:
+                errors.append("the metadata records differ from those the summary points to")
+            for topic in sorted(set(index.times) | set(scanned.times)):
+                listed = [
+                    (t, o)
+                    for t, o in zip(
+                        index.times.get(topic, []), index.offsets.get(topic, []), strict=True
+                    )
+                    if o not in skipped
+                ]
+                if listed != list(
+                    zip(scanned.times.get(topic, []), scanned.offsets.get(topic, []), strict=True)
+                ):
+                    errors.append(
+                        f"channel {topic!r}: the index lists {len(index.times.get(topic, []))} "
+                        f"messages, the file holds {len(scanned.times.get(topic, []))} (or at "
+                        "other times or offsets)"
+                    )
+            described = {
+                (c.topic, c.encoding, tuple(sorted(c.metadata.items())))
+                for c in index.channels.values()
+            }
+            found = {
+                (c.topic, c.encoding, tuple(sorted(c.metadata.items())))
+                for c in scanned.channels.values()
+            }
+            if described != found:
+                errors.append("the channels in the summary differ from those in the chunks")
+        depth = np.asarray(sorted(scanned.times.get(fmt.TOPIC_DEPTH, [])), dtype=np.int64)
+        if np.any(np.diff(depth) <= 0):
+            errors.append("depth messages share timestamps")
+        if self.color_codec is not None:
+            pts = set(scanned.times.get(fmt.TOPIC_COLOR, []))
+            orphans = [int(t) for t in depth.tolist() if t not in pts]
+            if orphans and orphans != depth.tolist()[-len(orphans) :]:  # a tail is lost packets
+                errors.append(
+                    f"{len(orphans)} depth message(s) have no color packet, the first at "
+                    f"t={orphans[0]} ns"
+                )
+        errors.extend(self._check_calibration(scanned))
+        return errors
+
+    def _check_calibration(self, index: fmt.FileIndex, *, readable_only: bool = False) -> list[str]:
+        """The calibration message (inside a CRC-checked chunk) must match the intrinsics.
+
+        With ``readable_only``, a message that cannot be read is no problem (only one that
+        disagrees is).
+        """
+        offsets = index.offsets.get(fmt.TOPIC_CALIBRATION, [])
+        channel = index.channel(fmt.TOPIC_CALIBRATION)
+        if not offsets or channel is None:
+            return []
+        try:
+            with self._lock:
+                messages = fmt.read_chunk_messages(self._file, offsets[0], what="calibration")
+            data = next(m.data for m in messages if m.channel_id == channel.id)
+            cal = CameraCalibration.decode(data)
+        except PcdcodecError as exc:
+            return [] if readable_only else [str(exc)]
+        except Exception as exc:
+            return (
+                []
+                if readable_only
+                else [
+                    f"the calibration message at byte offset {offsets[0]} does not parse "
+                    f"({type(exc).__name__}: {exc})"
+                ]
+            )
+        cam = self.intrinsics
+        k = [cam.fx, 0.0, cam.cx, 0.0, cam.fy, cam.cy, 0.0, 0.0, 1.0]
+        if (cal.width, cal.height) != (cam.width, cam.height) or not np.allclose(cal.k, k):
+            return [
+                f"the calibration message at byte offset {offsets[0]} ({cal.width}x{cal.height}, "
+                f"K={list(cal.k)}) disagrees with the recording's intrinsics {cam}"
+            ]
+        return []
 
     def close(self) -> None:
         self._file.close()

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import IO, Any
 
-from ..errors import DecodeError, InputError
+from ..errors import DecodeError, InputError, PcdcodecError
 from . import _index as fmt
 
 __all__ = ["recover"]
@@ -33,43 +34,71 @@ def recover(
         raise InputError("recover writes a new file: the destination must differ from the source")
     if dst_path.exists() and not overwrite:
         raise InputError(f"{str(dst_path)!r} already exists; pass overwrite=True to replace it")
-    with src_path.open("rb") as f:
-        if f.read(8) != fmt.MAGIC:
-            raise DecodeError(f"{str(src_path)!r} is not a pcdcodec recording (not an MCAP file)")
+    tmp = dst_path.with_name(f".{dst_path.name}.partial-{os.getpid()}")
+    try:
+        with src_path.open("rb") as f:
+            _copy(f, tmp, src_path, Writer, CompressionType)
+        with Recording(tmp) as rec:
+            count = len(rec)
+        os.replace(tmp, dst_path)
+    except PcdcodecError as exc:
+        # Name the files the caller gave, never the temporary one.
+        text = (
+            str(exc).replace(repr(str(tmp)), repr(str(dst_path))).replace(str(tmp), str(dst_path))
+        )
+        if str(src_path) not in text:
+            text = f"{str(src_path)!r}: {text}"
+        raise type(exc)(text) from exc
+    except OSError as exc:
+        raise InputError(
+            f"recovering {str(src_path)!r} into {str(dst_path)!r} failed: {exc.strerror or exc}"
+        ) from exc
+    finally:
+        tmp.unlink(missing_ok=True)
+    return count
+
+
+def _copy(f: IO[bytes], tmp: Path, src_path: Path, writer_class: Any, compression: Any) -> None:
+    """Write every complete message of the open source ``f`` into ``tmp``, with a summary."""
+    if f.read(8) != fmt.MAGIC:
+        raise DecodeError(f"{str(src_path)!r} is not a pcdcodec recording (not an MCAP file)")
+    try:
         index = fmt.scan(f)
-        if index.profile != fmt.PROFILE or fmt.METADATA_NAME not in index.metadata:
-            raise DecodeError(f"{str(src_path)!r} is not a pcdcodec recording")
-        tmp = dst_path.with_name(f".{dst_path.name}.partial-{os.getpid()}")
-        with tmp.open("wb") as out:
-            writer = Writer(out, chunk_size=0, compression=CompressionType.NONE)
-            writer.start(profile=fmt.PROFILE, library="pcdcodec recover")
-            for name, data in index.metadata.items():
-                writer.add_metadata(name, data)
-            schema_ids = {
-                sid: writer.register_schema(name, encoding, data)
-                for sid, (name, encoding, data) in index.schemas.items()
-            }
-            channel_ids = {
-                cid: writer.register_channel(
-                    ch.topic, ch.encoding, schema_ids.get(_schema_of(index, cid), 0), ch.metadata
-                )
-                for cid, ch in index.channels.items()
-            }
-            offsets = sorted({o for topic in index.offsets.values() for o in topic})
-            for offset in offsets:
-                for m in fmt.read_chunk_messages(f, offset, what="recover"):
-                    if m.channel_id in channel_ids:
-                        writer.add_message(
-                            channel_ids[m.channel_id],
-                            m.log_time,
-                            m.data,
-                            m.publish_time,
-                            m.sequence,
-                        )
-            writer.finish()  # type: ignore[no-untyped-call]
-    os.replace(tmp, dst_path)
-    with Recording(dst_path) as rec:
-        return len(rec)
+    except DecodeError:
+        raise
+    except Exception as exc:
+        raise DecodeError(f"could not be read ({type(exc).__name__}: {exc})") from exc
+    if index.profile != fmt.PROFILE or fmt.METADATA_NAME not in index.metadata:
+        raise DecodeError(f"{str(src_path)!r} is not a pcdcodec recording")
+    fmt.check_metadata(index, repr(str(src_path)))
+    with tmp.open("wb") as out:
+        writer = writer_class(
+            out, chunk_size=0, compression=compression.NONE, enable_data_crcs=True
+        )
+        writer.start(profile=fmt.PROFILE, library="pcdcodec recover")
+        for name, data in index.metadata.items():
+            writer.add_metadata(name, data)
+        schema_ids = {
+            sid: writer.register_schema(name, encoding, data)
+            for sid, (name, encoding, data) in index.schemas.items()
+        }
+        channel_ids = {
+            cid: writer.register_channel(
+                ch.topic, ch.encoding, schema_ids.get(_schema_of(index, cid), 0), ch.metadata
+            )
+            for cid, ch in index.channels.items()
+        }
+        offsets = sorted({o for topic in index.offsets.values() for o in topic})
+        seen: set[tuple[int, int]] = set()
+        for offset in offsets:
+            for m in fmt.read_chunk_messages(f, offset, what="recover", size=index.size):
+                key = (m.channel_id, m.log_time)
+                if m.channel_id in channel_ids and key not in seen:
+                    seen.add(key)
+                    writer.add_message(
+                        channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
+                    )
+        writer.finish()
 
 
 def _schema_of(index: fmt.FileIndex, channel_id: int) -> int:

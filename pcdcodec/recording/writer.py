@@ -18,10 +18,14 @@ from .._validate import check_color, check_depth
 from .._version import __version__
 from ..camera import CameraIntrinsics
 from ..codec import Codec
+from ..color import DEFAULT_COLOR_CODEC
 from ..color.base import Packet, StreamCodec, VideoEncoder
+from ..depth import DEFAULT_DEPTH_CODEC
 from ..depth.base import FrameCodec
 from ..errors import InputError, InputTypeError
+from ..frame import OPEN3D_DEPTH_SCALE
 from ..registry import get_codec
+from ..sources.base import Source
 from . import _index as fmt
 from ._ros import (
     CAMERA_CALIBRATION,
@@ -111,8 +115,8 @@ class RecordingWriter:
         *,
         intrinsics: Any,
         depth_scale: float = 1000.0,
-        color: Any = "h264",
-        depth: Any = "jpegxl",
+        color: Any = DEFAULT_COLOR_CODEC,
+        depth: Any = DEFAULT_DEPTH_CODEC,
         fps: float = 30.0,
         metadata: dict[str, Any] | None = None,
         overwrite: bool = False,
@@ -151,6 +155,8 @@ class RecordingWriter:
             self.color_codec = color_codec
         self.depth_codec._require_available()
         user = _user_metadata(metadata)
+        if fmt.DIGEST_KEY in user:
+            raise InputError(f"metadata key {fmt.DIGEST_KEY!r} is reserved for the file's digest")
 
         if self.path.exists() and not overwrite:
             raise InputError(
@@ -199,25 +205,33 @@ class RecordingWriter:
 
         # One chunk per message: each is on disk (with its CRC) as soon as it is written, and
         # MCAP's chunk index then gives every message's time and offset directly.
-        self._mcap = Writer(self._file, chunk_size=0, compression=CompressionType.NONE)
+        self._mcap = Writer(
+            self._file, chunk_size=0, compression=CompressionType.NONE, enable_data_crcs=True
+        )
         self._mcap.start(profile=fmt.PROFILE, library=f"pcdcodec {__version__}")
-        self._mcap.add_metadata(
-            fmt.METADATA_NAME,
-            {
+        # The settings the file is read with; each record is sealed with its digest, and the
+        # main record lists the others, so a reader notices any of them changed or missing.
+        records: dict[str, dict[str, str]] = {
+            fmt.METADATA_NAME: {
                 "format_version": str(fmt.FORMAT_VERSION),
                 "library": f"pcdcodec {__version__}",
                 "intrinsics": json.dumps(self.intrinsics.to_dict()),
                 "depth_scale": repr(self.depth_scale),
                 "fps": repr(self.fps),
-                "depth_codec": json.dumps(self.depth_codec.get_config()),
-                "color_codec": json.dumps(self.color_codec.get_config())
+                "depth_codec": json.dumps(self.depth_codec.stored_config()),
+                "color_codec": json.dumps(self.color_codec.stored_config())
                 if self.color_codec
                 else "",
                 "frame_id": self.frame_id,
             },
-        )
+        }
         if user:
-            self._mcap.add_metadata(fmt.USER_METADATA_NAME, user)
+            records[fmt.USER_METADATA_NAME] = user
+        records[fmt.METADATA_NAME][fmt.RECORDS_KEY] = json.dumps(
+            [name for name in records if name != fmt.METADATA_NAME]
+        )
+        for name, data in records.items():
+            self._mcap.add_metadata(name, fmt.seal(name, data))
         self._file.flush()
 
     # -- writing -----------------------------------------------------------------------
@@ -235,7 +249,7 @@ class RecordingWriter:
             extradata = self._encoder.extradata
             meta = {
                 **size,
-                "codec": json.dumps(self.color_codec.get_config()),
+                "codec": json.dumps(self.color_codec.stored_config()),
                 "extradata": base64.b64encode(extradata).decode() if extradata else "",
             }
             video_format = getattr(self.color_codec, "video_format", None)
@@ -256,7 +270,7 @@ class RecordingWriter:
             0,
             {
                 **size,
-                "codec": json.dumps(self.depth_codec.get_config()),
+                "codec": json.dumps(self.depth_codec.stored_config()),
                 "depth_scale": repr(self.depth_scale),
             },
         )
@@ -337,58 +351,115 @@ class RecordingWriter:
         assert self._encoder is not None
         return self._encoder.encode(rgb, timestamp)
 
-    def write_rgbd(self, rgbd: Any, timestamp: int | None = None) -> None:
-        """Add an ``open3d.geometry.RGBDImage`` made with ``convert_rgb_to_intensity=False``.
+    def write_rgbd(
+        self,
+        rgbd: Any,
+        timestamp: int | None = None,
+        *,
+        depth_scale: float = OPEN3D_DEPTH_SCALE,
+    ) -> None:
+        """Add an Open3D RGBDImage, legacy (``open3d.geometry``) or tensor (``open3d.t.geometry``).
 
-        Open3D keeps depth as float32 metres; it is turned back into depth units with this
-        recording's ``depth_scale`` and must come out as whole numbers (it does when the
-        RGBDImage was made from uint16 depth with the same scale).
+        ``depth_scale`` is the one the image was made with, in Open3D's convention (the
+        ``depth_scale`` given to ``create_from_color_and_depth``, or used with a tensor image;
+        Open3D's default is 1000). Depth in depth units must be at this recording's own depth
+        scale: a different one raises :class:`~pcdcodec.InputError` instead of storing depth
+        rescaled. Tensor images with float32 depth are metres after division by
+        ``depth_scale`` and need a depth codec that takes float32. Color must be 8-bit RGB
+        (``convert_rgb_to_intensity=False``). Note that a legacy image has already lost the
+        depth beyond its ``depth_trunc`` (Open3D's default 3 m).
         """
-        color = np.asarray(rgbd.color)
-        metres = np.asarray(rgbd.depth)
-        if color.dtype != np.uint8 or color.ndim != 3:
+        from ..frame import from_open3d_rgbd, open3d_rgbd_kind
+
+        kind = open3d_rgbd_kind(rgbd)
+        tensor_float = kind == "tensor" and str(rgbd.depth.dtype) == "Float32"
+        if kind is not None and not tensor_float and float(depth_scale) != self.depth_scale:
             raise InputError(
-                f"RGBDImage color is {color.dtype} {color.shape}; make it with "
-                "convert_rgb_to_intensity=False to keep 8-bit RGB"
+                f"this {kind} RGBDImage holds depth at depth_scale={float(depth_scale):g} "
+                f"(Open3D's default is {OPEN3D_DEPTH_SCALE:g} unless another was passed), but "
+                f"recording {str(self.path)!r} stores {self.depth_scale:g} units per metre; "
+                f"pass depth_scale= with the scale the image was made with, or open the "
+                f"recording with depth_scale={float(depth_scale):g}"
             )
-        units = metres.astype(np.float64) * self.depth_scale
-        rounded = np.rint(units)
-        if not np.allclose(units, rounded, atol=1e-3) or rounded.max(initial=0) > 65535:
-            raise InputError(
-                f"RGBDImage depth times depth_scale {self.depth_scale} is not whole depth units; "
-                "use write() with the original depth instead"
-            )
-        self.write(color, rounded.astype(np.uint16), timestamp)
+        color, depth = from_open3d_rgbd(rgbd, depth_scale=depth_scale)
+        self.write(color, depth, timestamp)
 
     def write_frames(
         self,
         frames: Iterable[Any],
         *,
         progress: Callable[[int], None] | None = None,
+        rgbd_depth_scale: float = OPEN3D_DEPTH_SCALE,
     ) -> int:
         """Write every frame of an iterable and return how many were written.
 
-        Items may be :class:`~pcdcodec.RGBDFrame` objects (as from :func:`pcdcodec.load_folder`),
-        ``(color, depth)`` or ``(color, depth, timestamp)`` tuples, or Open3D ``RGBDImage``
-        objects. ``progress`` is called with the number of frames written so far.
+        Items may be :class:`~pcdcodec.Frame` objects (from a source, :func:`pcdcodec.load_folder`
+        or another recording), ``(color, depth)`` or ``(color, depth, timestamp)`` tuples, or
+        Open3D RGBDImages, legacy or tensor, alone or as ``(rgbd, timestamp)`` tuples.
+        ``rgbd_depth_scale`` is the depth scale the RGBDImages were made with (see
+        :meth:`write_rgbd`). ``progress`` is called with the number of frames written so far.
+        To record a whole source with its camera, use :meth:`write_source` (or
+        :func:`pcdcodec.encode`).
         """
+        from ..frame import Frame, open3d_rgbd_kind
+
         count = 0
         for item in frames:
-            if hasattr(item, "depth") and hasattr(item, "timestamp_ns"):
+            if isinstance(item, Frame):
                 self.write(item.color, item.depth, item.timestamp_ns)
-            elif type(item).__name__ == "RGBDImage":
-                self.write_rgbd(item)
+            elif open3d_rgbd_kind(item) is not None:
+                self.write_rgbd(item, depth_scale=rgbd_depth_scale)
+            elif (
+                isinstance(item, tuple) and len(item) == 2 and open3d_rgbd_kind(item[0]) is not None
+            ):
+                self.write_rgbd(item[0], item[1], depth_scale=rgbd_depth_scale)
             elif isinstance(item, tuple) and len(item) in (2, 3):
                 self.write(*item)
             else:
                 raise InputTypeError(
-                    f"frame {count} is a {type(item).__name__}; expected an RGBDFrame, an "
-                    "RGBDImage or a (color, depth[, timestamp]) tuple"
+                    f"frame {count} is a {type(item).__name__}; expected a pcdcodec.Frame, an "
+                    "Open3D RGBDImage, an (rgbd, timestamp) or a (color, depth[, timestamp]) "
+                    "tuple"
                 )
             count += 1
             if progress is not None:
                 progress(count)
         return count
+
+    def write_source(self, source: Source, *, progress: Callable[[int], None] | None = None) -> int:
+        """Write every frame of a :class:`~pcdcodec.Source` and return how many were written.
+
+        The source's camera and depth scale must be this recording's (:func:`pcdcodec.encode`
+        opens the writer from the source, so they are). A source without color
+        (``source.has_color`` false) needs a writer opened with ``color=None``. Raises
+        :class:`~pcdcodec.InputError` when they disagree; frames already written stay intact.
+        """
+        from ..sources.base import Source
+
+        if not isinstance(source, Source):
+            raise InputTypeError(
+                f"write_source takes a pcdcodec.Source, got {type(source).__name__}; use "
+                "write_frames for other iterables"
+            )
+        if source.intrinsics is not None and source.intrinsics != self.intrinsics:
+            raise InputError(
+                f"source {str(source.path)!r} has camera {source.intrinsics.to_dict()}, this "
+                f"recording {self.intrinsics.to_dict()}"
+            )
+        if float(source.depth_scale) != self.depth_scale:
+            raise InputError(
+                f"source {str(source.path)!r} has depth scale {source.depth_scale} per metre, this "
+                f"recording {self.depth_scale}"
+            )
+        if not source.has_color and self.color_codec is not None:
+            raise InputError(
+                f"source {str(source.path)!r} has no color; open the recording with color=None"
+            )
+        if source.has_color and self.color_codec is None:
+            frames: Iterable[Any] = ((None, f.depth, f.timestamp_ns) for f in source)
+        else:
+            frames = source
+        return self.write_frames(frames, progress=progress)
 
     def _synchronizer(self) -> Any:
         if self._sync is None:
@@ -499,8 +570,10 @@ class RecordingWriter:
         if self._sync is not None:
             attempt(flush_sync)
         self._closed = True
-        while self._pending:
+        # Bounded: each frame gets one try, whether or not its step took it off the queue.
+        for _ in range(len(self._pending)):
             attempt(self._drain_one)
+        self._pending.clear()
         encoder = self._encoder
         if encoder is not None:
             attempt(lambda: self._write_packets(encoder.flush()))

@@ -25,7 +25,14 @@ if TYPE_CHECKING:
     from ..camera import CameraIntrinsics
     from ..datasets import RGBDFrame
 
-__all__ = ["Source", "SourceKind", "open_source", "register_source", "source_kinds"]
+__all__ = [
+    "Source",
+    "SourceKind",
+    "detect_kind",
+    "open_source",
+    "register_source",
+    "source_kinds",
+]
 
 
 class Source(abc.ABC):
@@ -36,7 +43,8 @@ class Source(abc.ABC):
     * ``path``: where it reads from;
     * ``intrinsics``: the depth camera (``None`` when the source does not know it);
     * ``depth_scale``: depth units per metre of uint16 depth (float32 depth is metres);
-    * ``metadata``: strings kept in the recording (device name, serial, topics, ...).
+    * ``metadata``: strings kept in the recording (device name, serial, topics, ...);
+    * ``has_color``: whether frames carry color (``RGBDFrame.color`` is ``None`` otherwise).
 
     Iterating yields frames one at a time, so a source of any length runs in bounded memory.
     A source is a context manager; :meth:`close` releases files it holds.
@@ -46,10 +54,21 @@ class Source(abc.ABC):
     intrinsics: CameraIntrinsics | None
     depth_scale: float
     metadata: dict[str, str]
+    has_color: bool = True
 
     @abc.abstractmethod
     def __iter__(self) -> Iterator[RGBDFrame]:
         """The frames, in time order."""
+
+    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[RGBDFrame]:
+        """Frames ``start`` to ``stop`` (exclusive), in time order.
+
+        This reads and drops the frames before ``start``; sources that can seek override it, so
+        a long input can be encoded in segments without reading it from the top each time.
+        """
+        import itertools
+
+        return itertools.islice(iter(self), start, stop)
 
     def __len__(self) -> int:
         """The number of frames; sources that cannot tell cheaply raise ``TypeError``."""
@@ -131,6 +150,27 @@ def read_magic(path: Path, n: int = 16) -> bytes:
         return b""
 
 
+def detect_kind(path: str | os.PathLike[str]) -> str | None:
+    """The name of the reader :func:`open_source` would pick for ``path``, or ``None``."""
+    _load_builtin()
+    p = Path(path)
+    if not p.exists():
+        return None
+    return next((k.name for k in _KINDS.values() if k.probe(p)), None)
+
+
+def _call(kind: SourceKind, p: Path, options: dict[str, Any]) -> Source:
+    try:
+        return kind.opener(p, **options)
+    except TypeError as exc:
+        if "unexpected keyword argument" not in str(exc):
+            raise
+        raise InputError(
+            f"the {kind.name} reader takes no option {str(exc).rsplit(' ', 1)[-1]} "
+            f"(given: {', '.join(sorted(options))})"
+        ) from None
+
+
 def open_source(path: str | os.PathLike[str], *, kind: str | None = None, **options: Any) -> Source:
     """Open any RGB-D input: a folder, a ROS 1 or ROS 2 bag, a camera recording.
 
@@ -145,10 +185,10 @@ def open_source(path: str | os.PathLike[str], *, kind: str | None = None, **opti
     if kind is not None:
         if kind not in _KINDS:
             raise InputError(f"unknown source kind {kind!r}; known: {', '.join(_KINDS)}")
-        return _KINDS[kind].opener(p, **options)
+        return _call(_KINDS[kind], p, options)
     for k in _KINDS.values():
         if k.probe(p):
-            return k.opener(p, **options)
+            return _call(k, p, options)
     raise InputError(
         f"{str(p)!r} is not an input pcdcodec reads; expected one of: "
         + "; ".join(f"{k.name} ({k.description})" for k in _KINDS.values())
@@ -163,4 +203,4 @@ def _load_builtin() -> None:
     if _loaded:
         return
     _loaded = True
-    from . import folder  # noqa: F401 - registers itself
+    from . import folder, rosbag  # noqa: F401 - each registers itself

@@ -1,0 +1,102 @@
+"""The sequences the repository's benchmarks run on: the bundled sample, and the real
+sequences in ``../shared/data`` when they are present (each benchmark skips those absent)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import pcdcodec
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_DATA = REPO.parent / "shared" / "data"
+SAMPLE = REPO / "pcdcodec" / "data" / "tum_fr1_rpy"
+
+
+@dataclass(frozen=True)
+class Sequence:
+    """A real RGB-D sequence: where it lives, how its files are named, its camera."""
+
+    name: str
+    root: Path
+    depth_glob: str
+    depth_scale: float
+    camera: pcdcodec.CameraIntrinsics
+    color_glob: str = "rgb/*.png"
+    layout: str = "auto"
+
+    @property
+    def present(self) -> bool:
+        return self.root.is_dir() and any(self.root.glob(self.depth_glob))
+
+    def depth_paths(self) -> list[Path]:
+        return sorted(self.root.glob(self.depth_glob))
+
+    def reader_options(self) -> dict[str, Any]:
+        """Options for :func:`pcdcodec.open_source` / ``load_folder``."""
+        return {"depth_scale": self.depth_scale, "intrinsics": self.camera, "layout": self.layout}
+
+
+_TUM = pcdcodec.CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
+SEQUENCES = {
+    "sample": Sequence("sample", SAMPLE, "depth/*.png", 5000.0, _TUM),
+    "tum_fr1_rpy": Sequence(
+        "tum_fr1_rpy", SHARED_DATA / "tum_fr1_rpy", "depth/*.png", 5000.0, _TUM
+    ),
+    # Its rgb.txt/depth.txt hold time deltas, not times: read it as plain folders.
+    "realsense_d435": Sequence(
+        "realsense_d435",
+        SHARED_DATA / "realsense_d435_office",
+        "depth/*.png",
+        1000.0,
+        pcdcodec.CameraIntrinsics(640, 480, 615.0, 615.0, 320.0, 240.0),
+        layout="folders",
+    ),
+    "7scenes_redkitchen": Sequence(
+        "7scenes_redkitchen",
+        SHARED_DATA / "7scenes_redkitchen",
+        "depth/*.depth.png",
+        1000.0,
+        pcdcodec.CameraIntrinsics(640, 480, 585.0, 585.0, 320.0, 240.0),
+        "rgb/*.color.jpg",
+    ),
+}
+PRESENT = [name for name, seq in SEQUENCES.items() if seq.present]
+
+
+def _read(path: Path) -> np.ndarray[Any, Any]:
+    import imagecodecs
+
+    return np.asarray(imagecodecs.imread(str(path)))
+
+
+_cache: dict[tuple[str, str, int], list[np.ndarray[Any, Any]]] = {}
+
+
+def load_depths(name: str, count: int) -> list[np.ndarray[Any, Any]]:
+    """``count`` depth frames spread evenly over sequence ``name``; skips when it is absent."""
+    seq = SEQUENCES[name]
+    if not seq.present:
+        pytest.skip(f"{seq.root} is not present")
+    key = ("depth", name, count)
+    if key not in _cache:
+        paths = seq.depth_paths()
+        picks = np.linspace(0, len(paths) - 1, min(count, len(paths))).round().astype(int)
+        _cache[key] = [_read(paths[i]) for i in sorted(set(picks))]
+    return _cache[key]
+
+
+def load_colors(name: str, count: int) -> list[np.ndarray[Any, Any]]:
+    """The first ``count`` consecutive RGB frames of sequence ``name``; skips when absent."""
+    seq = SEQUENCES[name]
+    if not seq.present:
+        pytest.skip(f"{seq.root} is not present")
+    key = ("color", name, count)
+    if key not in _cache:
+        paths = sorted(seq.root.glob(seq.color_glob))[:count]
+        _cache[key] = [_read(p)[..., :3] for p in paths]
+    return _cache[key]

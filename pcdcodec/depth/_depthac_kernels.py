@@ -1,0 +1,491 @@
+"""Compiled loops of the ``depthac`` depth codec (numba, cached on disk).
+
+The bitstream is described in ``docs/format.md`` ("depthac body"). Encoder and decoder share
+one model: every context, prediction and probability update below happens identically on both
+sides, so any change here is a format change and must keep the golden frames decoding.
+
+The decoder reads untrusted bytes. numba does not check array bounds, so every index derived
+from the stream is checked before use: the value table is bounded by 65,535 entries, decoded
+indices by the table, byte reads by the body length (reads past the end give zeros and make
+the frame fail), and every loop is bounded by the image size, so it cannot hang.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+# -- adaptive binary range coder ----------------------------------------------------------
+# A bit is coded with a 16-bit probability of 0. Each model adapts at a rate set by how often
+# it was used: fast at first, settling at 1/2**5.
+_PROB_INIT = 32768
+_TOP = 1 << 24
+_MASK32 = 0xFFFFFFFF
+
+# Model layout: offsets into one probability array.
+_NCLASS = 5  # which neighbours are valid
+_NGBIN = 8  # gradient activity bins
+_NEBIN = 6  # neighbour error bins
+_PERCLASS = _NGBIN * _NEBIN
+_NCTX = _NCLASS * _PERCLASS
+_EXP = 15  # unary exponent models per context (exponents 0..15)
+_M_ZERO = 0
+_M_SIGN = _M_ZERO + _NCTX
+_M_EXP = _M_SIGN + _NCTX
+_M_MANT = _M_EXP + _NCTX * _EXP  # (exponent, bit) models, per class
+_M_MASK = _M_MANT + _NCLASS * 16 * 16
+_NMASKCTX = 1024
+_M_HDR = _M_MASK + _NMASKCTX  # 16 models for the table length
+_NGAPCTX = 6
+_M_TZERO = _M_HDR + 16  # table gaps: zero flag, exponent, mantissa
+_M_TEXP = _M_TZERO + _NGAPCTX
+_M_TMANT = _M_TEXP + _NGAPCTX * 16
+_M_QZERO = _M_TMANT + 16 * 16  # zero flag and sign per (gradient triple, error bin)
+_NQE = 4
+_M_QSIGN = _M_QZERO + 730 * _NQE
+_NMODELS = _M_QSIGN + 730 * 9
+
+# Contexts of quantised gradient triples (9 levels each); the last one means no triple.
+_NBIAS = 9 * 9 * 9 + 1
+_NOBIAS = _NBIAS - 1
+
+#: Status codes of the decoder; 0 is success.
+OK = 0
+ERR_TABLE = 1
+ERR_INDEX = 2
+ERR_LENGTH = 3
+ERR_FLAGS = 4
+
+_G_LUT = np.array([0, 1, 2, 3, 3, 4, 4, 4, 4] + [5] * 8 + [6] * 16, dtype=np.int64)  # < 33
+_E_LUT = np.array([0, 1, 2, 3, 3, 4, 4, 4, 4], dtype=np.int64)  # < 9
+
+
+@njit(cache=True)
+def _rate(cnt: Any, i: int) -> int:
+    c = cnt[i]
+    if c < 24:
+        cnt[i] = c + 1
+        if c < 1:
+            return 1
+        if c < 3:
+            return 2
+        if c < 8:
+            return 3
+        return 4
+    return 5
+
+
+@njit(cache=True)
+def _enc(
+    low: int, rng: int, pos: int, out: Any, probs: Any, cnt: Any, i: int, bit: int
+) -> tuple[int, int, int]:
+    p = probs[i]
+    bound = (rng >> 16) * p
+    r = _rate(cnt, i)
+    if bit == 0:
+        rng = bound
+        probs[i] = p + ((65536 - p) >> r)
+    else:
+        low += bound
+        rng -= bound
+        probs[i] = p - (p >> r)
+        if low > _MASK32:
+            # Carry into the bytes already written; it cannot pass the first one.
+            low &= _MASK32
+            j = pos - 1
+            while out[j] == 255:
+                out[j] = 0
+                j -= 1
+            out[j] += 1
+    while rng < _TOP:
+        out[pos] = low >> 24
+        pos += 1
+        low = (low << 8) & _MASK32
+        rng <<= 8
+    return low, rng, pos
+
+
+@njit(cache=True)
+def _dec(
+    code: int, rng: int, pos: int, buf: Any, n: int, probs: Any, cnt: Any, i: int
+) -> tuple[int, int, int, int]:
+    p = probs[i]
+    bound = (rng >> 16) * p
+    r = _rate(cnt, i)
+    if code < bound:
+        rng = bound
+        probs[i] = p + ((65536 - p) >> r)
+        bit = 0
+    else:
+        code -= bound
+        rng -= bound
+        probs[i] = p - (p >> r)
+        bit = 1
+    while rng < _TOP:
+        byte = np.int64(buf[pos]) if pos < n else np.int64(0)
+        pos += 1
+        code = ((code << 8) | byte) & _MASK32
+        rng <<= 8
+    return bit, code, rng, pos
+
+
+# -- shared modelling ---------------------------------------------------------------------
+
+
+_Q9_LUT = np.array(
+    [0] * 3 + [1] * 5 + [2] * 2 + [3, 4, 5] + [6] * 2 + [7] * 5 + [8] * 3, dtype=np.int64
+)
+_PAD = 2  # rows above and columns on each side of the padded working arrays
+
+
+@njit(cache=True)
+def _q9(d: int) -> Any:
+    """Quantise a signed index gradient to 9 levels (0..8, 4 = zero): 0, 1, 2-3, 4-8, 9+."""
+    if d > 11:
+        return 8
+    if d < -11:
+        return 0
+    return _Q9_LUT[d + 11]
+
+
+@njit(cache=True)
+def _mask_ctx(valid: Any, o: int, s: int) -> Any:
+    """Ten causal mask bits around flat position ``o`` of a padded array of row stride ``s``."""
+    n = o - s
+    nn = n - s
+    return (
+        np.int64(valid[o - 1])
+        | (np.int64(valid[o - 2]) << 1)
+        | (np.int64(valid[n]) << 2)
+        | (np.int64(valid[n - 1]) << 3)
+        | (np.int64(valid[n + 1]) << 4)
+        | (np.int64(valid[n - 2]) << 5)
+        | (np.int64(valid[n + 2]) << 6)
+        | (np.int64(valid[nn]) << 7)
+        | (np.int64(valid[nn - 1]) << 8)
+        | (np.int64(valid[nn + 1]) << 9)
+    )
+
+
+@njit(cache=True)
+def _absdiff(a: int, b: int) -> int:
+    return a - b if a > b else b - a
+
+
+@njit(cache=True)
+def _ctx(g: int, e: int, cls: int, glut: Any, elut: Any) -> int:
+    gb = glut[g] if g < 33 else 7
+    eb = elut[e] if e < 9 else 5
+    return (cls * _NGBIN + gb) * _NEBIN + eb
+
+
+@njit(cache=True)
+def _predict(
+    idx: Any, err: Any, valid: Any, o: int, s: int, last: int, glut: Any, elut: Any
+) -> tuple[int, int, int]:
+    """Prediction, model context and gradient-triple context at flat position ``o``.
+
+    The arrays are padded with invalid pixels, so no neighbour lookup leaves them.
+    """
+    n = o - s
+    va = valid[o - 1] != 0
+    vb = valid[n] != 0
+    a = np.int64(idx[o - 1])
+    b = np.int64(idx[n])
+    ea = np.int64(err[o - 1])
+    eb = np.int64(err[n])
+    e = (ea if ea > 0 else -ea) + (eb if eb > 0 else -eb)
+    if va and vb and valid[n - 1] != 0:
+        c = np.int64(idx[n - 1])
+        mx = a if a > b else b
+        mn = a if a < b else b
+        if c >= mx:
+            p = mn
+        elif c <= mn:
+            p = mx
+        else:
+            p = a + b - c
+        g = _absdiff(a, c) + _absdiff(b, c)
+        if valid[n + 1] != 0:
+            d = np.int64(idx[n + 1])
+            g += _absdiff(b, d)
+            q = (_q9(d - b) * 9 + _q9(b - c)) * 9 + _q9(c - a)
+            return p, _ctx(g, e, 0, glut, elut), q
+        q = (4 * 9 + _q9(b - c)) * 9 + _q9(c - a)
+        return p, _ctx(g + (g >> 1), e, 1, glut, elut), q
+    if va and vb:
+        return (a + b) >> 1, _ctx(2 * _absdiff(a, b), e, 2, glut, elut), _NOBIAS
+    if va:
+        g = 2 * _absdiff(a, np.int64(idx[o - 2])) if valid[o - 2] != 0 else 0
+        return a, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS
+    if vb:
+        g = 2 * _absdiff(b, np.int64(idx[n - s])) if valid[n - s] != 0 else 0
+        return b, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS
+    if valid[n + 1] != 0:
+        return np.int64(idx[n + 1]), _ctx(0, 1, 4, glut, elut), _NOBIAS
+    return last, _ctx(0, 0, 4, glut, elut), _NOBIAS
+
+
+@njit(cache=True)
+def _coding_ctx(ctx: int, q: int, err: Any, o: int, s: int) -> tuple[int, int]:
+    """Models of the zero flag and of the sign."""
+    if q == _NOBIAS:
+        return _M_ZERO + ctx, _M_SIGN + ctx
+    eb = ctx % _NEBIN
+    ew = err[o - 1]
+    en = err[o - s]
+    sg = (0 if ew == 0 else (1 if ew > 0 else 2)) * 3 + (0 if en == 0 else (1 if en > 0 else 2))
+    return _M_QZERO + q * _NQE + (eb if eb < _NQE else _NQE - 1), _M_QSIGN + q * 9 + sg
+
+
+@njit(cache=True)
+def _gap_ctx(pgap: int) -> int:
+    if pgap < 2:
+        return pgap
+    if pgap < 4:
+        return 2
+    if pgap < 16:
+        return 3
+    return 4 if pgap < 64 else 5
+
+
+# -- encoder ------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def encode_image(image: Any, allow_table: bool) -> Any:
+    """Encode a 2-D uint16 image; returns the body as a uint8 array."""
+    h, w = image.shape
+    npix = h * w
+    glut = _G_LUT
+    elut = _E_LUT
+    rank = np.zeros(65536, dtype=np.int64)
+    st = w + 2 * _PAD
+    valid = np.zeros((h + _PAD) * st + _PAD, dtype=np.uint8)
+    nvalid = 0
+    for y in range(h):
+        o = (y + _PAD) * st + _PAD
+        for x in range(w):
+            v = image[y, x]
+            rank[v] = 1
+            if v != 0:
+                valid[o + x] = 1
+                nvalid += 1
+    rank[0] = 0
+    ntable = 0
+    for v in range(1, 65536):
+        if rank[v] != 0:
+            rank[v] = ntable + 1
+            ntable += 1
+    use_table = allow_table and nvalid > 0 and 2 * ntable <= nvalid
+
+    out = np.empty(16 + 40 * npix + 8 * ntable, dtype=np.uint8)
+    out[0] = (1 if use_table else 0) | (2 if nvalid < npix else 0)
+    low = 0
+    rng = _MASK32
+    pos = 1
+    probs = np.full(_NMODELS, _PROB_INIT, dtype=np.int64)
+    cnt = np.zeros(_NMODELS, dtype=np.int64)
+
+    if use_table:
+        for j in range(16):
+            low, rng, pos = _enc(
+                low, rng, pos, out, probs, cnt, _M_HDR + j, (ntable - 1) >> (15 - j) & 1
+            )
+        prev = 0
+        pgap = 0
+        for v in range(1, 65536):
+            if rank[v] == 0:
+                continue
+            gap = v - prev - 1
+            g = _gap_ctx(pgap)
+            if gap == 0:
+                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_TZERO + g, 0)
+            else:
+                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_TZERO + g, 1)
+                k = 0
+                while (gap >> (k + 1)) != 0:
+                    k += 1
+                for j in range(k):
+                    low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_TEXP + g * 16 + j, 1)
+                if k < 15:
+                    low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_TEXP + g * 16 + k, 0)
+                for j in range(k - 1, -1, -1):
+                    low, rng, pos = _enc(
+                        low, rng, pos, out, probs, cnt, _M_TMANT + k * 16 + j, (gap >> j) & 1
+                    )
+            pgap = gap
+            prev = v
+
+    idx = np.zeros(valid.size, dtype=np.int32)
+    for y in range(h):
+        o = (y + _PAD) * st + _PAD
+        for x in range(w):
+            v = image[y, x]
+            idx[o + x] = rank[v] - 1 if use_table else v
+    err = np.zeros(valid.size, dtype=np.int32)
+    code_mask = nvalid < npix
+    last = 0
+    for y in range(h):
+        o0 = (y + _PAD) * st + _PAD
+        for o in range(o0, o0 + w):
+            if code_mask:
+                low, rng, pos = _enc(
+                    low, rng, pos, out, probs, cnt, _M_MASK + _mask_ctx(valid, o, st), valid[o]
+                )
+            if valid[o] == 0:
+                continue
+            p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
+            zc, sc = _coding_ctx(ctx, q, err, o, st)
+            v = np.int64(idx[o])
+            e = v - p
+            err[o] = e
+            last = v
+            if e == 0:
+                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, zc, 0)
+                continue
+            low, rng, pos = _enc(low, rng, pos, out, probs, cnt, zc, 1)
+            m = e
+            if e < 0:
+                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, sc, 1)
+                m = -e
+            else:
+                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, sc, 0)
+            k = 0
+            while (m >> (k + 1)) != 0:
+                k += 1
+            e0 = _M_EXP + ctx * _EXP
+            for j in range(k):
+                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, e0 + j, 1)
+            if k < 15:
+                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, e0 + k, 0)
+            m0 = _M_MANT + (ctx // _PERCLASS) * 256 + k * 16
+            for j in range(k - 1, -1, -1):
+                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, m0 + j, (m >> j) & 1)
+    for _ in range(4):
+        out[pos] = low >> 24
+        pos += 1
+        low = (low << 8) & _MASK32
+    return out[:pos]
+
+
+# -- decoder ------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def decode_image(buf: Any, out_img: Any) -> int:
+    """Decode a body into ``out_img`` (uint16, h×w); returns ``OK`` or an ``ERR_*`` status."""
+    h, w = out_img.shape
+    n = buf.size
+    glut = _G_LUT
+    elut = _E_LUT
+    if n < 5:
+        return ERR_LENGTH
+    flags = buf[0]
+    if flags > 3:
+        return ERR_FLAGS
+    use_table = (flags & 1) != 0
+    code_mask = (flags & 2) != 0
+    code = (
+        (np.int64(buf[1]) << 24)
+        | (np.int64(buf[2]) << 16)
+        | (np.int64(buf[3]) << 8)
+        | np.int64(buf[4])
+    )
+    rng = _MASK32
+    pos = 5
+    probs = np.full(_NMODELS, _PROB_INIT, dtype=np.int64)
+    cnt = np.zeros(_NMODELS, dtype=np.int64)
+
+    table = np.zeros(65536, dtype=np.int64)
+    maxidx = 65535
+    if use_table:
+        ntable = 0
+        for j in range(16):
+            bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, _M_HDR + j)
+            ntable = (ntable << 1) | bit
+        ntable += 1
+        prev = 0
+        pgap = 0
+        for i in range(ntable):
+            g = _gap_ctx(pgap)
+            bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, _M_TZERO + g)
+            gap = 0
+            if bit:
+                k = 0
+                while k < 15:
+                    bit, code, rng, pos = _dec(
+                        code, rng, pos, buf, n, probs, cnt, _M_TEXP + g * 16 + k
+                    )
+                    if bit == 0:
+                        break
+                    k += 1
+                gap = 1
+                for j in range(k - 1, -1, -1):
+                    bit, code, rng, pos = _dec(
+                        code, rng, pos, buf, n, probs, cnt, _M_TMANT + k * 16 + j
+                    )
+                    gap = (gap << 1) | bit
+            v = prev + gap + 1
+            if v > 65535:
+                return ERR_TABLE
+            table[i] = v
+            prev = v
+            pgap = gap
+        if pos > n:
+            return ERR_LENGTH
+        maxidx = ntable - 1
+    else:
+        for i in range(65536):
+            table[i] = i
+
+    st = w + 2 * _PAD
+    valid = np.zeros((h + _PAD) * st + _PAD, dtype=np.uint8)
+    idx = np.zeros(valid.size, dtype=np.int32)
+    err = np.zeros(valid.size, dtype=np.int32)
+    last = 0
+    for y in range(h):
+        if pos > n:
+            return ERR_LENGTH
+        o0 = (y + _PAD) * st + _PAD
+        for x in range(w):
+            o = o0 + x
+            if code_mask:
+                bit, code, rng, pos = _dec(
+                    code, rng, pos, buf, n, probs, cnt, _M_MASK + _mask_ctx(valid, o, st)
+                )
+                if bit == 0:
+                    out_img[y, x] = 0
+                    continue
+            valid[o] = 1
+            p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
+            zc, sc = _coding_ctx(ctx, q, err, o, st)
+            nz, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, zc)
+            e = 0
+            if nz:
+                neg, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, sc)
+                e0 = _M_EXP + ctx * _EXP
+                k = 0
+                while k < 15:
+                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, e0 + k)
+                    if bit == 0:
+                        break
+                    k += 1
+                m0 = _M_MANT + (ctx // _PERCLASS) * 256 + k * 16
+                m = 1
+                for j in range(k - 1, -1, -1):
+                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, m0 + j)
+                    m = (m << 1) | bit
+                e = -m if neg else m
+            v = p + e
+            if v < 0 or v > maxidx or table[v] == 0:
+                return ERR_INDEX
+            idx[o] = v
+            err[o] = e
+            out_img[y, x] = table[v]
+            last = v
+    if pos != n:
+        return ERR_LENGTH
+    return OK

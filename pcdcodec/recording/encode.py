@@ -1,0 +1,170 @@
+"""One call from any input to a recording: :func:`encode`."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+
+__all__ = ["EncodeSummary", "encode"]
+
+
+@dataclass
+class EncodeSummary:
+    """What :func:`encode` did: frames written, sizes, and what the source dropped."""
+
+    path: Path
+    frames: int
+    bytes: int
+    bytes_color: int
+    bytes_depth: int
+    seconds: float
+    source: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def fps(self) -> float:
+        """Frames encoded per second of wall time."""
+        return self.frames / self.seconds if self.seconds > 0 else 0.0
+
+    @property
+    def dropped(self) -> dict[str, int]:
+        """Images the source dropped for lack of a partner, by stream (empty when it pairs
+        nothing)."""
+        value = self.source.get("dropped")
+        return dict(value) if isinstance(value, dict) else {}
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "path": str(self.path),
+            "frames": self.frames,
+            "bytes": self.bytes,
+            "bytes_color": self.bytes_color,
+            "bytes_depth": self.bytes_depth,
+            "seconds": self.seconds,
+            "fps": self.fps,
+            "dropped": self.dropped,
+            "source": self.source,
+        }
+
+
+def encode(
+    src: Any,
+    out: str | os.PathLike[str],
+    *,
+    color: Any = "h264",
+    depth: Any = "jpegxl",
+    intrinsics: Any = None,
+    depth_scale: float | None = None,
+    fps: float = 30.0,
+    metadata: dict[str, Any] | None = None,
+    overwrite: bool = False,
+    progress: Callable[[int], None] | None = None,
+    **source_options: Any,
+) -> EncodeSummary:
+    """Record any input into a ``.pcdc`` file: a :class:`~pcdcodec.Source`, or a path that
+    :func:`pcdcodec.open_source` reads (RGB-D folder, ROS 1 or ROS 2 bag, ...).
+
+    ``source_options`` go to :func:`~pcdcodec.open_source` (for bags: ``depth_topic``,
+    ``color_topic``, ``info_topic``, ``cloud_topic``, ``max_frames``, ...). ``intrinsics`` and
+    ``depth_scale`` replace what the source says; a source without color is recorded depth
+    only. The source's metadata (topics, distortion) is kept in the recording.
+
+    Raises :class:`~pcdcodec.InputError` when the source has no camera and none is given, and
+    whatever the source and the writer raise; an interrupted encode leaves a readable file
+    (see :class:`~pcdcodec.RecordingWriter`), a failed replacement leaves the old file.
+    """
+    from ..sources.base import Source, open_source
+    from .writer import RecordingWriter
+
+    if isinstance(src, Source):
+        if source_options:
+            raise InputError(
+                f"source options {sorted(source_options)} apply to paths only; this source is "
+                "already open"
+            )
+        source, owned = src, False
+    else:
+        opts = dict(source_options)
+        if intrinsics is not None:
+            opts.setdefault("intrinsics", intrinsics)
+        if depth_scale is not None:
+            opts.setdefault("depth_scale", depth_scale)
+        source, owned = open_source(src, **opts), True
+    try:
+        if intrinsics is not None:
+            source.intrinsics = _as_intrinsics(intrinsics)
+        if depth_scale is not None:
+            source.depth_scale = float(depth_scale)
+        if source.intrinsics is None:
+            raise InputError(
+                f"no intrinsics for {str(source.path)!r}: pass intrinsics (--fx --fy --cx --cy), "
+                "or give the input a camera (camera.json, a CameraInfo topic)"
+            )
+        meta = {**source.metadata, **(metadata or {})}
+        target = Path(out)
+        if target.exists() and not overwrite:
+            raise InputError(f"{str(target)!r} already exists; pass overwrite=True to replace it")
+        if target.is_dir():
+            raise InputError(f"{str(target)!r} is a folder, not a file")
+        # Written beside the final name and moved there once complete: a failed conversion
+        # leaves nothing under the final name (and an older file there intact).
+        partial = target.with_name(f".{target.name}.partial-{os.getpid()}")
+        partial.unlink(missing_ok=True)
+        start = time.perf_counter()
+        try:
+            with RecordingWriter(
+                partial,
+                intrinsics=source.intrinsics,
+                depth_scale=source.depth_scale,
+                color=color if source.has_color else None,
+                depth=depth,
+                fps=fps,
+                metadata=meta,
+            ) as writer:
+                count = writer.write_source(source, progress=progress)
+            if count == 0:
+                raise InputError(
+                    f"{str(source.path)!r} gave no frames" + _why_empty(source.describe())
+                )
+            os.replace(partial, target)
+        finally:
+            partial.unlink(missing_ok=True)
+        seconds = time.perf_counter() - start
+        return EncodeSummary(
+            target,
+            count,
+            target.stat().st_size,
+            writer.bytes_color,
+            writer.bytes_depth,
+            seconds,
+            source.describe(),
+        )
+    finally:
+        if owned:
+            source.close()
+
+
+def _why_empty(info: dict[str, Any]) -> str:
+    dropped = info.get("dropped")
+    if isinstance(dropped, dict) and any(dropped.values()):
+        return (
+            f": every image was dropped for lack of a partner ({dropped.get('color', 0)} color, "
+            f"{dropped.get('depth', 0)} depth); the streams' stamps differ by more than the "
+            "pairing tolerance (record depth only, or raise max_difference)"
+        )
+    return ""
+
+
+def _as_intrinsics(value: Any) -> Any:
+    from ..camera import CameraIntrinsics
+
+    if isinstance(value, CameraIntrinsics):
+        return value
+    if isinstance(value, dict):
+        return CameraIntrinsics.from_dict(value)
+    raise InputError(f"intrinsics must be a CameraIntrinsics or a dict, got {type(value).__name__}")

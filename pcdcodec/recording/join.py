@@ -1,0 +1,168 @@
+"""Joining recordings written one after another (time segments of one input) into one file.
+
+Each part must come from the same camera and codecs, and each part's color stream must start
+with a keyframe (a new encoder per part does that), so the joined stream decodes straight
+through. The join copies MCAP messages, it never decodes: it is as fast as the disk.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+from ..errors import DecodeError, InputError
+from . import _index as fmt
+
+__all__ = ["join"]
+
+#: channel metadata that must agree between parts (the color codec's extradata among them)
+_SAME = (fmt.TOPIC_COLOR, fmt.TOPIC_DEPTH, fmt.TOPIC_KEYFRAMES, fmt.TOPIC_CALIBRATION)
+
+
+def _load(path: Path) -> fmt.FileIndex:
+    with path.open("rb") as f:
+        if f.read(8) != fmt.MAGIC:
+            raise DecodeError(f"{str(path)!r} is not a pcdcodec recording (not an MCAP file)")
+        f.seek(0)
+        try:
+            index = fmt.from_summary(f)
+        except Exception as exc:
+            raise DecodeError(f"{str(path)!r} has a damaged index ({exc})") from exc
+    if index is None:
+        raise DecodeError(
+            f"{str(path)!r} was not closed by its writer (no index); `pcdcodec recover` it first"
+        )
+    if index.profile != fmt.PROFILE or fmt.METADATA_NAME not in index.metadata:
+        raise DecodeError(f"{str(path)!r} is not a pcdcodec recording")
+    fmt.check_metadata(index, repr(str(path)))
+    return index
+
+
+def _check_same(first: fmt.FileIndex, other: fmt.FileIndex, name: str, first_name: str) -> None:
+    if other.metadata != first.metadata:
+        keys = sorted(
+            k
+            for k in set(first.metadata) | set(other.metadata)
+            if first.metadata.get(k) != other.metadata.get(k)
+        )
+        raise InputError(
+            f"{name!r} cannot follow {first_name!r}: its recording metadata differs ({keys})"
+        )
+    for topic in _SAME:
+        a, b = first.channel(topic), other.channel(topic)
+        if (a is None) != (b is None):
+            raise InputError(f"{name!r} cannot follow {first_name!r}: only one has {topic}")
+        if a is not None and b is not None and (a.metadata, a.encoding) != (b.metadata, b.encoding):
+            what = "extradata" if topic == fmt.TOPIC_COLOR else "channel metadata"
+            diff = sorted(
+                k
+                for k in set(a.metadata) | set(b.metadata)
+                if a.metadata.get(k) != b.metadata.get(k)
+            )
+            raise InputError(
+                f"{name!r} cannot follow {first_name!r}: the {topic} {what} differs ({diff}); "
+                "the parts were written with different codec settings"
+            )
+
+
+def join(
+    parts: Sequence[str | os.PathLike[str]],
+    dst: str | os.PathLike[str],
+    *,
+    overwrite: bool = False,
+) -> int:
+    """Write the frames of ``parts`` (closed recordings, in time order) into one recording.
+
+    The result reads like a file from one writer: one metadata record, one set of channels,
+    continuous message sequence numbers, the camera calibration once, keyframes where each
+    part started. It is written beside ``dst`` and renamed at the end, so ``dst`` never holds
+    a half-written file. Returns the number of frames written.
+
+    Raises :class:`~pcdcodec.InputError` when the parts differ in camera, codecs or codec
+    extradata, when their timestamps overlap, or when ``dst`` exists and ``overwrite`` is
+    false; :class:`~pcdcodec.DecodeError` for a part that is damaged or not a recording.
+    """
+    from mcap.writer import CompressionType, Writer
+
+    paths = [Path(p) for p in parts]
+    if not paths:
+        raise InputError("join needs at least one recording")
+    dst_path = Path(dst)
+    if dst_path.exists() and not overwrite:
+        raise InputError(f"{str(dst_path)!r} already exists; pass overwrite=True to replace it")
+    if any(dst_path.exists() and dst_path.resolve() == p.resolve() for p in paths):
+        raise InputError("join writes a new file: the destination must differ from the parts")
+    indexes = [_load(p) for p in paths]
+    first = indexes[0]
+    last_time: int | None = None
+    for path, index in zip(paths, indexes, strict=True):
+        _check_same(first, index, str(path), str(paths[0]))
+        times = index.times.get(fmt.TOPIC_DEPTH, [])
+        if times and last_time is not None and min(times) <= last_time:
+            raise InputError(
+                f"{str(path)!r} starts at {min(times)} ns, not after the previous part's last "
+                f"frame ({last_time} ns): parts must be given in time order without overlap"
+            )
+        if times:
+            last_time = max(times)
+
+    tmp = dst_path.with_name(f".{dst_path.name}.partial-{os.getpid()}")
+    frames = 0
+    try:
+        with tmp.open("wb") as out:
+            writer = Writer(
+                out, chunk_size=0, compression=CompressionType.NONE, enable_data_crcs=True
+            )
+            writer.start(profile=fmt.PROFILE, library=_library(paths[0]))
+            for name, data in first.metadata.items():
+                writer.add_metadata(name, data)
+            schema_ids = {
+                sid: writer.register_schema(name, encoding, data)
+                for sid, (name, encoding, data) in first.schemas.items()
+            }
+            topic_ids = {
+                ch.topic: writer.register_channel(
+                    ch.topic,
+                    ch.encoding,
+                    schema_ids.get(first.channel_schema.get(cid, 0), 0),
+                    ch.metadata,
+                )
+                for cid, ch in first.channels.items()
+            }
+            # Sequence numbers continue across parts: the color packets (and the keyframe
+            # markers, which share their packet's number) and the depth frames count apart.
+            base = {fmt.TOPIC_COLOR: 0, fmt.TOPIC_DEPTH: 0}
+            for n, (path, index) in enumerate(zip(paths, indexes, strict=True)):
+                channel_topic = {cid: ch.topic for cid, ch in index.channels.items()}
+                offsets = sorted({o for topic in index.offsets.values() for o in topic})
+                with path.open("rb") as f:
+                    size = fmt.file_size(f)
+                    for offset in offsets:
+                        for m in fmt.read_chunk_messages(f, offset, what=path.name, size=size):
+                            topic = channel_topic.get(m.channel_id)
+                            if topic is None or (topic == fmt.TOPIC_CALIBRATION and n > 0):
+                                continue
+                            counter = fmt.TOPIC_COLOR if topic == fmt.TOPIC_KEYFRAMES else topic
+                            sequence = m.sequence + base.get(counter, 0)
+                            writer.add_message(
+                                topic_ids[topic], m.log_time, m.data, m.publish_time, sequence
+                            )
+                for topic in base:
+                    base[topic] += len(index.times.get(topic, []))
+                frames += len(index.times.get(fmt.TOPIC_DEPTH, []))
+            writer.finish()  # type: ignore[no-untyped-call]
+            out.flush()
+            os.fsync(out.fileno())
+        os.replace(tmp, dst_path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return frames
+
+
+def _library(path: Path) -> str:
+    from mcap.reader import make_reader
+
+    with path.open("rb") as f:
+        return str(make_reader(f).get_header().library)

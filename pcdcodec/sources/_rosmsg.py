@@ -1,0 +1,398 @@
+"""ROS message payloads to numpy arrays, and back: images, compressed images, camera info and
+organized point clouds.
+
+Messages are the objects ``rosbags`` deserializes (attributes named as in the ``.msg`` files), of
+ROS 1 or ROS 2; both field spellings of ``CameraInfo`` (``K``/``k``, ``D``/``d``) are read.
+Every function takes the topic name to put in its errors, so a bad message can be found.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import DecodeError, InputError
+
+__all__ = [
+    "COLOR_ENCODINGS",
+    "DEPTH_ENCODINGS",
+    "CloudLayout",
+    "camera_info",
+    "cloud_layout",
+    "cloud_to_rgbd",
+    "compressed_depth_encode",
+    "compressed_kind",
+    "decode_compressed",
+    "decode_image",
+    "fit_intrinsics",
+    "image_kind",
+    "stamp_ns",
+]
+
+DEPTH_ENCODINGS = ("16UC1", "mono16", "32FC1")
+COLOR_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8")
+#: image_transport's compressedDepth header: int32 format, then two float32 depth parameters.
+_CDEPTH_HEADER = 12
+_PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+# sensor_msgs/PointField datatypes
+_FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+_FIELD_NAMES = {1: "INT8", 2: "UINT8", 3: "INT16", 4: "UINT16", 5: "INT32", 6: "UINT32"}
+_FIELD_NAMES.update({7: "FLOAT32", 8: "FLOAT64"})
+
+
+def stamp_ns(msg: Any) -> int:
+    """The header stamp of ``msg`` in nanoseconds."""
+    s = msg.header.stamp
+    return int(s.sec) * 1_000_000_000 + int(s.nanosec)
+
+
+def image_kind(encoding: str) -> str | None:
+    """``"depth"``, ``"color"`` or ``None`` for a ``sensor_msgs/Image`` encoding."""
+    if encoding in DEPTH_ENCODINGS:
+        return "depth"
+    if encoding in COLOR_ENCODINGS:
+        return "color"
+    return None
+
+
+def compressed_kind(fmt: str) -> str | None:
+    """``"depth"`` or ``"color"`` for a ``sensor_msgs/CompressedImage`` format string."""
+    head = fmt.split(";")[0].strip()
+    if "compresseddepth" in fmt.lower() or head in DEPTH_ENCODINGS:
+        return "depth"
+    low = fmt.lower()
+    if "jpeg" in low or "jpg" in low or "png" in low or head in COLOR_ENCODINGS:
+        return "color"
+    return None
+
+
+def _rows(msg: Any, bpp: int, topic: str) -> npt.NDArray[np.uint8]:
+    """The pixel bytes of an Image as height × (width·bpp), without the row padding."""
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    data = (
+        np.frombuffer(msg.data, dtype=np.uint8)
+        if not isinstance(msg.data, np.ndarray)
+        else msg.data
+    )
+    if h < 1 or w < 1:
+        raise InputError(f"topic {topic!r}: image is {w}x{h}, expected a non-empty image")
+    if step < w * bpp:
+        raise InputError(
+            f"topic {topic!r}: row step {step} is shorter than width {w} x {bpp} bytes "
+            f"({msg.encoding!r})"
+        )
+    if data.size < step * h:
+        raise DecodeError(
+            f"topic {topic!r}: image data is {data.size} bytes, expected step {step} x height "
+            f"{h} = {step * h}"
+        )
+    return data[: step * h].reshape(h, step)[:, : w * bpp]
+
+
+def decode_image(msg: Any, role: str, topic: str) -> npt.NDArray[Any]:
+    """A ``sensor_msgs/Image`` as depth (H×W uint16 or float32 metres) or color (H×W×3 RGB).
+
+    ``role`` is ``"depth"`` or ``"color"``; an encoding that does not fit the role raises
+    :class:`~pcdcodec.InputError` naming the topic and the encoding.
+    """
+    enc = str(msg.encoding)
+    big = bool(msg.is_bigendian)
+    if role == "depth":
+        if enc in ("16UC1", "mono16"):
+            rows = _rows(msg, 2, topic)
+            return np.ascontiguousarray(rows).view(">u2" if big else "<u2").astype(np.uint16)
+        if enc == "32FC1":
+            rows = _rows(msg, 4, topic)
+            return np.ascontiguousarray(rows).view(">f4" if big else "<f4").astype(np.float32)
+        raise InputError(
+            f"depth topic {topic!r} has encoding {enc!r}; expected one of "
+            f"{', '.join(DEPTH_ENCODINGS)}"
+        )
+    if enc in ("rgb8", "bgr8"):
+        px = _rows(msg, 3, topic).reshape(int(msg.height), int(msg.width), 3)
+        return np.ascontiguousarray(px if enc == "rgb8" else px[..., ::-1])
+    if enc in ("rgba8", "bgra8"):
+        px = _rows(msg, 4, topic).reshape(int(msg.height), int(msg.width), 4)
+        return np.ascontiguousarray(px[..., :3] if enc == "rgba8" else px[..., 2::-1])
+    if enc == "mono8":
+        px = _rows(msg, 1, topic)
+        return np.repeat(px[..., None], 3, axis=2)
+    raise InputError(
+        f"color topic {topic!r} has encoding {enc!r}; expected one of {', '.join(COLOR_ENCODINGS)}"
+    )
+
+
+def _imread(data: bytes, topic: str) -> npt.NDArray[Any]:
+    import imagecodecs
+
+    try:
+        return np.asarray(imagecodecs.imread(data))
+    except Exception as exc:
+        raise DecodeError(f"topic {topic!r}: cannot decode the compressed image: {exc}") from exc
+
+
+def decode_compressed(msg: Any, role: str, topic: str) -> npt.NDArray[Any]:
+    """A ``sensor_msgs/CompressedImage`` as depth or color (see :func:`decode_image`).
+
+    Color: JPEG or PNG. Depth: a 16-bit PNG (``"16UC1; png compressed"``) or image_transport's
+    ``compressedDepth`` (PNG or RVL after its 12-byte header; the header's depth parameters
+    are only used for 32FC1, which compressedDepth stores as quantized inverse depth).
+    """
+    fmt = str(msg.format)
+    data = bytes(msg.data) if not isinstance(msg.data, bytes) else msg.data
+    head = fmt.split(";")[0].strip() if ";" in fmt else ""
+    if role == "color":
+        if head and head not in COLOR_ENCODINGS:
+            raise InputError(
+                f"color topic {topic!r} has format {fmt!r}; expected an original encoding of "
+                f"{', '.join(COLOR_ENCODINGS)}"
+            )
+        img = _imread(data, topic)
+        if img.dtype != np.uint8:
+            raise InputError(f"color topic {topic!r}: image is {img.dtype}, expected 8-bit")
+        if img.ndim == 2:
+            return np.repeat(img[..., None], 3, axis=2)
+        return np.ascontiguousarray(img[..., :3])
+    if "compresseddepth" not in fmt.lower():
+        if head not in ("16UC1", "mono16"):
+            raise InputError(
+                f"depth topic {topic!r} has format {fmt!r}; expected '16UC1; png compressed' or "
+                "a compressedDepth format"
+            )
+        img = _imread(data, topic)
+        if img.dtype != np.uint16 or img.ndim != 2:
+            raise DecodeError(f"depth topic {topic!r}: PNG is {img.dtype} {img.shape}, not 16-bit")
+        return img
+    if head not in ("16UC1", "mono16", "32FC1"):
+        raise InputError(
+            f"depth topic {topic!r} has format {fmt!r}; compressedDepth holds 16UC1 or 32FC1"
+        )
+    if len(data) < _CDEPTH_HEADER:
+        raise DecodeError(
+            f"depth topic {topic!r}: compressedDepth message is {len(data)} bytes, shorter than "
+            f"its {_CDEPTH_HEADER}-byte header"
+        )
+    body = data[_CDEPTH_HEADER:]
+    tail = fmt.split(";", 1)[1].lower() if ";" in fmt else fmt.lower()
+    if "rvl" in tail:
+        if len(body) < 8:
+            raise DecodeError(f"depth topic {topic!r}: RVL body is {len(body)} bytes, too short")
+        cols, rows = struct.unpack_from("<II", body, 0)
+        if not (0 < cols <= 16384 and 0 < rows <= 16384):
+            raise DecodeError(
+                f"depth topic {topic!r}: RVL image size {cols}x{rows} at byte offset "
+                f"{_CDEPTH_HEADER} is not plausible"
+            )
+        from ..depth.rvl import _decode
+
+        # ROS pads nothing after the words; a stream cut inside a word is corrupt.
+        words = body[8 : 8 + (len(body) - 8) // 4 * 4]
+        image = _decode(memoryview(words), cols * rows).reshape(rows, cols)
+    else:
+        if not body.startswith(_PNG_MAGIC):
+            raise DecodeError(
+                f"depth topic {topic!r}: no PNG after the compressedDepth header at byte offset "
+                f"{_CDEPTH_HEADER} (found {body[:8]!r})"
+            )
+        image = _imread(body, topic)
+        if image.dtype != np.uint16 or image.ndim != 2:
+            raise DecodeError(
+                f"depth topic {topic!r}: compressedDepth PNG is {image.dtype} {image.shape}"
+            )
+    if head != "32FC1":
+        return image.astype(np.uint16, copy=False)
+    quant_a, quant_b = struct.unpack_from("<ff", data, 4)
+    out = np.full(image.shape, np.nan, np.float32)
+    valid = image != 0
+    out[valid] = np.float32(quant_a) / (image[valid].astype(np.float32) - np.float32(quant_b))
+    return out
+
+
+def compressed_depth_encode(depth: npt.NDArray[np.uint16], *, rvl: bool = False) -> bytes:
+    """16UC1 depth as image_transport's compressedDepth payload (PNG, or RVL when ``rvl``).
+
+    The header's format field is 1 (PNG) or 2 (RVL) and its depth parameters zero: they mean
+    nothing for 16-bit depth.
+    """
+    if rvl:
+        from ..depth.rvl import _encode
+
+        h, w = depth.shape
+        return (
+            struct.pack("<iff", 2, 0.0, 0.0)
+            + struct.pack("<II", w, h)
+            + _encode(np.ascontiguousarray(depth).reshape(-1))
+        )
+    import imagecodecs
+
+    png = imagecodecs.png_encode(np.ascontiguousarray(depth), level=1)
+    return struct.pack("<iff", 1, 0.0, 0.0) + bytes(png)
+
+
+def camera_info(msg: Any, topic: str) -> tuple[Any, str, list[float]]:
+    """Intrinsics, distortion model and distortion coefficients of a ``CameraInfo``.
+
+    Reads ``K``/``k`` and ``D``/``d``; the distortion is returned, not applied.
+    """
+    from ..camera import CameraIntrinsics
+
+    k = getattr(msg, "k", None)
+    if k is None:
+        k = getattr(msg, "K", None)
+    d = getattr(msg, "d", None)
+    if d is None:
+        d = getattr(msg, "D", None)
+    try:
+        kk = np.asarray(k, dtype=np.float64).reshape(3, 3)
+        intr = CameraIntrinsics(
+            int(msg.width), int(msg.height), kk[0, 0], kk[1, 1], kk[0, 2], kk[1, 2]
+        )
+    except (ValueError, TypeError, InputError) as exc:
+        raise InputError(
+            f"camera info topic {topic!r} has no usable camera (width {msg.width}, height "
+            f"{msg.height}, K {list(np.asarray(k).ravel()) if k is not None else None}): {exc}"
+        ) from None
+    dist = [float(v) for v in np.asarray(d if d is not None else [], dtype=np.float64).ravel()]
+    return intr, str(msg.distortion_model), dist
+
+
+@dataclass(frozen=True)
+class CloudLayout:
+    """Where x, y, z and the color sit in each point of an organized PointCloud2."""
+
+    width: int
+    height: int
+    point_step: int
+    row_step: int
+    dtype: np.dtype[Any]  # structured: x, y, z and optionally rgb (uint32)
+    color: str | None  # "rgb" or "rgba" (the field name) or None
+
+
+def cloud_layout(msg: Any, topic: str) -> CloudLayout:
+    """Read a PointCloud2's fields by name, offset and datatype (never by position)."""
+    h, w = int(msg.height), int(msg.width)
+    if h <= 1:
+        raise InputError(
+            f"cloud topic {topic!r} is not organized (height {h}, width {w}); pcdcodec needs "
+            "an organized cloud, one point per pixel"
+        )
+    order = ">" if msg.is_bigendian else "<"
+    fields = {str(f.name): f for f in msg.fields}
+    names: list[str] = []
+    formats: list[str] = []
+    offsets: list[int] = []
+    for axis in ("x", "y", "z"):
+        f = fields.get(axis)
+        if f is None:
+            raise InputError(
+                f"cloud topic {topic!r} has no {axis!r} field (fields: {sorted(fields)})"
+            )
+        if int(f.datatype) != 7:
+            raise InputError(
+                f"cloud topic {topic!r}: field {axis!r} is "
+                f"{_FIELD_NAMES.get(int(f.datatype), int(f.datatype))}, expected FLOAT32"
+            )
+        names.append(axis)
+        formats.append(order + "f4")
+        offsets.append(int(f.offset))
+    color = next((n for n in ("rgb", "rgba") if n in fields), None)
+    if color is not None:
+        f = fields[color]
+        if int(f.datatype) not in (5, 6, 7):
+            raise InputError(
+                f"cloud topic {topic!r}: field {color!r} is "
+                f"{_FIELD_NAMES.get(int(f.datatype), int(f.datatype))}, expected FLOAT32 or "
+                "UINT32 packed color"
+            )
+        names.append("rgb")
+        formats.append(order + "u4")  # the float's bits are the packed color
+        offsets.append(int(f.offset))
+    step = int(msg.point_step)
+    for n, o in zip(names, offsets, strict=True):
+        if o + 4 > step:
+            raise InputError(
+                f"cloud topic {topic!r}: field {n!r} at byte offset {o} runs past point_step {step}"
+            )
+    dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": step})
+    return CloudLayout(w, h, step, int(msg.row_step), dtype, color)
+
+
+def cloud_points(msg: Any, layout: CloudLayout, topic: str) -> npt.NDArray[Any]:
+    """The cloud's points as an H×W structured array (a view where possible)."""
+    data = msg.data if isinstance(msg.data, np.ndarray) else np.frombuffer(msg.data, np.uint8)
+    h, w, step, row = layout.height, layout.width, layout.point_step, layout.row_step
+    if row < w * step:
+        raise InputError(
+            f"cloud topic {topic!r}: row_step {row} is shorter than width {w} x point_step {step}"
+        )
+    if data.size < row * h:
+        raise DecodeError(
+            f"cloud topic {topic!r}: data is {data.size} bytes, expected row_step {row} x "
+            f"height {h} = {row * h}"
+        )
+    rows = data[: row * h].reshape(h, row)[:, : w * step]
+    if row != w * step:
+        rows = np.ascontiguousarray(rows)
+    return rows.reshape(-1).view(layout.dtype).reshape(h, w)
+
+
+def cloud_to_rgbd(
+    msg: Any, layout: CloudLayout, topic: str
+) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8] | None, npt.NDArray[Any]]:
+    """An organized cloud as (z in float32 metres, RGB, the structured points).
+
+    z is copied bit for bit; NaN (or non-finite) z stays NaN: a hole.
+    """
+    pts = cloud_points(msg, layout, topic)
+    z = pts["z"].astype(np.float32)  # native byte order, same bits
+    rgb = None
+    if layout.color is not None:
+        packed = pts["rgb"].astype(np.uint32)
+        rgb = np.empty((layout.height, layout.width, 3), np.uint8)
+        rgb[..., 0] = packed >> 16
+        rgb[..., 1] = packed >> 8
+        rgb[..., 2] = packed
+    return z, rgb, pts
+
+
+def fit_intrinsics(pts: npt.NDArray[Any], topic: str) -> tuple[Any, float]:
+    """Fit fx, cx from x/z against u and fy, cy from y/z against v on an organized cloud.
+
+    Returns the intrinsics and the fit residual: the largest distance, in pixels, between a
+    valid point's pixel and where the fitted camera projects it.
+    """
+    from ..camera import CameraIntrinsics
+
+    h, w = pts.shape
+    x = pts["x"].astype(np.float64)
+    y = pts["y"].astype(np.float64)
+    z = pts["z"].astype(np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        valid = np.isfinite(x) & np.isfinite(y) & np.isfinite(z) & (z > 0)
+    v, u = np.nonzero(valid)
+    if u.size < 2 or np.ptp(u) == 0 or np.ptp(v) == 0:
+        raise InputError(
+            f"cloud topic {topic!r}: too few valid points ({u.size}) to fit intrinsics; pass "
+            "intrinsics or an info topic"
+        )
+    a = x[valid] / z[valid]
+    b = y[valid] / z[valid]
+    # u = fx * a + cx, v = fy * b + cy
+    fx, cx = np.polyfit(a, u.astype(np.float64), 1)
+    fy, cy = np.polyfit(b, v.astype(np.float64), 1)
+    residual = float(
+        max(np.abs(fx * a + cx - u).max(initial=0.0), np.abs(fy * b + cy - v).max(initial=0.0))
+    )
+    try:
+        intr = CameraIntrinsics(w, h, float(fx), float(fy), float(cx), float(cy))
+    except InputError as exc:
+        raise InputError(
+            f"cloud topic {topic!r}: the fitted camera is not valid ({exc}); the cloud may not "
+            "come from a pinhole camera: pass intrinsics or an info topic"
+        ) from None
+    return intr, residual

@@ -1,0 +1,638 @@
+"""ROS 1 bags and ROS 2 bags (sqlite3 or mcap storage) as a :class:`Source`, read with rosbags.
+
+No ROS installation is needed. The bag is streamed: messages are read one at a time in bag
+order, color and depth are paired by header stamp with :class:`pcdcodec.sync.Synchronizer`, so
+memory stays bounded however large the bag.
+
+Two kinds of camera data are read:
+
+* **images**: a depth topic (``sensor_msgs/Image`` in 16UC1, mono16 or 32FC1, or a
+  ``CompressedImage`` holding a 16-bit PNG or image_transport's compressedDepth) and optionally a
+  color topic (``Image`` in rgb8, bgr8, rgba8, bgra8 or mono8, or a JPEG/PNG ``CompressedImage``),
+  with the camera from a ``sensor_msgs/CameraInfo`` topic;
+* **organized point clouds** (``sensor_msgs/PointCloud2``, one point per pixel): depth is each
+  point's z as float32 metres, bit for bit, color the packed ``rgb``/``rgba`` field; the camera
+  comes from a CameraInfo topic when the bag has one, else it is fitted to the cloud.
+
+Topics are chosen automatically (see :meth:`RosbagSource.candidates` and ``docs/ingest.md``);
+``depth_topic``, ``color_topic``, ``info_topic`` and ``cloud_topic`` override the choice.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import struct
+import tempfile
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import DecodeError, InputError, PcdcodecError
+from . import _rosmsg as rm
+from .base import Source, read_magic, register_source
+
+__all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
+
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
+SQLITE_MAGIC = b"SQLite format 3\x00"
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+IMAGE = "sensor_msgs/msg/Image"
+COMPRESSED = "sensor_msgs/msg/CompressedImage"
+CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+POINT_CLOUD = "sensor_msgs/msg/PointCloud2"
+VIDEO_TYPES = ("foxglove_msgs/msg/CompressedVideo", "ffmpeg_image_transport_msgs/msg/FFMPEGPacket")
+
+_GENERIC = frozenset(
+    {"image", "image_raw", "image_rect", "image_rect_raw", "data", "compressed", "compresseddepth",
+     "camera_info", "info", "points", "raw", ""}
+)  # fmt: skip
+
+
+# -- probing --------------------------------------------------------------------------------
+
+
+def _mcap_profile(path: Path) -> str | None:
+    head = read_magic(path, 64)
+    if not head.startswith(MCAP_MAGIC) or len(head) < 21 or head[8] != 0x01:
+        return None
+    (n,) = struct.unpack_from("<I", head, 17)
+    if 21 + n > len(head):
+        return None
+    return head[21 : 21 + n].decode(errors="replace")
+
+
+def _is_bag(path: Path) -> bool:
+    if path.is_dir():
+        meta = path / "metadata.yaml"
+        try:
+            return meta.is_file() and "rosbag2_bagfile_information" in meta.read_text()[:4096]
+        except OSError:
+            return False
+    head = read_magic(path, 16)
+    if head.startswith(ROS1_MAGIC) or head.startswith(SQLITE_MAGIC):
+        return True
+    # .pcdc recordings are MCAP too, with pcdcodec's own profile: only ROS 2 bags are ours.
+    return _mcap_profile(path) == "ros2"
+
+
+def _open(path: Path, **options: Any) -> Source:
+    return RosbagSource(path, **options)
+
+
+register_source(
+    "rosbag",
+    _is_bag,
+    _open,
+    "a ROS 1 bag, or a ROS 2 bag folder or .db3/.mcap file (images, or an organized PointCloud2)",
+)
+
+
+def open_bag(path: str | os.PathLike[str], **options: Any) -> RosbagSource:
+    """Open a ROS 1 or ROS 2 bag as a source (the options of :class:`RosbagSource`)."""
+    return RosbagSource(path, **options)
+
+
+# -- topics ---------------------------------------------------------------------------------
+
+
+@dataclass
+class TopicCandidate:
+    """A topic that could feed a recording, with what its first message says."""
+
+    topic: str
+    msgtype: str
+    count: int
+    role: str | None  # "depth", "color", "info", "cloud", "video" or None (unusable)
+    encoding: str = ""
+    width: int = 0
+    height: int = 0
+    note: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "topic": self.topic,
+            "type": self.msgtype,
+            "messages": self.count,
+            "role": self.role,
+            "encoding": self.encoding,
+            "size": f"{self.width}x{self.height}" if self.width else "",
+            "note": self.note,
+        }
+
+
+def _parts(topic: str) -> list[str]:
+    return [p for p in topic.lower().split("/") if p]
+
+
+def _affinity(a: str, b: str) -> tuple[int, int]:
+    """How much two topics look like one camera: shared leading parts, then shared parts."""
+    pa, pb = _parts(a), _parts(b)
+    lead = 0
+    for x, y in zip(pa, pb, strict=False):
+        if x != y:
+            break
+        lead += 1
+    common = len({p for p in pa if p not in _GENERIC} & {p for p in pb if p not in _GENERIC})
+    return common, lead
+
+
+def _wrap(exc: Exception, path: Path) -> PcdcodecError:
+    text = str(exc) or type(exc).__name__
+    return DecodeError(f"cannot read bag {str(path)!r}: {text} (is the file complete?)")
+
+
+@dataclass
+class _Stats:
+    dropped_color: int = 0
+    dropped_depth: int = 0
+    out_of_order: int = 0
+    frames: int = 0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+class RosbagSource(Source):
+    """A ROS 1 or ROS 2 bag read as RGB-D frames.
+
+    Options (all keyword-only):
+
+    * ``depth_topic``, ``color_topic``, ``info_topic``, ``cloud_topic``: override the automatic
+      topic choice (``color_topic=""`` records depth only);
+    * ``intrinsics``, ``depth_scale``: override what the bag says (depth scale defaults to
+      1000 per metre for 16UC1/mono16 and 1 for 32FC1 and clouds, whose depth is metres);
+    * ``max_difference``: the largest color/depth stamp difference paired, ns (20 ms);
+    * ``max_frames``: stop after this many frames.
+
+    After iterating, :attr:`dropped` counts the images that found no partner and
+    :attr:`out_of_order` those whose stamp did not increase. Raises
+    :class:`~pcdcodec.InputError` for a bag without a depth topic, an unsupported encoding, an
+    unorganized cloud, a CameraInfo whose size disagrees with the images, or depth and color of
+    different sizes; :class:`~pcdcodec.DecodeError` for a damaged or truncated bag.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        depth_topic: str | None = None,
+        color_topic: str | None = None,
+        info_topic: str | None = None,
+        cloud_topic: str | None = None,
+        intrinsics: Any = None,
+        depth_scale: float | None = None,
+        max_difference: int = 20_000_000,
+        max_frames: int | None = None,
+    ) -> None:
+        self.path = Path(path)
+        if max_frames is not None and max_frames < 1:
+            raise InputError(f"max_frames must be at least 1, got {max_frames}")
+        self.max_frames = max_frames
+        self.max_difference = int(max_difference)
+        self._tmp: tempfile.TemporaryDirectory[str] | None = None
+        self._reader = self._open_reader()
+        try:
+            self._setup(depth_topic, color_topic, info_topic, cloud_topic, intrinsics, depth_scale)
+        except BaseException:
+            self.close()
+            raise
+
+    # -- opening ----------------------------------------------------------------------------
+
+    def _open_reader(self) -> Any:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        p = self.path
+        if not p.exists():
+            raise InputError(f"bag {str(p)!r} does not exist")
+        target = p
+        if p.is_file() and not read_magic(p).startswith(ROS1_MAGIC):
+            # A single ROS 2 storage file: rosbags picks the storage by suffix.
+            suffix = ".db3" if read_magic(p).startswith(SQLITE_MAGIC) else ".mcap"
+            if p.suffix != suffix:
+                self._tmp = tempfile.TemporaryDirectory(prefix="pcdcodec-bag-")
+                target = Path(self._tmp.name) / f"bag{suffix}"
+                target.symlink_to(p.resolve())
+        reader = AnyReader([target], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        try:
+            reader.open()
+        except Exception as exc:
+            raise _wrap(exc, p) from exc
+        return reader
+
+    def _first(self, conn: Any) -> Any:
+        try:
+            for c, _, raw in self._reader.messages(connections=[conn]):
+                return self._reader.deserialize(raw, c.msgtype)
+        except PcdcodecError:
+            raise
+        except Exception as exc:
+            raise _wrap(exc, self.path) from exc
+        return None
+
+    def candidates(self) -> list[TopicCandidate]:
+        """Every topic with its role (depth, color, info, cloud, video) from its first message."""
+        out = []
+        for conn in self._reader.connections:
+            t, mt, n = conn.topic, conn.msgtype, conn.msgcount
+            cand = TopicCandidate(t, mt, n, None)
+            if mt == IMAGE:
+                msg = self._first(conn)
+                if msg is not None:
+                    cand.encoding = str(msg.encoding)
+                    cand.width, cand.height = int(msg.width), int(msg.height)
+                    cand.role = rm.image_kind(cand.encoding)
+                    if cand.role is None:
+                        cand.note = "unsupported encoding"
+            elif mt == COMPRESSED:
+                msg = self._first(conn)
+                if msg is not None:
+                    cand.encoding = str(msg.format)
+                    cand.role = rm.compressed_kind(cand.encoding)
+                    if cand.role is not None:
+                        try:
+                            img = rm.decode_compressed(msg, cand.role, t)
+                            cand.height, cand.width = img.shape[:2]
+                        except PcdcodecError as exc:
+                            cand.role, cand.note = None, str(exc)
+            elif mt == CAMERA_INFO:
+                msg = self._first(conn)
+                cand.role = "info"
+                if msg is not None:
+                    cand.width, cand.height = int(msg.width), int(msg.height)
+                    cand.encoding = str(msg.distortion_model)
+            elif mt == POINT_CLOUD:
+                msg = self._first(conn)
+                if msg is not None:
+                    cand.width, cand.height = int(msg.width), int(msg.height)
+                    cand.encoding = ",".join(str(f.name) for f in msg.fields)
+                    cand.role = "cloud" if cand.height > 1 else None
+                    if cand.height <= 1:
+                        cand.note = "unorganized (height 1)"
+            elif mt in VIDEO_TYPES:
+                cand.role = "video"
+            out.append(cand)
+        return out
+
+    def _conn(self, topic: str, what: str) -> Any:
+        conns = [c for c in self._reader.connections if c.topic == topic]
+        if not conns:
+            topics = sorted({c.topic for c in self._reader.connections})
+            raise InputError(
+                f"bag {str(self.path)!r} has no {what} topic {topic!r}; it has {topics}"
+            )
+        return conns[0]
+
+    def _setup(
+        self,
+        depth_topic: str | None,
+        color_topic: str | None,
+        info_topic: str | None,
+        cloud_topic: str | None,
+        intrinsics: Any,
+        depth_scale: float | None,
+    ) -> None:
+        from ..camera import CameraIntrinsics
+
+        no_color = color_topic is not None and color_topic.strip().lower() in ("", "none")
+        if no_color:
+            color_topic = ""
+        cands = self.candidates()
+        by_topic = {c.topic: c for c in cands}
+        self.stats = _Stats()
+        self.notes: list[str] = []
+        self.distortion_model = ""
+        self.distortion: list[float] = []
+        self.fit_residual: float | None = None
+        self.info_topic: str | None = None
+        self.color_topic: str | None = None
+        self.depth_topic: str | None = None
+        self.cloud_topic: str | None = None
+
+        depth_cands = [c for c in cands if c.role == "depth"]
+        mode = "images"
+        if cloud_topic is not None:
+            mode = "cloud"
+        elif depth_topic is None and not depth_cands:
+            if any(c.role == "cloud" for c in cands):
+                mode = "cloud"
+            else:
+                found = ", ".join(f"{c.topic} ({c.msgtype})" for c in cands) or "no topics"
+                raise InputError(
+                    f"bag {str(self.path)!r} has no depth topic (an Image in "
+                    f"{'/'.join(rm.DEPTH_ENCODINGS)}, a compressedDepth CompressedImage or an "
+                    f"organized PointCloud2); it has {found}"
+                )
+        self.mode = mode
+
+        if mode == "cloud":
+            if cloud_topic is None:
+                cloud_topic = next(c.topic for c in cands if c.role == "cloud")
+            cand = by_topic.get(cloud_topic)
+            conn = self._conn(cloud_topic, "cloud")
+            if conn.msgtype != POINT_CLOUD:
+                raise InputError(
+                    f"cloud topic {cloud_topic!r} is a {conn.msgtype}, not PointCloud2"
+                )
+            first = self._first(conn)
+            if first is None:
+                raise InputError(f"cloud topic {cloud_topic!r} has no messages")
+            self._layout = rm.cloud_layout(first, cloud_topic)
+            self._cloud_fields = [(f.name, f.offset, f.datatype) for f in first.fields]
+            self.cloud_topic = cloud_topic
+            self._depth_conn = conn
+            self._color_conn = None
+            self.has_color = self._layout.color is not None
+            width, height = self._layout.width, self._layout.height
+            anchor = cloud_topic
+            self.depth_scale = 1.0 if depth_scale is None else float(depth_scale)
+            first_pts = rm.cloud_points(first, self._layout, cloud_topic)
+        else:
+            if depth_topic is None:
+                # Raw images before compressed ones, then the busiest topic.
+                depth_topic = sorted(
+                    depth_cands, key=lambda c: (c.msgtype != IMAGE, -c.count, c.topic)
+                )[0].topic
+            conn = self._conn(depth_topic, "depth")
+            cand = by_topic[depth_topic]
+            if conn.msgtype not in (IMAGE, COMPRESSED):
+                raise InputError(
+                    f"depth topic {depth_topic!r} is a {conn.msgtype}, expected Image or "
+                    "CompressedImage"
+                )
+            if cand.role != "depth":
+                enc = cand.encoding
+                raise InputError(
+                    f"depth topic {depth_topic!r} has encoding {enc!r}; expected one of "
+                    f"{', '.join(rm.DEPTH_ENCODINGS)} or a compressedDepth format"
+                )
+            self.depth_topic = depth_topic
+            self._depth_conn = conn
+            width, height = cand.width, cand.height
+            anchor = depth_topic
+            float_depth = cand.encoding.startswith("32FC1")
+            self.depth_scale = (
+                float(depth_scale) if depth_scale is not None else (1.0 if float_depth else 1000.0)
+            )
+            if color_topic is None and not no_color:
+                colors = [
+                    c for c in cands if c.role == "color" and (c.width, c.height) == (width, height)
+                ]
+                colors.sort(
+                    key=lambda c: (
+                        _affinity(c.topic, depth_topic),
+                        c.encoding != "mono8" and not c.encoding.startswith("mono8"),
+                        c.msgtype == IMAGE,
+                    ),
+                    reverse=True,
+                )
+                if colors:
+                    color_topic = colors[0].topic
+                else:
+                    self.notes.append(
+                        f"no color topic of the depth's size {width}x{height}: depth only"
+                    )
+            if color_topic:
+                cconn = self._conn(color_topic, "color")
+                ccand = by_topic[color_topic]
+                if ccand.role != "color":
+                    raise InputError(
+                        f"color topic {color_topic!r} has encoding {ccand.encoding!r}; expected "
+                        f"one of {', '.join(rm.COLOR_ENCODINGS)} or a JPEG/PNG CompressedImage"
+                    )
+                if (ccand.width, ccand.height) != (width, height):
+                    raise InputError(
+                        f"color topic {color_topic!r} is {ccand.width}x{ccand.height} but depth "
+                        f"topic {depth_topic!r} is {width}x{height}; pcdcodec needs registered "
+                        "depth and color of one size (pass color_topic='' for depth only)"
+                    )
+                self._color_conn = cconn
+                self.color_topic = color_topic
+            else:
+                self._color_conn = None
+            self.has_color = self._color_conn is not None
+
+        # The camera: given, or from CameraInfo, or fitted to the cloud.
+        if info_topic is None:
+            infos = [c for c in cands if c.role == "info"]
+            infos.sort(key=lambda c: _affinity(c.topic, anchor), reverse=True)
+            if infos and (len(infos) == 1 or _affinity(infos[0].topic, anchor) > (0, 0)):
+                info_topic = infos[0].topic
+        if intrinsics is not None:
+            self.intrinsics = (
+                intrinsics
+                if isinstance(intrinsics, CameraIntrinsics)
+                else (CameraIntrinsics.from_dict(intrinsics))
+            )
+        elif info_topic:
+            iconn = self._conn(info_topic, "camera info")
+            if iconn.msgtype != CAMERA_INFO:
+                raise InputError(f"info topic {info_topic!r} is a {iconn.msgtype}, not CameraInfo")
+            msg = self._first(iconn)
+            if msg is None:
+                raise InputError(f"camera info topic {info_topic!r} has no messages")
+            if (int(msg.width), int(msg.height)) != (width, height):
+                raise InputError(
+                    f"camera info topic {info_topic!r} is for {msg.width}x{msg.height} images, "
+                    f"but {anchor!r} is {width}x{height}"
+                )
+            self.intrinsics, self.distortion_model, self.distortion = rm.camera_info(
+                msg, info_topic
+            )
+            self.info_topic = info_topic
+            if any(self.distortion):
+                self.notes.append(
+                    f"camera info has {self.distortion_model} distortion {self.distortion}: kept "
+                    "in the recording's metadata, not applied to the points"
+                )
+        elif mode == "cloud":
+            self.intrinsics, self.fit_residual = rm.fit_intrinsics(first_pts, anchor)
+            self.notes.append(
+                f"no camera info: intrinsics fitted to the cloud, residual "
+                f"{self.fit_residual:.3g} px"
+            )
+        else:
+            self.intrinsics = None
+            self.notes.append("no camera info topic: pass intrinsics")
+        self._shape = (height, width)
+        if self.intrinsics is not None and self.intrinsics.shape != (height, width):
+            raise InputError(
+                f"intrinsics are for {self.intrinsics.width}x{self.intrinsics.height} but "
+                f"{anchor!r} is {width}x{height}"
+            )
+        self.metadata = {
+            "source": "rosbag",
+            "bag": self.path.name,
+            **{
+                f"ros_{k}": v
+                for k, v in (
+                    ("depth_topic", self.depth_topic),
+                    ("color_topic", self.color_topic),
+                    ("info_topic", self.info_topic),
+                    ("cloud_topic", self.cloud_topic),
+                )
+                if v
+            },
+        }
+        if self.distortion_model:
+            self.metadata["distortion_model"] = self.distortion_model
+            self.metadata["distortion"] = json.dumps(self.distortion)
+        if self.fit_residual is not None:
+            self.metadata["intrinsics_fit_residual_px"] = repr(self.fit_residual)
+
+    # -- the Source protocol ------------------------------------------------------------------
+
+    @property
+    def dropped(self) -> dict[str, int]:
+        """Images dropped for lack of a partner so far, by stream."""
+        return {"color": self.stats.dropped_color, "depth": self.stats.dropped_depth}
+
+    @property
+    def out_of_order(self) -> int:
+        """Messages skipped because their stamp did not increase."""
+        return self.stats.out_of_order
+
+    def __length_hint__(self) -> int:
+        n = int(self._depth_conn.msgcount)
+        return min(n, self.max_frames) if self.max_frames else n
+
+    def describe(self) -> dict[str, Any]:
+        out = super().describe()
+        out.update(
+            {
+                "mode": self.mode,
+                "depth_topic": self.depth_topic,
+                "color_topic": self.color_topic,
+                "info_topic": self.info_topic,
+                "cloud_topic": self.cloud_topic,
+                "dropped": self.dropped,
+                "out_of_order": self.out_of_order,
+                "notes": list(self.notes),
+            }
+        )
+        if self.fit_residual is not None:
+            out["intrinsics_fit_residual_px"] = self.fit_residual
+        return out
+
+    def _stamp(self, msg: Any, log_time: int) -> int:
+        ns = rm.stamp_ns(msg)
+        return ns if ns > 0 else int(log_time)
+
+    def _decode(self, msg: Any, conn: Any, role: str) -> Any:
+        if conn.msgtype == IMAGE:
+            return rm.decode_image(msg, role, conn.topic)
+        return rm.decode_compressed(msg, role, conn.topic)
+
+    def __iter__(self) -> Iterator[Any]:
+        from ..datasets import RGBDFrame
+
+        self.stats = _Stats()
+        if self.mode == "cloud":
+            frames: Iterator[Any] = self._cloud_frames()
+        elif self._color_conn is None:
+            frames = self._depth_frames()
+        else:
+            frames = self._paired_frames()
+        for color, depth, ts in frames:
+            if depth.shape != self._shape:
+                topic = self.depth_topic or self.cloud_topic
+                raise InputError(
+                    f"topic {topic!r}: the frame at {ts} ns is {depth.shape[1]}x{depth.shape[0]}, "
+                    f"the first frame {self._shape[1]}x{self._shape[0]}"
+                )
+            self.stats.frames += 1
+            yield RGBDFrame(color, depth, ts)
+            if self.max_frames is not None and self.stats.frames >= self.max_frames:
+                return
+
+    def _messages(self, conns: list[Any]) -> Iterator[tuple[Any, int, Any]]:
+        try:
+            for c, t, raw in self._reader.messages(connections=conns):
+                yield c, t, self._reader.deserialize(raw, c.msgtype)
+        except PcdcodecError:
+            raise
+        except Exception as exc:
+            raise _wrap(exc, self.path) from exc
+
+    def _depth_frames(self) -> Iterator[tuple[Any, Any, int]]:
+        last = -1
+        for conn, t, msg in self._messages([self._depth_conn]):
+            ts = self._stamp(msg, t)
+            if ts <= last:
+                self.stats.out_of_order += 1
+                continue
+            last = ts
+            yield None, self._decode(msg, conn, "depth"), ts
+
+    def _paired_frames(self) -> Iterator[tuple[Any, Any, int]]:
+        from ..sync import Synchronizer
+
+        sync: Synchronizer[Any, Any] = Synchronizer(max_difference=self.max_difference)
+        last = {"depth": -1, "color": -1}
+        dconn, cconn = self._depth_conn, self._color_conn
+        assert cconn is not None
+
+        def pairs(ready: list[Any]) -> Iterator[tuple[Any, Any, int]]:
+            for _, cmsg, dts, dmsg in ready:
+                color = self._decode(cmsg, cconn, "color")
+                depth = self._decode(dmsg, dconn, "depth")
+                if color.shape[:2] != depth.shape:
+                    raise InputError(
+                        f"color topic {cconn.topic!r} is {color.shape[1]}x{color.shape[0]} but "
+                        f"depth topic {dconn.topic!r} is {depth.shape[1]}x{depth.shape[0]} "
+                        f"at {dts} ns"
+                    )
+                yield color, depth, dts
+
+        for conn, t, msg in self._messages([dconn, cconn]):
+            role = "depth" if conn.topic == dconn.topic else "color"
+            ts = self._stamp(msg, t)
+            if ts <= last[role]:
+                self.stats.out_of_order += 1
+                continue
+            last[role] = ts
+            ready = sync.add_depth(ts, msg) if role == "depth" else sync.add_color(ts, msg)
+            self.stats.dropped_color = len(sync.dropped_color)
+            self.stats.dropped_depth = len(sync.dropped_depth)
+            yield from pairs(ready)
+        ready = sync.flush()
+        self.stats.dropped_color = len(sync.dropped_color)
+        self.stats.dropped_depth = len(sync.dropped_depth)
+        yield from pairs(ready)
+
+    def _cloud_frames(self) -> Iterator[tuple[Any, Any, int]]:
+        last = -1
+        topic = self._depth_conn.topic
+        for _, t, msg in self._messages([self._depth_conn]):
+            ts = self._stamp(msg, t)
+            if ts <= last:
+                self.stats.out_of_order += 1
+                continue
+            last = ts
+            layout = self._layout
+            if (int(msg.width), int(msg.height)) != (layout.width, layout.height):
+                raise InputError(
+                    f"cloud topic {topic!r}: cloud at {ts} ns is {msg.width}x{msg.height}, earlier "
+                    f"clouds {layout.width}x{layout.height}"
+                )
+            if [(f.name, f.offset, f.datatype) for f in msg.fields] != self._cloud_fields:
+                layout = rm.cloud_layout(msg, topic)
+            z, rgb, _ = rm.cloud_to_rgbd(msg, layout, topic)
+            with np.errstate(invalid="ignore"):
+                z[~np.isfinite(z)] = np.nan
+            yield rgb, z, ts
+
+    def close(self) -> None:
+        reader = getattr(self, "_reader", None)
+        if reader is not None:
+            with contextlib.suppress(Exception):
+                reader.close()
+            self._reader = None
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None

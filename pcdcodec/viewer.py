@@ -1,0 +1,172 @@
+"""Looking at a recording: color, depth, the point cloud, the camera and its trajectory, over time.
+
+:func:`view` sends a ``.pcdc`` recording to the Rerun viewer (``pip install "pcdcodec[view]"``),
+or writes a ``.rrd`` file that the viewer opens later (``rerun out.rrd``). Each frame is logged
+at its recorded time (timeline ``time``) and by number (timeline ``frame``):
+
+* ``world/camera``: the pinhole camera (intrinsics, image size; x right, y down, z forward),
+  placed by the frame's pose where the recording has poses;
+* ``world/camera/image/rgb``: the color image (JPEG-compressed in the viewer's store unless
+  ``jpeg_quality`` is ``None``), ``world/camera/image/depth``: the depth image with its scale;
+* ``world/camera/points``: the colored point cloud (every ``stride``-th pixel in each direction);
+* ``world/trajectory``: the camera positions as a line, where poses exist.
+
+:func:`view_open3d` plays the point clouds in Open3D's own window, for machines with a display
+and without Rerun. rerun and open3d are imported only here, when called.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError, PcdcodecError
+
+__all__ = ["view", "view_open3d"]
+
+_INSTALL = 'pip install "pcdcodec[view]"'
+
+
+def _rerun() -> Any:
+    try:
+        import rerun as rr
+    except ImportError:
+        raise PcdcodecError(f"the viewer needs rerun-sdk: {_INSTALL}") from None
+    return rr
+
+
+def _log_frame(rr: Any, rec: Any, frame: Any, stride: int, jpeg_quality: int | None) -> None:
+    projector = frame.projector
+    if frame.pose is not None:
+        pose = np.asarray(frame.pose, dtype=np.float64)
+        rec.log("world/camera", rr.Transform3D(translation=pose[:3, 3], mat3x3=pose[:3, :3]))
+    if frame.color is not None:
+        image = rr.Image(frame.color)
+        rec.log(
+            "world/camera/image/rgb",
+            image.compress(jpeg_quality=jpeg_quality) if jpeg_quality is not None else image,
+        )
+    meter = 1.0 if frame.depth.dtype == np.float32 else projector.depth_scale
+    rec.log("world/camera/image/depth", rr.DepthImage(frame.depth, meter=meter))
+    depth = frame.depth[::stride, ::stride]
+    color = frame.color[::stride, ::stride] if frame.color is not None else None
+    points, colors = _subsampled_points(projector, depth, color, stride)
+    rec.log("world/camera/points", rr.Points3D(points, colors=colors, radii=0.004 * stride))
+
+
+def _subsampled_points(
+    projector: Any, depth: Any, color: Any, stride: int
+) -> tuple[np.ndarray[Any, Any], np.ndarray[Any, Any] | None]:
+    """Points of every ``stride``-th pixel, in metres in the camera frame."""
+    if stride == 1:
+        return projector.to_points(depth, color)  # type: ignore[no-any-return]
+    cam = projector.intrinsics
+    v, u = np.nonzero(np.isfinite(depth) & (depth > 0))
+    z = depth[v, u].astype(np.float64)
+    if depth.dtype != np.float32:
+        z = z / projector.depth_scale
+    x = (u * stride - cam.cx) * z / cam.fx
+    y = (v * stride - cam.cy) * z / cam.fy
+    points = np.stack([x, y, z], axis=1).astype(np.float32)
+    return points, (color[v, u] if color is not None else None)
+
+
+def view(
+    path: str | os.PathLike[str],
+    *,
+    save: str | os.PathLike[str] | None = None,
+    every: int = 1,
+    max_frames: int | None = None,
+    stride: int = 2,
+    jpeg_quality: int | None = 90,
+) -> Path | None:
+    """Show the recording at ``path`` in the Rerun viewer, or write it to the ``.rrd`` file
+    ``save`` (written beside its target and moved into place when complete; returned).
+
+    ``every`` logs every n-th frame, ``max_frames`` stops after that many logged frames,
+    ``stride`` thins the point cloud (every ``stride``-th pixel in each direction; 1 keeps all)
+    and ``jpeg_quality`` compresses the color images (``None``: raw). Raises
+    :class:`~pcdcodec.InputError` for bad options and :class:`~pcdcodec.PcdcodecError` when
+    rerun-sdk is not installed.
+    """
+    from .recording import open as open_recording
+
+    for name, value in (("every", every), ("stride", stride)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise InputError(f"{name} must be a positive int, got {value!r}")
+    if max_frames is not None and max_frames < 1:
+        raise InputError(f"max_frames must be at least 1, got {max_frames}")
+    rr = _rerun()
+    target = Path(save) if save is not None else None
+    if target is not None and target.is_dir():
+        raise InputError(f"{str(target)!r} is a folder; --save takes an .rrd file name")
+    with open_recording(path) as recording:
+        stream = rr.RecordingStream("pcdcodec", recording_id=str(recording.path.resolve()))
+        partial = None
+        if target is not None:
+            partial = target.with_name(f".{target.name}.partial-{os.getpid()}")
+            stream.save(str(partial))
+        else:
+            stream.spawn()
+        try:
+            cam = recording.intrinsics
+            stream.log("world", rr.ViewCoordinates.RDF, static=True)
+            stream.log(
+                "world/camera",
+                rr.Pinhole(
+                    image_from_camera=cam.K,
+                    resolution=[cam.width, cam.height],
+                    camera_xyz=rr.ViewCoordinates.RDF,
+                    image_plane_distance=0.3,
+                ),
+                static=True,
+            )
+            trajectory: list[np.ndarray[Any, Any]] = []
+            for i in range(0, len(recording), every)[:max_frames]:
+                frame = recording[i]
+                stream.set_time("frame", sequence=i)
+                stream.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
+                _log_frame(rr, stream, frame, stride, jpeg_quality)
+                if frame.pose is not None:
+                    trajectory.append(np.asarray(frame.pose, dtype=np.float64)[:3, 3])
+                    stream.log("world/trajectory", rr.LineStrips3D([np.array(trajectory)]))
+            stream.flush()
+        finally:
+            stream.disconnect()
+        if partial is not None and target is not None:
+            os.replace(partial, target)
+    return target
+
+
+def view_open3d(path: str | os.PathLike[str], *, every: int = 1, fps: float | None = None) -> None:
+    """Play the recording's point clouds in Open3D's window (needs a display)."""
+    import time
+
+    import open3d as o3d
+
+    from .recording import open as open_recording
+
+    vis: Any = o3d.visualization.Visualizer()
+    if not vis.create_window(window_name=f"pcdcodec {Path(path).name}"):
+        raise PcdcodecError("Open3D could not open a window (no display?); use --save out.rrd")
+    try:
+        with open_recording(path) as recording:
+            delay = 1.0 / (fps or recording.fps)
+            cloud = None
+            for i in range(0, len(recording), every):
+                new = recording[i].to_point_cloud()
+                if cloud is None:
+                    cloud = new
+                    vis.add_geometry(cloud)
+                else:
+                    cloud.points, cloud.colors = new.points, new.colors
+                    vis.update_geometry(cloud)
+                if not vis.poll_events():
+                    break
+                vis.update_renderer()
+                time.sleep(delay)
+    finally:
+        vis.destroy_window()

@@ -1,0 +1,543 @@
+"""pcdcodec archive: segments joined into valid recordings, resumable runs, and every fault."""
+
+from __future__ import annotations
+
+import errno
+import importlib.util
+import itertools
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import pcdcodec
+from pcdcodec import archive as archive_module
+from pcdcodec.archive import LOCK, MANIFEST, PARTS, archive
+from pcdcodec.datasets import RGBDSequence, load_sample
+from pcdcodec.recording import _index as fmt
+from pcdcodec.recording.join import join
+
+from .conftest import REPO, SAMPLE
+
+pytest.importorskip("distributed")
+
+
+@pytest.fixture(scope="module")
+def sample() -> RGBDSequence:
+    return load_sample()
+
+
+def make_input(dst: Path, first: int = 0, count: int = 15) -> Path:
+    """A TUM folder holding ``count`` frames of the bundled sample from frame ``first``."""
+    rows = (SAMPLE / "associations.txt").read_text().splitlines()[first : first + count]
+    (dst / "rgb").mkdir(parents=True)
+    (dst / "depth").mkdir()
+    for row in rows:
+        _, rgb, _, depth = row.split()
+        shutil.copyfile(SAMPLE / rgb, dst / rgb)
+        shutil.copyfile(SAMPLE / depth, dst / depth)
+    (dst / "associations.txt").write_text("\n".join(rows) + "\n")
+    for name in ("rgb.txt", "depth.txt"):
+        (dst / name).write_text("")
+    shutil.copyfile(SAMPLE / "camera.json", dst / "camera.json")
+    return dst
+
+
+def assert_same_as_source(output: Path, source: Path) -> None:
+    """The recording checks of tests/test_recording.py, against the source folder."""
+    frames = list(pcdcodec.open_source(source))
+    with pcdcodec.open(output) as rec:
+        assert rec.indexed
+        assert rec.verify().ok
+        assert len(rec) == len(frames)
+        np.testing.assert_array_equal(rec.timestamps, [f.timestamp_ns for f in frames])
+        sequential = []
+        for frame, original in zip(rec, frames, strict=True):
+            np.testing.assert_array_equal(frame.depth, original.depth)
+            assert frame.depth.dtype == original.depth.dtype
+            assert frame.color is not None
+            assert pcdcodec.metrics.psnr(frame.color, original.color) > 30
+            sequential.append(frame.color.copy())
+    with pcdcodec.open(output) as rec:  # random access gives what sequential decoding gave
+        for i in np.random.default_rng(0).permutation(len(frames)).tolist():
+            np.testing.assert_array_equal(rec[i].color, sequential[i])
+            np.testing.assert_array_equal(rec[i].depth, frames[i].depth)
+
+
+def partials(root: Path) -> list[Path]:
+    return [p for p in root.rglob("*") if ".partial-" in p.name]
+
+
+def manifest(out: Path) -> dict[str, Any]:
+    data: dict[str, Any] = json.loads((out / MANIFEST).read_text())["inputs"]
+    return data
+
+
+# -- join ---------------------------------------------------------------------------------------
+
+
+def write_parts(tmp: Path, seq: RGBDSequence, bounds: list[int], **options: Any) -> list[Path]:
+    tmp.mkdir(exist_ok=True)
+    parts = []
+    for i, (a, b) in enumerate(itertools.pairwise(bounds)):
+        path = tmp / f"part{i}.pcdc"
+        with pcdcodec.open(
+            path, "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale, **options
+        ) as w:
+            w.write_frames(seq.frames[a:b])
+        parts.append(path)
+    return parts
+
+
+@pytest.mark.parametrize(
+    "color", [pcdcodec.get_codec("h264", bframes=2, gop=4), pcdcodec.get_codec("ffv1")]
+)
+def test_join_reads_like_one_writer(tmp_path: Path, sample: RGBDSequence, color: Any) -> None:
+    parts = write_parts(tmp_path, sample, [0, 4, 7, 9], color=color, metadata={"site": "lab"})
+    alone = []
+    for p in parts:
+        with pcdcodec.open(p) as rec:
+            alone += [f.color.copy() for f in rec]  # type: ignore[union-attr]
+    out = tmp_path / "joined.pcdc"
+    assert join(parts, out) == 9
+    with pcdcodec.open(out) as rec:
+        assert rec.indexed
+        assert len(rec) == 9
+        assert rec.metadata == {"site": "lab"}
+        assert rec.codecs["color"] == color.get_config()
+        np.testing.assert_array_equal(rec.timestamps, [f.timestamp_ns for f in sample][:9])
+        for frame, original, color_alone in zip(rec, sample.frames[:9], alone, strict=True):
+            np.testing.assert_array_equal(frame.depth, original.depth)
+            # Decoding straight through the joins gives each segment's own decode.
+            np.testing.assert_array_equal(frame.color, color_alone)
+        assert {0, 4, 7} <= set(rec._keyframes)
+        report = rec.verify()  # every checksum, and a full scan against the index
+        assert report.ok, report.errors
+        for i in (8, 5, 4, 0, 7, 3):
+            np.testing.assert_array_equal(rec[i].color, alone[i])
+    # One metadata record, the calibration once, sequence numbers that continue.
+    from mcap.reader import make_reader
+
+    with out.open("rb") as f:
+        reader = make_reader(f)
+        assert [m.name for m in reader.iter_metadata()] == [fmt.METADATA_NAME, "user"]
+        seqs: dict[str, list[int]] = {}
+        for _, channel, message in reader.iter_messages(log_time_order=False):
+            seqs.setdefault(channel.topic, []).append(message.sequence)
+    assert seqs[fmt.TOPIC_CALIBRATION] == [0]
+    assert seqs[fmt.TOPIC_DEPTH] == list(range(9))
+    assert seqs[fmt.TOPIC_COLOR] == list(range(9))
+    assert {0, 4, 7} <= set(seqs[fmt.TOPIC_KEYFRAMES]) <= set(range(9))
+
+
+def test_join_refuses_parts_that_do_not_fit(tmp_path: Path, sample: RGBDSequence) -> None:
+    a = write_parts(tmp_path / "a", sample, [0, 5, 10])
+    (tmp_path / "b").mkdir()
+    b = write_parts(tmp_path / "b", sample, [10, 15], color=pcdcodec.get_codec("h264", crf=30))
+    with pytest.raises(pcdcodec.InputError, match=r"cannot follow.*differs"):
+        join([a[0], b[0]], tmp_path / "x.pcdc")
+    with pytest.raises(pcdcodec.InputError, match="time order"):
+        join([a[1], a[0]], tmp_path / "x.pcdc")
+    unfinished = tmp_path / "cut.pcdc"
+    unfinished.write_bytes(a[0].read_bytes()[:-200])
+    with pytest.raises(pcdcodec.DecodeError, match="recover"):
+        join([a[0], unfinished], tmp_path / "x.pcdc")
+    with pytest.raises(pcdcodec.InputError, match="already exists"):
+        join(a, a[0])
+    assert not (tmp_path / "x.pcdc").exists()
+    assert not partials(tmp_path)
+
+
+# -- archive runs -------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def tree(tmp_path: Path) -> Path:
+    """An archive: lab/day1/{a,b} and lab/c, six frames each."""
+    src = tmp_path / "lab"
+    make_input(src / "day1" / "a", 0, 6)
+    make_input(src / "day1" / "b", 5, 6)
+    make_input(src / "c", 9, 6)
+    (src / "notes.txt").write_text("not an input")
+    return src
+
+
+def test_archive_mirrors_verifies_and_skips_on_rerun(tmp_path: Path, tree: Path) -> None:
+    out = tmp_path / "out"
+    messages: list[str] = []
+    seen: list[tuple[int, int]] = []
+    summary = archive(
+        [tree],
+        out,
+        workers=2,
+        processes=False,
+        segment_frames=4,
+        verify=True,
+        progress=lambda done, total: seen.append((done, total)),
+        log=messages.append,
+    )
+    assert summary.ok, summary.to_text()
+    # Progress counts source bytes, up to all of them.
+    assert seen[-1][0] == seen[-1][1] == summary.bytes_in
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen)
+    assert messages[0].startswith("dashboard: ")
+    if importlib.util.find_spec("bokeh") is not None:
+        assert summary.dashboard is not None
+        assert summary.dashboard.startswith("http://")
+        assert summary.dashboard in messages[0]
+    assert sorted(Path(i.output).relative_to(out).as_posix() for i in summary.items) == [
+        "lab/c.pcdc",
+        "lab/day1/a.pcdc",
+        "lab/day1/b.pcdc",
+    ]
+    assert {i.state for i in summary.items} == {"verified"}
+    assert all(i.segments == 2 and i.frames == 6 for i in summary.items)
+    assert summary.bytes_out == sum(Path(i.output).stat().st_size for i in summary.items)
+    assert summary.ratio is not None
+    assert summary.ratio > 3
+    assert summary.throughput > 0
+    assert summary.frames == 18
+    for name in ("day1/a", "day1/b", "c"):
+        assert_same_as_source(out / "lab" / f"{name}.pcdc", tree / name)
+    entries = manifest(out)
+    assert set(entries) == {"lab/c.pcdc", "lab/day1/a.pcdc", "lab/day1/b.pcdc"}
+    for entry in entries.values():
+        assert entry["state"] == "verified"
+        assert entry["hash"].startswith("blake2b:")
+        assert entry["size"] > 0
+        assert entry["segments"] == [[0, 3], [3, 6]]
+    assert not partials(out)
+    assert not (out / PARTS).exists()
+    text = summary.to_text()
+    assert "3 written" in text
+    assert "MB/s" in text
+    assert "frames/s" in text
+
+    before = {p: p.stat().st_mtime_ns for p in out.rglob("*.pcdc")}
+    again = archive([tree], out, workers=1, processes=False, segment_frames=4, progress=False)
+    assert [i.state for i in again.items] == ["skipped"] * 3
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*.pcdc")} == before
+
+    # A changed source is encoded again; the others stay skipped.
+    shutil.rmtree(tree / "c")
+    make_input(tree / "c", 2, 5)
+    third = archive([tree], out, workers=1, processes=False, segment_frames=4, progress=False)
+    assert sorted(i.state for i in third.items) == ["done", "skipped", "skipped"]
+    assert_same_as_source(out / "lab" / "c.pcdc", tree / "c")
+
+
+def test_delete_source_only_after_verification(tmp_path: Path) -> None:
+    a = make_input(tmp_path / "a", 0, 4)
+    b = make_input(tmp_path / "b", 0, 4)
+    kept = {p.relative_to(b): p.read_bytes() for p in b.rglob("*") if p.is_file()}
+    (b / "depth" / sorted(os.listdir(b / "depth"))[2]).write_bytes(b"\x89PNG broken")
+    out = tmp_path / "out"
+    summary = archive(
+        [a, b], out, workers=1, processes=False, delete_source_after_verify=True, progress=False
+    )
+    states = {Path(i.source).name: i.state for i in summary.items}
+    assert states == {"a": "source-deleted", "b": "failed"}
+    assert not a.exists()
+    assert b.exists()
+    assert len(kept) == len([p for p in b.rglob("*") if p.is_file()])
+    assert manifest(out)["a.pcdc"]["state"] == "source-deleted"
+    with pcdcodec.open(out / "a.pcdc") as rec:
+        assert len(rec) == 4
+
+
+def test_verification_catches_an_output_that_differs(tmp_path: Path) -> None:
+    src = make_input(tmp_path / "a", 0, 5)
+    out = tmp_path / "out"
+    assert archive([src], out, workers=1, processes=False, progress=False).ok
+    output = str(out / "a.pcdc")
+    with pcdcodec.open(output) as rec:
+        colors = [archive_module._digest(f.color) for f in rec]
+    assert archive_module._verify(str(src), {}, output, colors) == {"frames": 5}
+    wrong = [colors[0], "0" * 32, *colors[2:]]
+    with pytest.raises(pcdcodec.VerificationError, match="frame 1 color differs"):
+        archive_module._verify(str(src), {}, output, wrong)
+    depth = sorted((src / "depth").iterdir())
+    shutil.copyfile(sorted((SAMPLE / "depth").iterdir())[10], depth[3])
+    with pytest.raises(pcdcodec.VerificationError, match="frame 3 depth differs"):
+        archive_module._verify(str(src), {}, output, colors)
+    shorter = make_input(tmp_path / "b", 0, 4)
+    with pytest.raises(pcdcodec.VerificationError, match="more frames than the source"):
+        archive_module._verify(str(shorter), {}, output, None)
+
+
+def test_corrupt_input_is_reported_and_the_others_finish(tmp_path: Path) -> None:
+    good = make_input(tmp_path / "src" / "good", 0, 5)
+    bad = make_input(tmp_path / "src" / "bad", 0, 8)
+    broken = sorted((bad / "depth").iterdir())[6]
+    broken.write_bytes(broken.read_bytes()[:100])
+    out = tmp_path / "out"
+    summary = archive(
+        [tmp_path / "src"], out, workers=2, processes=False, segment_frames=3, progress=False
+    )
+    assert not summary.ok
+    assert [Path(i.source).name for i in summary.failed] == ["bad"]
+    assert broken.name in (summary.failed[0].error or "")
+    assert f"FAILED {bad}" in summary.to_text()
+    assert_same_as_source(out / "src" / "good.pcdc", good)
+    assert not (out / "src" / "bad.pcdc").exists()
+    assert not partials(out)
+    assert not (out / PARTS).exists()
+    assert manifest(out)["src/bad.pcdc"]["state"] == "failed"
+    assert broken.name in manifest(out)["src/bad.pcdc"]["error"]
+
+
+def test_cli_archive(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from pcdcodec.cli import main
+
+    src = make_input(tmp_path / "take1", 0, 4)
+    out = tmp_path / "out"
+    args = ["archive", str(src), "-o", str(out), "--workers", "1", "--threads", "-q"]
+    args += ["--depth", "zstd"]
+    assert main([*args, "--verify", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["done"] == 1
+    assert result["failed"] == 0
+    assert result["frames"] == 4
+    assert result["items"][0]["state"] == "verified"
+    with pcdcodec.open(out / "take1.pcdc") as rec:
+        assert rec.codecs["depth"]["id"] == "zstd"
+    assert main(args) == 0
+    assert "1 already done" in capsys.readouterr().out
+    assert main(["archive", str(src), str(tmp_path / "missing"), "-o", str(out), "-q"]) == 1
+    assert "does not exist" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["archive", str(src), "-o", str(out), "--scheduler", "x", "--workers", "2"])
+    assert exit_info.value.code == 2
+
+
+# -- faults -------------------------------------------------------------------------------------
+
+
+def test_two_runs_on_one_output_are_refused(tmp_path: Path) -> None:
+    src = make_input(tmp_path / "a", 0, 3)
+    out = tmp_path / "out"
+    out.mkdir()
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import sys, time\n"
+            "from pathlib import Path\n"
+            "from pcdcodec.archive import _Lock\n"
+            "with _Lock(Path(sys.argv[1])):\n"
+            "    print('locked', flush=True)\n"
+            "    time.sleep(60)\n",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )
+    try:
+        assert holder.stdout is not None
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(pcdcodec.ArchiveLockedError, match=f"pid {holder.pid}"):
+            archive([src], out, workers=1, processes=False, progress=False)
+        assert not (out / "a.pcdc").exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    # The lock dies with its holder: no stale lock to clear by hand.
+    assert archive([src], out, workers=1, processes=False, progress=False).ok
+    assert (out / LOCK).exists()
+
+
+def _no_space(*args: Any, **kwargs: Any) -> Any:
+    raise OSError(errno.ENOSPC, "No space left on device")
+
+
+def test_full_disk_stops_cleanly_and_resumes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    for name in "abc":
+        make_input(tmp_path / "src" / name, 0, 4)
+    out = tmp_path / "out"
+    from pcdcodec.recording.writer import RecordingWriter
+
+    original = RecordingWriter._drain_one
+    calls = {"n": 0}
+
+    def filling(self: RecordingWriter) -> None:
+        calls["n"] += 1
+        if calls["n"] > 6:  # the disk fills up during the second input
+            _no_space()
+        original(self)
+
+    monkeypatch.setattr(RecordingWriter, "_drain_one", filling)
+    summary = archive([tmp_path / "src"], out, workers=1, processes=False, progress=False)
+    assert not summary.ok
+    assert summary.stopped is not None
+    assert "no space left" in summary.stopped
+    assert "free space and run again" in summary.stopped
+    assert summary.failed
+    assert "no space left" in (summary.failed[0].error or "")
+    written = sorted(Path(i.output).name for i in summary.items if i.state == "done")
+    assert len(written) < 3
+    # Nothing half-written under a final name, nor left behind at all.
+    assert sorted(p.name for p in out.rglob("*.pcdc") if PARTS not in p.parts) == written
+    assert not partials(out)
+    assert "stopped: no space left" in summary.to_text()
+
+    monkeypatch.setattr(RecordingWriter, "_drain_one", original)
+    again = archive([tmp_path / "src"], out, workers=1, processes=False, progress=False)
+    assert again.ok
+    assert sorted(i.state for i in again.items) == sorted(
+        ["skipped"] * len(written) + ["done"] * (3 - len(written))
+    )
+    for name in "abc":
+        assert_same_as_source(out / "src" / f"{name}.pcdc", tmp_path / "src" / name)
+
+
+@pytest.fixture
+def tiny_disk(tmp_path: Path) -> Iterator[Path]:
+    """A 700 KiB tmpfs, where the system lets this process mount one."""
+    mount = tmp_path / "disk"
+    mount.mkdir()
+    if sys.platform != "linux" or os.geteuid() != 0:
+        pytest.skip("mounting a tmpfs needs root on Linux")
+    done = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=700k", "tmpfs", str(mount)], capture_output=True
+    )
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {done.stderr.decode().strip()}")
+    try:
+        yield mount
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], check=False)
+
+
+def test_a_really_full_disk(tmp_path: Path, tiny_disk: Path) -> None:
+    src = tmp_path / "src"
+    for name in "abcd":
+        make_input(src / name, 0, 6)
+    summary = archive([src], tiny_disk, workers=1, processes=False, progress=False)
+    assert summary.stopped is not None
+    assert "no space left" in summary.stopped
+    assert not partials(tiny_disk)
+    for item in summary.items:
+        out = Path(item.output)
+        if item.state == "done":
+            assert_same_as_source(out, Path(item.source))
+        else:
+            assert not out.exists()
+    assert manifest(tiny_disk)  # the manifest itself survived
+
+
+def test_worker_killed_mid_task_is_retried_and_exact(tmp_path: Path) -> None:
+    inputs = [make_input(tmp_path / "src" / n, 0, 15) for n in ("a", "b")]
+    out = tmp_path / "out"
+    killed: list[int] = []
+    finished = threading.Event()
+
+    def killer() -> None:
+        # Kill the first worker seen writing a segment (its pid is in the partial name).
+        while not finished.is_set() and not killed:
+            for p in partials(out):
+                m = re.search(r"\.partial-(\d+)-", p.name)
+                if m and int(m.group(1)) != os.getpid():
+                    os.kill(int(m.group(1)), signal.SIGKILL)
+                    killed.append(int(m.group(1)))
+                    break
+            time.sleep(0.01)
+
+    thread = threading.Thread(target=killer)
+    thread.start()
+    try:
+        summary = archive(
+            [tmp_path / "src"], out, workers=2, verify=True, segment_frames=15, progress=False
+        )
+    finally:
+        finished.set()
+        thread.join()
+    assert killed, "no worker was caught mid-task"
+    assert summary.ok, summary.to_text()
+    assert {i.state for i in summary.items} == {"verified"}
+    for src in inputs:
+        assert_same_as_source(out / "src" / f"{src.name}.pcdc", src)
+    assert not partials(out)
+
+
+_RUN = """
+import sys
+from pcdcodec.archive import archive
+archive(sys.argv[1:-1], sys.argv[-1], workers=1, processes=False, segment_frames=3,
+        progress=False)
+"""
+
+
+def test_whole_run_killed_then_resumed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    names = ["a", "b", "c", "d", "e"]
+    for n in names:
+        make_input(tmp_path / "src" / n, 0, 9)
+    out = tmp_path / "out"
+    run = subprocess.Popen(
+        [sys.executable, "-c", _RUN, str(tmp_path / "src"), str(out)],
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+        start_new_session=True,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and run.poll() is None:
+            entries = manifest(out) if (out / MANIFEST).exists() else {}
+            parts = list((out / PARTS).rglob("seg-*.pcdc")) if (out / PARTS).exists() else []
+            if any(e.get("state") == "done" for e in entries.values()) and parts:
+                break
+            time.sleep(0.02)
+        assert run.poll() is None, "the run ended before it could be killed"
+        os.killpg(run.pid, signal.SIGKILL)
+    finally:
+        run.wait()
+    done_before = {k for k, e in manifest(out).items() if e.get("state") == "done"}
+    kept_parts = {p.relative_to(out / PARTS) for p in (out / PARTS).rglob("seg-*.pcdc")}
+    assert done_before
+    assert kept_parts
+    stamps = {k: (out / k).stat().st_mtime_ns for k in done_before}
+
+    encoded: list[tuple[str, int]] = []
+    original = archive_module._encode_segment
+
+    def counting(src: str, options: Any, part: str, *rest: Any) -> Any:
+        encoded.append((part, rest[0]))
+        return original(src, options, part, *rest)
+
+    monkeypatch.setattr(archive_module, "_encode_segment", counting)
+    summary = archive([tmp_path / "src"], out, workers=1, processes=False, segment_frames=3)
+    assert summary.ok, summary.to_text()
+    states = {Path(i.output).relative_to(out).as_posix(): i.state for i in summary.items}
+    assert {k for k, s in states.items() if s == "skipped"} == done_before
+    assert {k: (out / k).stat().st_mtime_ns for k in done_before} == stamps
+    # Segments finished before the kill were not encoded again.
+    redone = {Path(p).relative_to(out / PARTS) for p, _ in encoded}
+    assert not redone & kept_parts
+    for n in names:
+        assert_same_as_source(out / "src" / f"{n}.pcdc", tmp_path / "src" / n)
+    assert not partials(out)
+    assert not (out / PARTS).exists()
+
+
+def test_import_pcdcodec_does_not_import_dask() -> None:
+    code = "import sys, pcdcodec, pcdcodec.archive; print('distributed' in sys.modules)"
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+        check=True,
+    )
+    assert done.stdout.strip() == "False"

@@ -1,0 +1,228 @@
+"""Intrinsics files, named cameras, folder timestamps and the CLI's camera flags."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pcdcodec
+from pcdcodec.camera import (
+    CAMERA_PRESETS,
+    CameraIntrinsics,
+    camera_preset,
+    find_intrinsics_file,
+    read_intrinsics,
+)
+from pcdcodec.cli import cli_message, main
+from pcdcodec.datasets import open_folder, sample_dir, write_folder
+from pcdcodec.registry import parse_codec_specs
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
+CAM = CameraIntrinsics(640, 480, 585.0, 580.0, 320.5, 241.0)
+
+
+# -- files ---------------------------------------------------------------------------------
+
+
+def test_k_text_needs_and_takes_the_size(tmp_path: Path) -> None:
+    path = tmp_path / "intrinsics.K.txt"
+    np.savetxt(path, CAM.K)  # scientific notation, as 7-Scenes ships it
+    assert read_intrinsics(path, 640, 480) == CAM
+    with pytest.raises(pcdcodec.InputError, match="without the image size"):
+        read_intrinsics(path)
+    path.write_text("585 0 320\n0 585 240\n")
+    with pytest.raises(pcdcodec.InputError, match="holds 6 numbers"):
+        read_intrinsics(path, 640, 480)
+
+
+def test_ros_camera_info_yaml(tmp_path: Path) -> None:
+    path = tmp_path / "camera_info.yaml"
+    path.write_text(
+        "image_width: 640\nimage_height: 480\ncamera_name: rgb\n"
+        "camera_matrix:\n  rows: 3\n  cols: 3\n"
+        f"  data: [{CAM.fx}, 0, {CAM.cx}, 0, {CAM.fy}, {CAM.cy}, 0, 0, 1]\n"
+        "distortion_model: plumb_bob\n"
+        "distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [0, 0, 0, 0, 0]\n"
+    )
+    assert read_intrinsics(path) == CAM
+    path.write_text(path.read_text().replace("data: [0, 0, 0, 0, 0]", "data: [0.2, 0, 0, 0, 0]"))
+    with pytest.raises(pcdcodec.InputError, match="distortion"):
+        read_intrinsics(path)
+    dump = tmp_path / "info.yaml"  # a sensor_msgs/CameraInfo message as echoed (ROS 2 names)
+    dump.write_text(f"height: 480\nwidth: 640\nk: {CAM.K.ravel().tolist()}\nd: []\n")
+    assert read_intrinsics(dump) == CAM
+
+
+def test_open3d_intrinsic_json(tmp_path: Path) -> None:
+    import open3d as o3d
+
+    path = tmp_path / "intrinsic.json"
+    o3d.io.write_pinhole_camera_intrinsic(str(path), CAM.to_open3d())
+    assert read_intrinsics(path) == CAM
+    ours = tmp_path / "camera.json"
+    ours.write_text(json.dumps({**CAM.to_dict(), "depth_scale": 1000.0}))
+    assert read_intrinsics(ours) == CAM
+
+
+def test_unreadable_files_say_what_was_expected(tmp_path: Path) -> None:
+    with pytest.raises(pcdcodec.InputError, match="does not exist"):
+        read_intrinsics(tmp_path / "nope.txt")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: something\n")
+    with pytest.raises(pcdcodec.InputError, match="camera_matrix"):
+        read_intrinsics(bad)
+    broken = tmp_path / "broken.json"
+    broken.write_text("{not json")
+    with pytest.raises(pcdcodec.InputError, match="not valid JSON"):
+        read_intrinsics(broken)
+
+
+def test_presets_are_the_published_values() -> None:
+    fr1 = camera_preset("tum-fr1")
+    assert (fr1.intrinsics.fx, fr1.intrinsics.fy, fr1.intrinsics.cx, fr1.intrinsics.cy) == (
+        517.3,
+        516.5,
+        318.6,
+        255.3,
+    )
+    assert fr1.depth_scale == 5000.0
+    assert camera_preset("kinect-v1").intrinsics.fx == 525.0
+    assert {"tum-fr1", "tum-fr2", "tum-fr3", "kinect-v1", "7scenes"} <= set(CAMERA_PRESETS)
+    with pytest.raises(pcdcodec.InputError, match="known cameras: tum-fr1"):
+        camera_preset("kinect-v9")
+
+
+# -- folders ---------------------------------------------------------------------------------
+
+
+def _plain_folder(root: Path, numbers: list[int], k_file: str | None = None) -> Path:
+    """rgb/ + depth/ images named by frame number (no time lists), from the bundled sample."""
+    sample = sorted((sample_dir() / "rgb").iterdir())
+    depth = sorted((sample_dir() / "depth").iterdir())
+    (root / "rgb").mkdir(parents=True)
+    (root / "depth").mkdir()
+    for i, n in enumerate(numbers):
+        shutil.copy(sample[i], root / "rgb" / f"frame-{n:06d}.color.png")
+        shutil.copy(depth[i], root / "depth" / f"frame-{n:06d}.depth.png")
+    if k_file:
+        np.savetxt(root / k_file, CAM.K)
+    return root
+
+
+def test_folder_finds_its_intrinsics_file_and_keeps_gaps(tmp_path: Path) -> None:
+    root = _plain_folder(tmp_path / "f", [3, 4, 7], "camera-intrinsics.txt")
+    assert find_intrinsics_file(root) == root / "camera-intrinsics.txt"
+    source = open_folder(root, fps=10.0)
+    assert source.intrinsics == CAM
+    assert [t for t, _, _ in source.pairs] == [0, 100_000_000, 400_000_000]  # 5, 6 dropped
+    assert source.metadata["timestamps"].startswith("not recorded: frame numbers")
+    assert source.metadata["intrinsics_file"] == "camera-intrinsics.txt"
+    tum = open_folder(sample_dir(), max_frames=2)
+    assert tum.metadata["timestamps"] == "recorded (TUM lists)"
+
+
+@pytest.mark.shared_data
+def test_7scenes_folder_reads_its_camera() -> None:
+    root = SHARED / "7scenes_redkitchen"
+    if not root.is_dir():
+        pytest.skip(f"{root} is not present")
+    source = open_folder(root, max_frames=2, depth_scale=1000.0)
+    assert source.intrinsics == CameraIntrinsics(640, 480, 585.0, 585.0, 320.0, 240.0)
+
+
+def test_write_folder_round_trip_and_no_partial_output(tmp_path: Path) -> None:
+    seq = pcdcodec.load_sample(max_frames=3)
+    out = tmp_path / "out"
+    assert write_folder(seq, out, intrinsics=seq.intrinsics, depth_scale=5000.0) == 3
+    back = pcdcodec.load_folder(out)
+    assert list(back) == list(seq)
+    assert back.intrinsics == seq.intrinsics
+    with pytest.raises(pcdcodec.InputError, match="overwrite=True"):
+        write_folder(seq, out)
+
+    def failing() -> object:
+        yield seq[0]
+        raise RuntimeError("source broke")
+
+    with pytest.raises(RuntimeError):
+        write_folder(failing(), tmp_path / "half")
+    assert not (tmp_path / "half").exists()
+    assert not list(tmp_path.glob(".half*"))
+
+
+def test_codec_spec_lists() -> None:
+    codecs = parse_codec_specs("zstd:level=9,lz4, h264:crf=20,preset=fast")
+    assert codecs[0].get_config() == {"id": "zstd", "level": 9}
+    assert codecs[1].name == "lz4"
+    assert codecs[2].get_config()["crf"] == 20
+    assert codecs[2].get_config()["preset"] == "fast"
+    with pytest.raises(pcdcodec.InputError, match="no codec"):
+        parse_codec_specs(" , ")
+
+
+# -- CLI -------------------------------------------------------------------------------------
+
+
+def test_encode_with_a_named_camera_and_a_folder_without_stamps(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    root = _plain_folder(tmp_path / "f", [0, 1, 2])
+    out = tmp_path / "a.pcdc"
+    args = ["encode", str(root), "-o", str(out), "--camera", "tum-fr1", "--color", "ffv1", "-q"]
+    assert main(args) == 0
+    with pcdcodec.open(out) as rec:
+        assert rec.intrinsics == camera_preset("tum-fr1").intrinsics
+        assert rec.depth_scale == 5000.0
+        assert rec.timestamps[0] == 0
+        assert rec.metadata["timestamps"].startswith("not recorded")
+    capsys.readouterr()
+    assert main(["info", str(out)]) == 0
+    assert "the input had no timestamps" in capsys.readouterr().out
+    # The same again: the library's "overwrite=True" reads as the flag.
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "--overwrite" in err
+    assert "overwrite=True" not in err
+
+
+@pytest.mark.parametrize("command", ["encode", "bench"])
+def test_encode_and_bench_share_the_camera_rules(
+    command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    root = _plain_folder(tmp_path / "f", [0, 1])
+    k = tmp_path / "K.txt"
+    np.savetxt(k, CAM.K)
+    extra = ["-o", str(tmp_path / "x.pcdc")] if command == "encode" else []
+    both = [command, str(root), *extra, "--intrinsics", str(k), "--camera", "kinect-v1"]
+    assert main(both) == 1
+    assert "--intrinsics and --camera were both given" in capsys.readouterr().err
+    missing = [command, str(root), *extra, "--intrinsics", str(tmp_path / "none.txt")]
+    assert main(missing) == 1
+    assert "none.txt" in capsys.readouterr().err
+    unknown = [command, str(root), *extra, "--camera", "nope"]
+    assert main(unknown) == 1
+    assert "known cameras" in capsys.readouterr().err
+
+
+def test_export_takes_its_output_as_import_does(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    seq = pcdcodec.load_sample(max_frames=3)
+    rec = tmp_path / "r.pcdc"
+    with pcdcodec.open(rec, "w", intrinsics=seq.intrinsics, depth_scale=5000.0) as w:
+        w.write_frames(seq)
+    assert main(["export", str(rec), "-o", str(tmp_path / "p")]) == 0
+    assert main(["import", str(tmp_path / "p"), "-o", str(tmp_path / "back.pcdc")]) == 0
+    assert main(["export", str(rec), str(tmp_path / "q")]) == 0  # the former spelling
+    assert main(["export", str(rec), str(tmp_path / "q2"), "-o", str(tmp_path / "q3")]) == 1
+    assert "give the output folder once" in capsys.readouterr().err
+
+
+def test_cli_words() -> None:
+    assert cli_message("'x' already exists; pass overwrite=True to replace it") == (
+        "'x' already exists; pass --overwrite to replace it"
+    )

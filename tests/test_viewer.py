@@ -1,0 +1,93 @@
+"""pcdcodec view: a recording in Rerun, checked through the .rrd file it writes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import pcdcodec
+from pcdcodec.cli import main
+
+pytest.importorskip("rerun")
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    seq = pcdcodec.load_sample(max_frames=4)
+    path = tmp_path_factory.mktemp("view") / "v.pcdc"
+    with pcdcodec.open(path, "w", intrinsics=seq.intrinsics, depth_scale=5000.0) as w:
+        w.write_frames(seq)
+    return path
+
+
+def _contents(rrd: Path) -> dict[str, dict[str, Any]]:
+    """Per entity: its columns, and the rows of its last chunk on the frame timeline."""
+    from rerun.chunk import RrdReader
+
+    out: dict[str, dict[str, Any]] = {}
+    for chunk in RrdReader(rrd).stream():
+        batch = chunk.to_record_batch()
+        entry = out.setdefault(chunk.entity_path, {"columns": set(), "frames": []})
+        entry["columns"].update(batch.schema.names)
+        if "frame" in batch.schema.names:
+            entry["frames"] += batch.column("frame").to_pylist()
+        entry.setdefault("batches", []).append(batch)
+    return out
+
+
+def test_view_saves_color_depth_points_camera_over_time(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out.rrd"
+    assert main(["view", str(recording), "--save", str(out), "--stride", "4"]) == 0
+    assert "wrote" in capsys.readouterr().out
+    assert out.exists()
+    assert not list(tmp_path.glob(".out.rrd.partial*"))
+    got = _contents(out)
+    assert "Pinhole:image_from_camera" in got["/world/camera"]["columns"]
+    assert sorted(got["/world/camera/image/rgb"]["frames"]) == [0, 1, 2, 3]
+    assert sorted(got["/world/camera/image/depth"]["frames"]) == [0, 1, 2, 3]
+    assert "DepthImage:meter" in got["/world/camera/image/depth"]["columns"]
+    points = got["/world/camera/points"]
+    assert sorted(points["frames"]) == [0, 1, 2, 3]
+    assert "time" in points["columns"]
+    # The cloud of frame 0 at stride 4: its points are those of every 4th pixel with depth.
+    first = points["batches"][0].column("Points3D:positions").to_pylist()[0]
+    depth = pcdcodec.load_sample(max_frames=1)[0].depth[::4, ::4]
+    assert len(first) == int(np.count_nonzero(depth))
+    assert "/world/trajectory" not in got  # this recording has no poses
+
+
+def test_view_logs_the_trajectory_where_poses_exist(
+    recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from pcdcodec.recording.reader import Recording
+
+    plain = Recording.frame
+
+    def posed(self: Recording, i: int) -> Any:
+        frame = plain(self, i)
+        frame.pose = np.eye(4)
+        frame.pose[:3, 3] = [0.1 * i, 0.0, 0.0]
+        return frame
+
+    monkeypatch.setattr(Recording, "frame", posed)
+    from pcdcodec.viewer import view
+
+    out = view(recording, save=tmp_path / "p.rrd", every=2)
+    assert out == tmp_path / "p.rrd"
+    got = _contents(out)
+    assert sorted(got["/world/trajectory"]["frames"]) == [0, 2]
+    assert "Transform3D:translation" in got["/world/camera"]["columns"]
+
+
+def test_view_rejects_bad_options(recording: Path, tmp_path: Path) -> None:
+    from pcdcodec.viewer import view
+
+    with pytest.raises(pcdcodec.InputError, match="stride"):
+        view(recording, save=tmp_path / "x.rrd", stride=0)
+    with pytest.raises(pcdcodec.InputError, match="folder"):
+        view(recording, save=tmp_path)
