@@ -122,6 +122,25 @@ def test_a_failing_index_write_keeps_every_frame_readable(
             np.testing.assert_array_equal(frame.depth, sample[i].depth)
 
 
+def test_close_ends_when_a_step_fails_without_taking_its_frame(
+    tmp_path: Path, sample: RGBDSequence, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "stuck.pcdc"
+    rec = _open(path, sample, in_flight=4)
+    for i in range(3):
+        rec.write(sample[i].color, sample[i].depth, i * 33_000_000)
+
+    def full(self: Any) -> None:  # fails before taking the frame off the queue
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(pcdcodec.RecordingWriter, "_drain_one", full)
+    with pytest.raises(OSError, match="No space left"):
+        rec.close()  # one try per queued frame, then the index: it ends
+    with pcdcodec.open(path) as back:
+        assert back.indexed
+        assert len(back) == 0
+
+
 def test_a_failed_replacement_keeps_the_old_file(tmp_path: Path, sample: RGBDSequence) -> None:
     path = tmp_path / "old.pcdc"
     with _open(path, sample) as rec:
