@@ -382,7 +382,8 @@ class RecordingWriter:
                 f"recording with depth_scale={float(depth_scale):g}"
             )
         color, depth = from_open3d_rgbd(rgbd, depth_scale=depth_scale)
-        self.write(color, depth, timestamp)
+        # An RGBDImage always carries color; a depth-only recording keeps its depth only.
+        self.write(color if self.color_codec is not None else None, depth, timestamp)
 
     def write_frames(
         self,
