@@ -175,6 +175,73 @@ def run(inputs: list[Path], out: Path, workers: int, segment_frames: int) -> dic
     }
 
 
+def _noop(i: int) -> int:
+    return i
+
+
+def scheduler_overhead(tasks: int = 2000) -> dict[str, Any]:
+    """Seconds per task of the scheduler and workers, for tasks that do nothing."""
+    import logging
+
+    from distributed import Client, LocalCluster, wait
+
+    with (
+        LocalCluster(
+            n_workers=1,
+            threads_per_worker=1,
+            processes=True,
+            silence_logs=logging.ERROR,
+            dashboard_address=None,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        wait(client.map(_noop, range(100), pure=False))  # warm up
+        start = time.perf_counter()
+        wait(client.map(_noop, range(tasks), pure=False))
+        seconds = time.perf_counter() - start
+    return {"tasks": tasks, "seconds": seconds, "ms_per_task": 1000 * seconds / tasks}
+
+
+def join_rate(work: Path) -> dict[str, Any]:
+    """MB/s of :func:`pcdcodec.recording.join` on the segments of the largest output."""
+    from pcdcodec.recording.join import join
+
+    outputs = sorted(work.glob("out-*/**/*.pcdc"), key=lambda p: p.stat().st_size)
+    if not outputs:
+        return {}
+    src = outputs[-1]
+    # The same frames eight times over, shifted in time, written as eight segments.
+    from pcdcodec.recording import open as open_recording
+
+    with open_recording(src) as rec:
+        span = int(rec.timestamps[-1]) + 1_000_000
+        frames = [(f.color, f.depth, f.timestamp_ns) for f in rec]
+        camera, scale, codecs = rec.intrinsics, rec.depth_scale, rec.codecs
+    parts = [work / f"join-part-{i}.pcdc" for i in range(8)]
+    for i, part in enumerate(parts):
+        with open_recording(
+            part,
+            "w",
+            intrinsics=camera,
+            depth_scale=scale,
+            color=codecs["color"],
+            depth=codecs["depth"],
+            overwrite=True,
+        ) as w:
+            for color, depth, t in frames:
+                w.write(color, depth, t + i * span)
+    total = sum(p.stat().st_size for p in parts)
+    start = time.perf_counter()
+    join(parts, work / "joined.pcdc", overwrite=True)
+    seconds = time.perf_counter() - start
+    return {
+        "parts": len(parts),
+        "bytes": total,
+        "seconds": seconds,
+        "mb_per_s": total / 1e6 / seconds,
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", type=Path, required=True, help="folder for inputs and outputs")
@@ -202,6 +269,10 @@ def main() -> None:
             r["input_frames"] = args.frames * 2 * factor
             results["memory"].append(r)
             print(json.dumps(r), flush=True)
+    results["scheduler"] = scheduler_overhead()
+    print(json.dumps(results["scheduler"]), flush=True)
+    results["join"] = join_rate(args.work)
+    print(json.dumps(results["join"]), flush=True)
     (args.work / "results.json").write_text(json.dumps(results, indent=2))
 
     print()

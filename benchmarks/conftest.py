@@ -30,6 +30,33 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
         return
     write = terminalreporter.write_line
 
+    sets: dict[tuple[str, str], dict[str, Any]] = defaultdict(dict)
+    for b in session.benchmarks:
+        info = b.extra_info
+        if info.get("kind") == "depthset" and b.stats is not None:
+            row = sets[(info["sequence"], info["codec"])]
+            row.update(info)
+            row[info["op"]] = b.stats.median * 1000
+    if sets:
+        write("")
+        write("depth test sets: ratio against raw uint16, median ms per frame, times / jpegxl's")
+        write(
+            f"| {'set':26} | {'codec':8} | {'ratio':>6} | {'encode ms':>9} "
+            f"| {'decode ms':>9} | {'enc/jxl':>7} | {'dec/jxl':>7} |"
+        )
+        write(f"|{'-' * 28}|{'-' * 10}|{'-' * 8}|{'-' * 11}|{'-' * 11}|{'-' * 9}|{'-' * 9}|")
+        for (sequence, codec), row in sorted(sets.items()):
+            jxl = sets.get((sequence, "jpegxl"), {})
+            cells = [f"{row[op]:9.2f}" if op in row else f"{'':9}" for op in ("encode", "decode")]
+            rel = [
+                f"{row[op] / jxl[op]:7.2f}" if op in row and jxl.get(op) else f"{'':7}"
+                for op in ("encode", "decode")
+            ]
+            write(
+                f"| {sequence:26} | {codec:8} | {row['ratio']:6.2f} | {cells[0]} "
+                f"| {cells[1]} | {rel[0]} | {rel[1]} |"
+            )
+
     projector: dict[str, dict[str, float]] = defaultdict(dict)
     for b in session.benchmarks:
         if b.extra_info.get("kind") == "projector" and b.stats is not None:

@@ -47,9 +47,14 @@ def cached(name: str) -> RGBDSequence:
     return _cache[name]
 
 
-def write(seq: RGBDSequence, path: Path) -> Path:
+def write(seq: RGBDSequence, path: Path, depth: str = "jpegxl") -> Path:
     with pcdcodec.open(
-        path, "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale, overwrite=True
+        path,
+        "w",
+        intrinsics=seq.intrinsics,
+        depth_scale=seq.depth_scale,
+        depth=depth,
+        overwrite=True,
     ) as rec:
         rec.write_frames(seq)
     return path
@@ -90,13 +95,18 @@ def play(path: Path) -> int:
     return points
 
 
+@pytest.mark.parametrize("depth", ["jpegxl", "depthac"])
 @pytest.mark.parametrize("name", PRESENT)
-def test_playback_with_point_clouds_one_core(benchmark: Any, tmp_path: Path, name: str) -> None:
+def test_playback_with_point_clouds_one_core(
+    benchmark: Any, tmp_path: Path, name: str, depth: str
+) -> None:
     seq = cached(name)
-    path = write(seq, tmp_path / "play.pcdc")
+    path = write(seq, tmp_path / "play.pcdc", depth)
     expected = sum(int((f.depth > 0).sum()) for f in seq)
     benchmark.group = "recording: decode + point cloud (tensor), one core"
-    benchmark.extra_info.update(kind="recording", op="play", sequence=name, frames=len(seq))
+    benchmark.extra_info.update(
+        kind="recording", op="play", sequence=name, frames=len(seq), depth=depth
+    )
     with one_core():
         points = benchmark.pedantic(play, args=(path,), rounds=3, iterations=1, warmup_rounds=1)
     assert points == expected

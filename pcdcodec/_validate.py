@@ -63,9 +63,14 @@ def check_depth(
 
 
 def check_color(
-    color: Any, shape: tuple[int, int] | None = None, *, name: str = "color"
+    color: Any,
+    shape: tuple[int, int] | None = None,
+    *,
+    name: str = "color",
+    expected: str = "the depth size",
 ) -> npt.NDArray[np.uint8]:
-    """Validate an 8-bit RGB image (H × W × 3 uint8), optionally of the given (height, width)."""
+    """Validate an 8-bit RGB image (H × W × 3 uint8), optionally of the given (height, width);
+    ``expected`` says in an error what that size is."""
     arr = color if isinstance(color, np.ndarray) else np.asarray(color)
     if arr.dtype != np.uint8:
         raise InputTypeError(f"{name} must be uint8, got {arr.dtype}")
@@ -80,7 +85,7 @@ def check_color(
         raise InputError(f"{name} must not be empty, got shape {arr.shape}")
     if shape is not None and arr.shape[:2] != tuple(shape):
         raise InputError(
-            f"{name} size {arr.shape[1]}x{arr.shape[0]} differs from the depth size "
+            f"{name} size {arr.shape[1]}x{arr.shape[0]} differs from {expected} "
             f"{shape[1]}x{shape[0]} (width x height)"
         )
     return np.ascontiguousarray(arr)

@@ -345,12 +345,15 @@ def _encode_segment(
         with open_source(src, **options) as source:
             frames = source.frames(start, stop)
             meta = dict(source.metadata)
+            opts = dict(writer_options)
+            if not source.has_color:
+                opts["color"] = None  # a depth-only input gives a depth-only recording
             with RecordingWriter(
                 tmp,
                 intrinsics=source.intrinsics,
                 depth_scale=source.depth_scale,
                 metadata=meta,
-                **writer_options,
+                **opts,
             ) as writer:
                 count = writer.write_frames(frames)
         if count == 0:
@@ -435,8 +438,10 @@ def _verify(
                     f"{name}: frame {n} is at {frame.timestamp_ns} ns, the source's at "
                     f"{original.timestamp_ns} ns"
                 )
+            # Float depth (metres) marks no measurement with NaN, which equals itself here.
+            floats = frame.depth.dtype.kind == "f"
             if frame.depth.dtype != original.depth.dtype or not np.array_equal(
-                frame.depth, original.depth
+                frame.depth, original.depth, equal_nan=floats
             ):
                 raise VerificationError(f"{name}: frame {n} depth differs from the source")
             if colors is not None and _digest(frame.color) != colors[n]:

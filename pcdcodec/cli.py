@@ -146,6 +146,14 @@ def _add_topic_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--color-topic", help="color topic ('' for depth only)")
     g.add_argument("--info-topic", help="CameraInfo topic")
     g.add_argument("--cloud-topic", help="organized PointCloud2 topic (read instead of images)")
+    g.add_argument(
+        "--passthrough",
+        nargs="?",
+        const=True,
+        default=False,
+        metavar="TOPIC",
+        help="record the bag's h264/h265 video packets as they are (CompressedVideo, FFMPEGPacket)",
+    )
 
 
 def _mib(n: float) -> str:
@@ -268,6 +276,7 @@ def _cmd_encode(args: argparse.Namespace) -> int:
                 fps=args.fps,
                 overwrite=args.overwrite,
                 progress=bar.update,
+                passthrough=args.passthrough,
             )
         # encode() put the camera and scale it recorded into the source.
         used_camera, used_scale = source.intrinsics, source.depth_scale
@@ -339,6 +348,8 @@ def _info(rec: Any) -> dict[str, Any]:
         "size_bytes": size,
         "bytes_per_frame": round(size / len(rec)) if len(rec) else None,
         "intrinsics": rec.intrinsics.to_dict(),
+        "color_intrinsics": rec.color_intrinsics.to_dict() if rec.color_intrinsics else None,
+        "depth_to_color": rec.depth_to_color.tolist() if rec.depth_to_color is not None else None,
         "depth_scale": rec.depth_scale,
         "codecs": rec.codecs,
         "indexed": rec.indexed,
@@ -404,6 +415,21 @@ def _cmd_info(args: argparse.Namespace) -> int:
         f"  camera     {cam['width']}x{cam['height']}, fx={cam['fx']} fy={cam['fy']} "
         f"cx={cam['cx']} cy={cam['cy']}, depth scale {info['depth_scale']} per metre"
     )
+    if cam.get("distortion_model"):
+        print(f"             lens {cam['distortion_model']} {cam['distortion']}")
+    color_cam = info.get("color_intrinsics")
+    if color_cam:
+        t = [round(v[3] * 1000, 2) for v in info["depth_to_color"][:3]]
+        print(
+            f"  color cam  {color_cam['width']}x{color_cam['height']}, fx={color_cam['fx']} "
+            f"fy={color_cam['fy']} cx={color_cam['cx']} cy={color_cam['cy']}"
+            + (
+                f", lens {color_cam['distortion_model']}"
+                if color_cam.get("distortion_model")
+                else ""
+            )
+            + f"; depth-to-color translation {t} mm"
+        )
     print(f"  color      {json.dumps(info['codecs']['color'])}")
     print(f"  depth      {json.dumps(info['codecs']['depth'])}")
     stamps = info["metadata"].get("timestamps", "")
@@ -578,8 +604,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=None, help="use only the first N frames")
     p.set_defaults(func=_cmd_demo)
 
-    p = sub.add_parser("encode", help="encode any input: RGB-D folder, ROS 1 or ROS 2 bag, ...")
-    p.add_argument("src", help="an RGB-D folder, a ROS 1 bag, a ROS 2 bag folder or file, ...")
+    p = sub.add_parser(
+        "encode",
+        help="encode any input: RGB-D folder, ROS 1/2 bag, RealSense .bag, Azure Kinect .mkv",
+    )
+    p.add_argument(
+        "src",
+        help="an RGB-D folder, a ROS 1 bag, a ROS 2 bag folder or file, a RealSense .bag, an "
+        "Azure Kinect .mkv, ...",
+    )
     p.add_argument("-o", "--output", required=True, help="the .pcdc file to write")
     p.add_argument(
         "--color", default=DEFAULT_COLOR_CODEC, help="color codec, e.g. h264 or h264:crf=20"

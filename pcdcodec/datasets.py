@@ -246,6 +246,8 @@ class FolderSource(Source):
     intrinsics: CameraIntrinsics | None
     depth_scale: float
     metadata: dict[str, str] = field(default_factory=dict)
+    #: Camera-to-world pose per pair (TUM groundtruth.txt, 7-Scenes pose/), or None.
+    poses: list[npt.NDArray[np.float64] | None] | None = None
     #: Where :attr:`depth_scale` came from: ``"given"``, ``"camera.json"`` or
     #: ``"TUM RGB-D dataset"``.
     depth_scale_origin: str = "given"
@@ -269,7 +271,10 @@ class FolderSource(Source):
 
             projector = Projector(self.intrinsics, self.depth_scale)
         for i, (t, c, d) in enumerate(self.pairs[start:stop], start):
-            frame = RGBDFrame(_read_color(c), _read_depth(d), t, index=i, projector=projector)
+            pose = None if self.poses is None else self.poses[i]
+            frame = RGBDFrame(
+                _read_color(c), _read_depth(d), t, index=i, pose=pose, projector=projector
+            )
             assert frame.color is not None
             if frame.color.shape[:2] != frame.depth.shape:
                 raise InputError(
@@ -355,8 +360,11 @@ def open_folder(
         intrinsics = CameraIntrinsics.from_dict({k: meta[k] for k in keys if k in meta})
     scale, origin = _depth_scale(root, depth_scale, meta)
     intrinsics, camera_from = _folder_camera(root, intrinsics, pairs)
-    source = FolderSource(root, pairs, intrinsics, scale, depth_scale_origin=origin)
     is_tum_pairs = layout == "tum" or (layout == "auto" and is_tum)
+    from .sources.poses import folder_poses
+
+    poses = folder_poses(root, pairs, tum=is_tum_pairs)
+    source = FolderSource(root, pairs, intrinsics, scale, poses=poses, depth_scale_origin=origin)
     source.metadata["timestamps"] = _timestamp_note(root, is_tum_pairs, pairs, fps)
     if camera_from and camera_from != "given":
         source.metadata["intrinsics_file"] = Path(camera_from).name

@@ -152,6 +152,37 @@ class Evaluation:
             "peers": self.peers,
         }
 
+    def recommend(self) -> dict[str, dict[str, str]]:
+        """The best codec of each kind on this data: by ratio and by speed (encode plus decode
+        ms per frame). Depth considers codecs that gave the depth back exactly; color gives
+        the best lossy codec (with its PSNR) and, where measured, the best lossless one."""
+        out: dict[str, dict[str, str]] = {}
+        exact = [d for d in self.depth if d.exact]
+        if exact:
+            best = max(exact, key=lambda d: d.ratio_uint16)
+            fast = min(exact, key=lambda d: d.encode_ms + d.decode_ms)
+            out["depth"] = {
+                "by ratio": f"{_label(best.config)} ({best.ratio_uint16:.2f}x, "
+                f"{best.encode_ms + best.decode_ms:.1f} ms)",
+                "by speed": f"{_label(fast.config)} ({fast.encode_ms + fast.decode_ms:.1f} ms, "
+                f"{fast.ratio_uint16:.2f}x)",
+            }
+        for name, rows in (
+            ("color", [c for c in self.color if not c.lossless]),
+            ("lossless color", [c for c in self.color if c.lossless]),
+        ):
+            if not rows:
+                continue
+            best_c = max(rows, key=lambda c: c.ratio_rgb24)
+            fast_c = min(rows, key=lambda c: c.encode_ms + c.decode_ms)
+            out[name] = {
+                "by ratio": f"{_label(best_c.config)} ({best_c.ratio_rgb24:.1f}x"
+                + (", exact)" if best_c.lossless else f", PSNR {_db(best_c.psnr)} dB)"),
+                "by speed": f"{_label(fast_c.config)} "
+                f"({fast_c.encode_ms + fast_c.decode_ms:.1f} ms, {fast_c.ratio_rgb24:.1f}x)",
+            }
+        return out
+
     def to_markdown(self) -> str:
         """The report: the paper's four tables, per codec, measured on this sequence."""
         kib = 1024.0
@@ -182,23 +213,43 @@ class Evaluation:
                 )
             lines.append("")
         if self.depth:
+            # Error columns are zero by construction when every codec is exact: say it once.
+            errors = any(not d.exact for d in self.depth)
+            f32_input = any(d.ratio_float32_input for d in self.depth)
+            head = "| codec | KiB/frame | ratio vs uint16 |"
+            if f32_input:
+                head += " float32 input |"
+            head += " encode ms | decode ms |"
+            if errors:
+                head += " exact | RMSE mm (edge / interior) | cloud RMSE mm |"
             lines += [
                 "## Table II: depth codecs",
                 "",
-                "| codec | KiB/frame | ratio vs uint16 | ratio vs float32 | float32 input | "
-                "encode ms | decode ms | exact | RMSE mm (edge / interior) | cloud RMSE mm |",
-                "|---|---|---|---|---|---|---|---|---|---|",
+                head,
+                "|" + "---|" * head.count(" |"),
             ]
             for d in self.depth:
-                f32 = f"{d.ratio_float32_input:.2f}" if d.ratio_float32_input else "-"
-                lines.append(
-                    f"| {_label(d.config)} | {d.bytes_per_frame / kib:.1f} | "
-                    f"{d.ratio_uint16:.2f} | {d.ratio_float32:.2f} | {f32} | "
-                    f"{d.encode_ms:.2f} | {d.decode_ms:.2f} | {'yes' if d.exact else 'no'} | "
-                    f"{1000 * d.rmse_m:.3f} ({1000 * d.edge_rmse_m:.3f} / "
-                    f"{1000 * d.interior_rmse_m:.3f}) | {1000 * d.cloud_rmse_m:.3f} |"
+                row = (
+                    f"| {_label(d.config)} | {d.bytes_per_frame / kib:.1f} | {d.ratio_uint16:.2f} |"
                 )
+                if f32_input:
+                    f32 = f"{d.ratio_float32_input:.2f}" if d.ratio_float32_input else "-"
+                    row += f" {f32} |"
+                row += f" {d.encode_ms:.2f} | {d.decode_ms:.2f} |"
+                if errors:
+                    row += (
+                        f" {'yes' if d.exact else 'no'} | {1000 * d.rmse_m:.3f} "
+                        f"({1000 * d.edge_rmse_m:.3f} / {1000 * d.interior_rmse_m:.3f}) | "
+                        f"{1000 * d.cloud_rmse_m:.3f} |"
+                    )
+                lines.append(row)
             lines.append("")
+            notes = ["Against float32 depth (metres) every ratio doubles."]
+            if not errors:
+                notes.append(
+                    "Every depth codec gave the depth back bit-exact: depth and point errors are 0."
+                )
+            lines += [" ".join(notes), ""]
         for title, rows in (
             ("Table III: whole stream, lossy color", [s for s in self.streams if not s.lossless]),
             ("Table IV: whole stream, fully lossless", [s for s in self.streams if s.lossless]),
@@ -226,6 +277,14 @@ class Evaluation:
                     f"{float(p.get('bytes_per_frame', 0)) / kib:.1f} | "
                     f"{float(p.get('encode_ms', 0)):.2f} | {float(p.get('decode_ms', 0)):.2f} | "
                     f"{p.get('notes', '')} |"
+                )
+            lines.append("")
+        recommendation = self.recommend()
+        if recommendation:
+            lines += ["## Recommendation for this data", ""]
+            for kind, picks in recommendation.items():
+                lines.append(
+                    f"- {kind}: by ratio {picks['by ratio']}; by speed {picks['by speed']}"
                 )
             lines.append("")
         return "\n".join(lines)

@@ -135,6 +135,10 @@ class Frame:
     def to_open3d_rgbd(self, tensor: bool = False, *, depth_scale: float | None = None) -> Any:
         """The frame as an Open3D RGBDImage.
 
+        With a color camera apart from depth (a projector with ``color_intrinsics``), the
+        image is the depth camera's and each depth pixel takes the color of its point
+        (:meth:`Projector.color_for_depth`).
+
         Legacy (``tensor=False``): an ``open3d.geometry.RGBDImage`` with depth in float32
         metres and 8-bit RGB color, as ``create_from_color_and_depth(...,
         convert_rgb_to_intensity=False)`` makes it. Tensor (``tensor=True``): an
@@ -144,9 +148,24 @@ class Frame:
         projector's; it is needed for the legacy image and for uint16 depth.
         """
         scale = depth_scale
-        if scale is None and self.projector is not None:
-            scale = self.projector.depth_scale
-        return open3d_rgbd(self.color, self.depth, scale, tensor=tensor)
+        color = self.color
+        if self.projector is not None:
+            if scale is None:
+                scale = self.projector.depth_scale
+            if color is not None and self.projector.color_intrinsics is not None:
+                # Two cameras: the image is the depth camera's, each pixel colored by its point.
+                color = self.projector.color_for_depth(self.depth, color)
+        return open3d_rgbd(color, self.depth, scale, tensor=tensor)
+
+    def registered_depth(
+        self, *, footprint: bool = False, projector: Projector | None = None
+    ) -> npt.NDArray[Any]:
+        """Depth registered to the color image, of the color camera's size, in the depth's
+        dtype (see :meth:`Projector.register_depth`)."""
+        dtype = "float32" if self.depth.dtype == np.float32 else "uint16"
+        return self._projector(projector).register_depth(
+            self.depth, dtype=dtype, footprint=footprint
+        )
 
     @classmethod
     def from_open3d_rgbd(

@@ -10,8 +10,14 @@ The camera frame is Open3D's and OpenCV's: x to the right, y down, z forward, in
     z = d / depth_scale,    x = (u - cx) * z / fx,    y = (v - cy) * z / fy
 
 The per-pixel factors ``(u - cx) / fx`` and ``(v - cy) / fy`` are computed once per projector,
-so a frame costs a few vectorised numpy passes. Open3D is imported only by the methods that
-return or accept Open3D objects.
+so a frame costs a few vectorised numpy passes. A camera with lens distortion gets the
+undistorted factors of each pixel instead (see :meth:`CameraIntrinsics.rays`).
+
+Depth and color may come from two cameras (RealSense, Azure Kinect): give the projector the
+color camera's intrinsics and the rigid ``depth_to_color`` transform, and each point takes the
+color of the pixel it projects to in the color image, distortion included.
+:meth:`Projector.register_depth` makes depth registered to the color image. Open3D is imported
+only by the methods that return or accept Open3D objects.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from ._validate import check_color, check_depth
 from .camera import CameraIntrinsics
 from .errors import InputError, InputTypeError
 from .frame import open3d_rgbd_kind
+from .transform import as_rigid
 
 __all__ = ["Projector", "Reprojection"]
 
@@ -97,18 +104,29 @@ class Projector:
     pixel) and, per thread that uses it, scratch buffers of up to 54 bytes per pixel (16 MB at
     640 × 480), so that repeated calls do not allocate and page-fault fresh temporaries.
 
+    ``color_intrinsics`` and ``depth_to_color`` (keyword-only) describe a color camera apart
+    from the depth camera: its intrinsics (with its own size and distortion) and the rigid 4 × 4
+    transform taking points from the depth camera's frame into the color camera's frame
+    (metres). Color images are then of the color camera's size, and each point takes the color
+    of the color pixel nearest to its projection (black where it falls outside the color image
+    or behind the color camera). Without them, color is registered to depth, pixel for pixel.
+
     Raises :class:`~pcdcodec.InputTypeError` when ``intrinsics`` is not a
     :class:`~pcdcodec.CameraIntrinsics` or a number is not a number, and
-    :class:`~pcdcodec.InputError` when ``depth_scale`` is not positive and finite or
-    ``depth_trunc`` is not positive.
+    :class:`~pcdcodec.InputError` when ``depth_scale`` is not positive and finite,
+    ``depth_trunc`` is not positive, or ``depth_to_color`` is not a rigid transform, comes
+    without ``color_intrinsics``, or moves the camera more than 5 m (not metres, likely).
     """
 
     __slots__ = (
+        "_color",
+        "_d2c",
         "_depth_scale",
         "_depth_trunc",
         "_f32_max",
         "_intrinsics",
         "_local",
+        "_ray_ok",
         "_ray_x",
         "_ray_y",
         "_u16_lut",
@@ -120,6 +138,9 @@ class Projector:
         intrinsics: CameraIntrinsics,
         depth_scale: float = 1000.0,
         depth_trunc: float | None = None,
+        *,
+        color_intrinsics: CameraIntrinsics | None = None,
+        depth_to_color: Any = None,
     ) -> None:
         if not isinstance(intrinsics, CameraIntrinsics):
             raise InputTypeError(
@@ -127,15 +148,29 @@ class Projector:
                 " (CameraIntrinsics.from_open3d converts an Open3D PinholeCameraIntrinsic)"
             )
         self._intrinsics = intrinsics
+        self._color, self._d2c = check_color_camera(color_intrinsics, depth_to_color)
         self._depth_scale = _positive(depth_scale, "depth_scale", finite=True)
         trunc = None if depth_trunc is None else _positive(depth_trunc, "depth_trunc", finite=False)
         self._depth_trunc = None if trunc == math.inf else trunc
         h, w = intrinsics.shape
-        rx = ((np.arange(w, dtype=np.float64) - intrinsics.cx) / intrinsics.fx).astype(np.float32)
-        ry = ((np.arange(h, dtype=np.float64) - intrinsics.cy) / intrinsics.fy).astype(np.float32)
-        # Flat H*W factors, so a gather by flat pixel index needs no index arithmetic.
-        self._ray_x: npt.NDArray[np.float32] = np.tile(rx, h)
-        self._ray_y: npt.NDArray[np.float32] = np.repeat(ry, w)
+        self._ray_ok: npt.NDArray[np.bool_] | None = None
+        if intrinsics.has_distortion:
+            rx2, ry2 = intrinsics.rays()
+            ok = np.isfinite(rx2) & np.isfinite(ry2)
+            self._ray_x = np.where(ok, rx2, 0.0).astype(np.float32).reshape(-1)
+            self._ray_y = np.where(ok, ry2, 0.0).astype(np.float32).reshape(-1)
+            if not ok.all():
+                self._ray_ok = ok.reshape(-1)
+        else:
+            rx = ((np.arange(w, dtype=np.float64) - intrinsics.cx) / intrinsics.fx).astype(
+                np.float32
+            )
+            ry = ((np.arange(h, dtype=np.float64) - intrinsics.cy) / intrinsics.fy).astype(
+                np.float32
+            )
+            # Flat H*W factors, so a gather by flat pixel index needs no index arithmetic.
+            self._ray_x = np.tile(rx, h)
+            self._ray_y = np.repeat(ry, w)
         # The largest float32 that is <= depth_trunc: comparing float32 metres with it in
         # float32 gives the same answer as comparing them with depth_trunc exactly.
         self._f32_max = _F32_MAX
@@ -169,14 +204,37 @@ class Projector:
         """Points farther than this many metres are dropped; ``None`` keeps all."""
         return self._depth_trunc
 
+    @property
+    def color_intrinsics(self) -> CameraIntrinsics | None:
+        """The color camera, or ``None`` when color is registered to depth."""
+        return self._color
+
+    @property
+    def depth_to_color(self) -> npt.NDArray[np.float64] | None:
+        """The rigid transform from the depth to the color camera frame (a copy), or ``None``."""
+        return None if self._d2c is None else self._d2c.copy()
+
+    @property
+    def color_shape(self) -> tuple[int, int]:
+        """``(height, width)`` of the color images this projector takes."""
+        return (self._color or self._intrinsics).shape
+
     def __repr__(self) -> str:
+        extra = ""
+        if self._color is not None:
+            extra = f", color_intrinsics={self._color!r}, depth_to_color=<4x4>"
         return (
             f"Projector({self._intrinsics!r}, depth_scale={self._depth_scale!r}, "
-            f"depth_trunc={self._depth_trunc!r})"
+            f"depth_trunc={self._depth_trunc!r}{extra})"
         )
 
     def __reduce__(self) -> tuple[Any, ...]:
         # Scratch buffers and thread-locals are rebuilt, not pickled.
+        if self._color is not None:
+            return (
+                _rebuild,
+                (self._intrinsics, self._depth_scale, self._depth_trunc, self._color, self._d2c),
+            )
         return (type(self), (self._intrinsics, self._depth_scale, self._depth_trunc))
 
     # -- depth to points ---------------------------------------------------------------
@@ -206,7 +264,7 @@ class Projector:
         self._fill_xyz(points, idx, z)
         colors = None
         if color3 is not None:
-            colors = _gather(color3.reshape(-1, 3), idx, np.empty((idx.size, 3), np.uint8))
+            colors = self._point_colors(points, idx, color3, np.empty((idx.size, 3), np.uint8))
         return points, colors
 
     def to_organized(self, depth: Any) -> npt.NDArray[np.float32]:
@@ -229,6 +287,8 @@ class Projector:
                 bad &= z <= self._f32_max
             np.logical_not(bad, out=bad)
             z[bad] = np.nan
+        if self._ray_ok is not None:
+            z[~self._ray_ok] = np.nan
         out = np.empty((*depth2d.shape, 3), dtype=np.float32)
         rows = out.reshape(-1, 3)
         np.multiply(self._ray_x, z, out=rows[:, 0])
@@ -270,7 +330,7 @@ class Projector:
             self._fill_xyz(positions, idx, z)
             pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor.from_numpy(positions))
             if color3 is not None:
-                rgb = _gather(color3.reshape(-1, 3), idx, self._rgb_buf()[:n])
+                rgb = self._point_colors(positions, idx, color3, self._rgb_buf()[:n])
                 colors = np.divide(rgb, np.float32(255.0), dtype=np.float32)
                 pcd.point.colors = o3d.core.Tensor.from_numpy(colors)
             return pcd
@@ -287,7 +347,7 @@ class Projector:
         if color3 is not None:
             # Let Open3D size the color vector, then fill it in place: saves a copy.
             legacy.paint_uniform_color((0.0, 0.0, 0.0))
-            rgb = _gather(color3.reshape(-1, 3), idx, self._rgb_buf()[:n])
+            rgb = self._point_colors(points32, idx, color3, self._rgb_buf()[:n])
             np.divide(rgb, 255.0, out=np.asarray(legacy.colors))
         return legacy
 
@@ -349,6 +409,147 @@ class Projector:
                 )
         return self._rgbd_unorganized(pts, rows, out_dtype)
 
+    # -- two cameras -------------------------------------------------------------------
+
+    def register_depth(
+        self,
+        depth: Any,
+        *,
+        dtype: Any = "uint16",
+        footprint: bool = False,
+        values: str = "color",
+    ) -> npt.NDArray[Any]:
+        """Depth registered to the color image: what the color camera would see as depth.
+
+        Each valid depth pixel is back-projected, moved into the color camera's frame with
+        ``depth_to_color`` and projected with the color camera's intrinsics and distortion; a
+        color pixel keeps the nearest point that lands on it. The value is the point's ``z`` in
+        the color camera's frame, in depth units (``dtype`` ``"uint16"``: rounded, 0 = none;
+        ``"float32"``: NaN = none). With ``footprint=True`` each depth pixel covers the color
+        pixels between the projections of its top-left and bottom-right corners, as
+        librealsense's align does, which leaves no holes where the color image is finer than
+        the depth image; the default puts each point on its nearest pixel only, as Open3D's
+        ``PointCloud.project_to_depth_image`` does. ``values="depth"`` keeps each point's
+        depth as the depth camera measured it (librealsense's choice) instead of its ``z`` in
+        the color camera's frame; nearer still means smaller value.
+
+        Without a color camera (registered input) this is the depth itself, converted to
+        ``dtype``. Raises as :meth:`to_points`.
+        """
+        out_dtype = _output_dtype(dtype)
+        if values not in ("color", "depth"):
+            raise InputError(f"values must be 'color' or 'depth', got {values!r}")
+        depth2d, scale, _ = self._inputs(depth, None)
+        if self._color is None or self._d2c is None:
+            return self._rgbd_organized(self.to_organized(depth), None, out_dtype).depth
+        idx, z = self._valid(depth2d, scale)
+        color = self._color
+        ch, cw = color.shape
+        empty: Any = 65536 if out_dtype == np.uint16 else np.inf
+        best = np.full(ch * cw, empty, dtype=np.int32 if out_dtype == np.uint16 else np.float32)
+        if idx.size == 0:
+            return self._finish_registered(best, empty, out_dtype)
+        rot, trans = self._d2c[:3, :3], self._d2c[:3, 3]
+        z64 = z.astype(np.float64)
+        if not footprint:
+            rx = self._ray_x[idx].astype(np.float64)
+            ry = self._ray_y[idx].astype(np.float64)
+            pts = np.stack([rx * z64, ry * z64, z64], axis=1) @ rot.T + trans
+            u, v, front = color.project(pts)
+            zz, fits = self._depth_values(pts[:, 2] if values == "color" else z64, out_dtype)
+            with np.errstate(invalid="ignore"):
+                ui = np.floor(u + 0.5)
+                vi = np.floor(v + 0.5)
+                ok = front & fits & (ui >= 0) & (ui < cw) & (vi >= 0) & (vi < ch)
+            pixel = vi[ok].astype(np.intp) * cw + ui[ok].astype(np.intp)
+            np.minimum.at(best, pixel, zz[ok].astype(best.dtype, copy=False))
+            return self._finish_registered(best, empty, out_dtype)
+        # Footprint: project the two corners of each depth pixel, fill the rectangle between.
+        intr = self._intrinsics
+        w = intr.width
+        du = (idx % w).astype(np.float64)
+        dv = (idx // w).astype(np.float64)
+        corners = []
+        for off in (-0.5, 0.5):
+            x, y = intr.undistort((du + off - intr.cx) / intr.fx, (dv + off - intr.cy) / intr.fy)
+            pts = np.stack([x * z64, y * z64, z64], axis=1) @ rot.T + trans
+            u, v, front = color.project(pts)
+            with np.errstate(invalid="ignore"):
+                # Truncation toward zero, as librealsense casts: -0.4 still lands on pixel 0.
+                corners.append((np.trunc(u + 0.5), np.trunc(v + 0.5), front))
+        (u0, v0, f0), (u1, v1, f1) = corners
+        centre = np.stack([self._ray_x[idx] * z64, self._ray_y[idx] * z64, z64], axis=1)
+        zc = (centre @ rot.T + trans)[:, 2] if values == "color" else z64
+        zz, fits = self._depth_values(zc, out_dtype)
+        with np.errstate(invalid="ignore"):
+            x0, x1 = np.minimum(u0, u1), np.maximum(u0, u1)
+            y0, y1 = np.minimum(v0, v1), np.maximum(v0, v1)
+            ok = f0 & f1 & fits & (x0 >= 0) & (y0 >= 0) & (x1 < cw) & (y1 < ch)
+            # A footprint larger than 8 pixels is an edge between distant surfaces: skip it.
+            ok &= (x1 - x0 < 8) & (y1 - y0 < 8)
+        sel = np.flatnonzero(ok)
+        x0i, x1i = x0[sel].astype(np.intp), x1[sel].astype(np.intp)
+        y0i, y1i = y0[sel].astype(np.intp), y1[sel].astype(np.intp)
+        vals = zz[sel].astype(best.dtype, copy=False)
+        span_x = int((x1i - x0i).max(initial=0)) + 1
+        span_y = int((y1i - y0i).max(initial=0)) + 1
+        for dy in range(span_y):
+            for dx in range(span_x):
+                m = (x0i + dx <= x1i) & (y0i + dy <= y1i)
+                pixel = (y0i[m] + dy) * cw + (x0i[m] + dx)
+                np.minimum.at(best, pixel, vals[m])
+        return self._finish_registered(best, empty, out_dtype)
+
+    def color_for_depth(self, depth: Any, color: Any) -> npt.NDArray[np.uint8]:
+        """An H × W × 3 color image aligned with the depth image: each depth pixel with valid
+        depth takes the color its point has in :meth:`to_points`; other pixels are black.
+
+        For registered input this is ``color`` itself (a copy). Raises as :meth:`to_points`.
+        """
+        depth2d, scale, color3 = self._inputs(depth, color)
+        assert color3 is not None
+        if self._color is None:
+            return np.array(color3, dtype=np.uint8, copy=True)
+        idx, z = self._valid(depth2d, scale)
+        points = np.empty((idx.size, 3), dtype=np.float32)
+        self._fill_xyz(points, idx, z)
+        out = np.zeros((depth2d.size, 3), dtype=np.uint8)
+        out[idx] = self._point_colors(points, idx, color3, np.empty((idx.size, 3), np.uint8))
+        return out.reshape(*depth2d.shape, 3)
+
+    def _point_colors(
+        self,
+        points: npt.NDArray[np.float32],
+        idx: npt.NDArray[np.intp],
+        color3: npt.NDArray[np.uint8],
+        out: npt.NDArray[np.uint8],
+    ) -> npt.NDArray[np.uint8]:
+        """The colors of the points of the depth pixels ``idx`` (N × 3 in ``out``)."""
+        if self._color is None or self._d2c is None:
+            return _gather(color3.reshape(-1, 3), idx, out)
+        color = self._color
+        ch, cw = color.shape
+        pts = points.astype(np.float64) @ self._d2c[:3, :3].T + self._d2c[:3, 3]
+        u, v, front = color.project(pts)
+        with np.errstate(invalid="ignore"):
+            ui = np.floor(u + 0.5)
+            vi = np.floor(v + 0.5)
+            inside = front & (ui >= 0) & (ui < cw) & (vi >= 0) & (vi < ch)
+        out[...] = 0
+        pixel = vi[inside].astype(np.intp) * cw + ui[inside].astype(np.intp)
+        out[inside] = color3.reshape(-1, 3)[pixel]
+        return out
+
+    def _finish_registered(
+        self, best: npt.NDArray[Any], empty: Any, out_dtype: np.dtype[Any]
+    ) -> npt.NDArray[Any]:
+        ch, cw = self.color_shape
+        filled = best != empty
+        if out_dtype == np.uint16:
+            return np.where(filled, best, 0).astype(np.uint16).reshape(ch, cw)
+        best[~filled] = np.nan
+        return best.reshape(ch, cw)
+
     # -- internals ---------------------------------------------------------------------
 
     def to_rgbd(self, points: Any, colors: Any = None, dtype: Any = "uint16") -> Reprojection:
@@ -391,7 +592,8 @@ class Projector:
                 f"depth size {depth.shape[1]}x{depth.shape[0]} differs from the intrinsics size "
                 f"{w}x{h} (width x height)"
             )
-        color3 = None if color is None else check_color(color, (h, w))
+        what = "the depth size" if self._color is None else "the color camera's size"
+        color3 = None if color is None else check_color(color, self.color_shape, expected=what)
         return depth, scale, color3
 
     def _metres(self, flat: npt.NDArray[Any], scale: float, out: npt.NDArray[np.float32]) -> None:
@@ -413,6 +615,8 @@ class Projector:
             np.not_equal(flat, 0, out=mask)
             if self._u16_max < 65535:
                 mask &= flat <= self._u16_max
+            if self._ray_ok is not None:
+                mask &= self._ray_ok
             idx = np.flatnonzero(mask)
             n = idx.size
             values = _gather(flat, idx, self._buf("u16", flat.shape, np.uint16)[:n])
@@ -432,6 +636,8 @@ class Projector:
         with np.errstate(invalid="ignore"):
             np.greater(metres, 0, out=mask)
             mask &= metres <= self._f32_max
+        if self._ray_ok is not None:
+            mask &= self._ray_ok
         idx = np.flatnonzero(mask)
         return idx, _gather(metres, idx, z_buf[: idx.size])
 
@@ -497,8 +703,13 @@ class Projector:
             front = np.isfinite(x) & np.isfinite(y) & (z > 0) & (z < math.inf)
             keep = np.flatnonzero(front)
             x, y, z = x[keep], y[keep], z[keep]
-            u = np.floor(x * intr.fx / z + (intr.cx + 0.5))
-            v = np.floor(y * intr.fy / z + (intr.cy + 0.5))
+            if intr.has_distortion:
+                xd, yd = intr.distort(x / z, y / z)
+                u = np.floor(xd * intr.fx + (intr.cx + 0.5))
+                v = np.floor(yd * intr.fy + (intr.cy + 0.5))
+            else:
+                u = np.floor(x * intr.fx / z + (intr.cx + 0.5))
+                v = np.floor(y * intr.fy / z + (intr.cy + 0.5))
             inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
         n_front = keep.size
         sel = np.flatnonzero(inside)
@@ -549,6 +760,51 @@ class Projector:
             out_of_range=n_inside - n_fits,
             hidden=n_fits - n_filled,
         )
+
+
+#: The largest distance (metres) between a depth and a color camera that is taken as metres.
+MAX_BASELINE = 5.0
+
+
+def check_color_camera(
+    color_intrinsics: Any, depth_to_color: Any
+) -> tuple[CameraIntrinsics | None, npt.NDArray[np.float64] | None]:
+    """Validated ``(color_intrinsics, depth_to_color)`` of a second camera, or ``(None, None)``.
+
+    ``depth_to_color`` defaults to the identity when only ``color_intrinsics`` is given (a
+    color camera at the depth camera's centre, of another size or lens). Raises
+    :class:`~pcdcodec.InputError` for a transform without color intrinsics, a transform that
+    is not rigid, or a translation longer than :data:`MAX_BASELINE` (millimetres given as
+    metres, most likely).
+    """
+    if color_intrinsics is None:
+        if depth_to_color is not None:
+            raise InputError(
+                "depth_to_color was given without color_intrinsics: the transform needs the "
+                "color camera it leads to"
+            )
+        return None, None
+    if not isinstance(color_intrinsics, CameraIntrinsics):
+        raise InputTypeError(
+            "color_intrinsics must be a pcdcodec.CameraIntrinsics, got "
+            f"{type(color_intrinsics).__name__}"
+        )
+    d2c = np.eye(4) if depth_to_color is None else as_rigid(depth_to_color, "depth_to_color")
+    baseline = float(np.linalg.norm(d2c[:3, 3]))
+    if baseline > MAX_BASELINE:
+        raise InputError(
+            f"depth_to_color moves the camera by {baseline:.4g} m; expected a translation in "
+            f"metres of at most {MAX_BASELINE} m between the depth and color cameras "
+            "(was it given in millimetres?)"
+        )
+    return color_intrinsics, d2c
+
+
+def _rebuild(*args: Any) -> Projector:
+    intrinsics, depth_scale, depth_trunc, color, d2c = args
+    return Projector(
+        intrinsics, depth_scale, depth_trunc, color_intrinsics=color, depth_to_color=d2c
+    )
 
 
 def _gather(

@@ -206,7 +206,12 @@ def test_camera_info_bad_values() -> None:
         CameraIntrinsics.from_camera_info(info)
     info = TUM.to_camera_info()
     info["D"] = [0.1, 0.0, 0.0, 0.0, 0.0]
-    with pytest.raises(InputError, match=r"distortion D=\[0\.1, 0\.0"):
+    info["distortion_model"] = "mystery_lens"
+    with pytest.raises(InputError, match=r"distortion D=\[0\.1, 0\.0.*'mystery_lens'"):
+        CameraIntrinsics.from_camera_info(info)
+    info["distortion_model"] = "plumb_bob"
+    info["D"] = [0.1, 0.2]
+    with pytest.raises(InputError, match="'plumb_bob' takes 5 coefficients, got 2"):
         CameraIntrinsics.from_camera_info(info)
     with pytest.raises(InputTypeError, match="must be a mapping, got list"):
         CameraIntrinsics.from_camera_info([1, 2, 3])  # type: ignore[arg-type]

@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -177,3 +178,49 @@ def test_peer_rows(tiny: RGBDSequence) -> None:
     # The peer RVL writes our bitstream plus a 4-byte pixel count.
     assert rvl_peer["bytes_per_frame"] > ev.depth[0].bytes_per_frame - 200
     assert "## Peers" in ev.to_markdown()
+
+
+def _depth_row(codec: str, ratio: float, ms: float, exact: bool = True) -> Any:
+    from pcdcodec.evaluation import DepthRow
+
+    err = 0.0 if exact else 0.002
+    return DepthRow(
+        codec, {"id": codec}, 4, 1000.0, ratio, 2 * ratio, None, ms, ms, exact,
+        1.0 if exact else 0.5, err, err, err, err, err,
+    )  # fmt: skip
+
+
+def _color_row(codec: str, ratio: float, ms: float, lossless: bool) -> Any:
+    from pcdcodec.evaluation import ColorRow
+
+    psnr = float("inf") if lossless else 35.0
+    return ColorRow(codec, {"id": codec}, 4, 1000.0, 0.1, ratio, ms, ms, psnr, 0.9, lossless)
+
+
+def test_recommendation_and_columns_constant_by_construction() -> None:
+    from pcdcodec.evaluation import Evaluation
+
+    ev = Evaluation("s", 4, 640, 480)
+    ev.depth = [_depth_row("jpegxl", 15.0, 4.0), _depth_row("lz4", 4.0, 0.5)]
+    ev.color = [
+        _color_row("h264", 70.0, 3.0, False),
+        _color_row("av1", 90.0, 30.0, False),
+        _color_row("ffv1", 2.8, 10.0, True),
+    ]
+    rec = ev.recommend()
+    assert rec["depth"]["by ratio"].startswith("jpegxl (15.00x")
+    assert rec["depth"]["by speed"].startswith("lz4 (1.0 ms")
+    assert rec["color"]["by ratio"].startswith("av1 (90.0x, PSNR 35.00 dB)")
+    assert rec["color"]["by speed"].startswith("h264")
+    assert rec["lossless color"]["by ratio"].startswith("ffv1 (2.8x, exact)")
+    text = ev.to_markdown()
+    assert text.rstrip().splitlines()[-1].startswith("- lossless color: by ratio ffv1")
+    table = text.split("## Table II", 1)[1].split("##", 1)[0]
+    assert "RMSE" not in table  # every codec exact: the error columns would be all zero
+    assert "float32 input" not in table
+    assert "bit-exact" in table
+    ev.depth.append(_depth_row("png16", 30.0, 2.0, exact=False))  # as if it were lossy
+    table = ev.to_markdown().split("## Table II", 1)[1].split("##", 1)[0]
+    assert "RMSE" in table
+    assert "| png16 | 1.0 | 30.00 | 2.00 | 2.00 | no | 2.000" in table
+    assert ev.recommend()["depth"]["by ratio"].startswith("jpegxl")  # inexact is not a pick

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -50,6 +51,12 @@ def test_ros_camera_info_yaml(tmp_path: Path) -> None:
     )
     assert read_intrinsics(path) == CAM
     path.write_text(path.read_text().replace("data: [0, 0, 0, 0, 0]", "data: [0.2, 0, 0, 0, 0]"))
+    # The lens model is kept (CameraIntrinsics models distortion); unknown models are refused.
+    distorted = read_intrinsics(path)
+    assert distorted.distortion_model == "plumb_bob"
+    assert distorted.distortion == (0.2, 0.0, 0.0, 0.0, 0.0)
+    assert distorted.pinhole() == CAM
+    path.write_text(path.read_text().replace("plumb_bob", "mystery_lens"))
     with pytest.raises(pcdcodec.InputError, match="distortion"):
         read_intrinsics(path)
     dump = tmp_path / "info.yaml"  # a sensor_msgs/CameraInfo message as echoed (ROS 2 names)
@@ -139,7 +146,8 @@ def test_write_folder_round_trip_and_no_partial_output(tmp_path: Path) -> None:
     out = tmp_path / "out"
     assert write_folder(seq, out, intrinsics=seq.intrinsics, depth_scale=5000.0) == 3
     back = pcdcodec.load_folder(out)
-    assert list(back) == list(seq)
+    # Image folders hold no poses; the sample's own (from its groundtruth.txt) stay behind.
+    assert list(back) == [dataclasses.replace(f, pose=None) for f in seq]
     assert back.intrinsics == seq.intrinsics
     with pytest.raises(pcdcodec.InputError, match="overwrite=True"):
         write_folder(seq, out)

@@ -66,7 +66,7 @@ def _frames(path: Path) -> list[pcdcodec.Frame]:
 
 def _packets(path: Path) -> list[bytes]:
     with pcdcodec.open(path) as rec:
-        return [rec._packet(j).data for j in range(len(rec._packet_pts))]
+        return [p.data for p in rec.packets()]
 
 
 @pytest.fixture(scope="module", params=CODECS)

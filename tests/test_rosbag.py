@@ -81,9 +81,11 @@ def _info(store: Any, ros2: bool, ns: int, w: int, h: int, f: float = 300.0) -> 
     )  # fmt: skip
 
 
-def write_bag(path: Path, messages: list[tuple[str, int, Any]], *, ros2: bool = False) -> Path:
+def write_bag(
+    path: Path, messages: list[tuple[str, int, Any]], *, ros2: bool = False, store: Any = None
+) -> Path:
     """Write ``(topic, log time ns, message)`` triples into a ROS 1 bag or a ROS 2 mcap bag."""
-    store = _store(ros2)
+    store = store or _store(ros2)
     if ros2:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
@@ -209,17 +211,18 @@ def test_realsense_bag_read_as_a_generic_ros1_bag(tmp_path: Path) -> None:
         assert np.array_equal(a.depth, b.depth)
         assert a.timestamp_ns == b.timestamp_ns
     # Color and depth come from different sensors 100 ms apart: nothing pairs, and encode says so.
+    # (Without kind=, the RealSense reader takes this bag and pairs each depth with its color.)
     with pytest.raises(InputError, match="dropped for lack of a partner"):
-        pcdcodec.encode(RS_BAG, tmp_path / "x.pcdc")
+        pcdcodec.encode(RS_BAG, tmp_path / "x.pcdc", kind="rosbag")
     assert not (tmp_path / "x.pcdc").exists()
 
 
 @needs_bags
 @pytest.mark.parametrize("to", ["rosbag1", "rosbag2"])
 def test_round_trip_bag_to_pcdc_to_bag_is_bit_exact(tmp_path: Path, to: str) -> None:
-    summary = pcdcodec.encode(RS_BAG, tmp_path / "rs.pcdc", color_topic="")
+    summary = pcdcodec.encode(RS_BAG, tmp_path / "rs.pcdc", kind="rosbag", color_topic="")
     assert summary.frames == 2
-    with pcdcodec.open_source(RS_BAG, color_topic="") as src:
+    with pcdcodec.open_source(RS_BAG, kind="rosbag", color_topic="") as src:
         original = list(src)
     out = tmp_path / ("back.bag" if to == "rosbag1" else "back")
     for compressed in (False, True):
@@ -402,13 +405,16 @@ def test_cloud_bag_round_trip_rebuilds_every_point(tmp_path: Path, to: str, info
     assert written["frames"] == 3
     assert written["bytes"] > 3 * 640 * 480 * 32
     rec_path = tmp_path / "c.pcdc"
-    summary = pcdcodec.encode(bag, rec_path, color="ffv1")
+    # z of these clouds is depth / 5000 in float32: kept as uint16 units (auto), or as float32.
+    cloud_depth = "auto" if info else "float32"
+    summary = pcdcodec.encode(bag, rec_path, color="ffv1", cloud_depth=cloud_depth)
     assert summary.frames == 3
     assert summary.source["mode"] == "cloud"
     assert ("intrinsics_fit_residual_px" in summary.source) is not info
     projector = pcdcodec.Projector(seq.intrinsics, depth_scale=seq.depth_scale)
     with pcdcodec.open(rec_path) as rec:
-        assert rec.depth_scale == 1.0
+        assert rec.depth_scale == (5000.0 if info else 1.0)
+        assert rec[0].depth.dtype == (np.uint16 if info else np.float32)
         for frame, original in zip(rec, seq, strict=True):
             assert frame.timestamp_ns == original.timestamp_ns
             want = projector.to_organized(original.depth)
@@ -418,6 +424,38 @@ def test_cloud_bag_round_trip_rebuilds_every_point(tmp_path: Path, to: str, info
             err = np.abs(got[valid] - want[valid]).max()
             assert err <= 1e-6
             assert np.array_equal(frame.color, original.color)
+
+
+def test_cloud_whose_z_stops_being_whole_units_says_how_to_keep_float32(tmp_path: Path) -> None:
+    from pcdcodec.recording.rosbag_export import CLOUD_DTYPE, cloud_array
+
+    store = _store(False)
+    frames = _small(2)
+    intr = pcdcodec.CameraIntrinsics(160, 120, 131.25, 131.25, 79.75, 59.75)
+    projector = pcdcodec.Projector(intr, depth_scale=1000.0)
+    field = store.types["sensor_msgs/msg/PointField"]
+    msgs = []
+    for k, (c, d) in enumerate(frames):
+        pts = cloud_array(projector, d, c)
+        if k == 1:
+            pts["z"] += np.float32(1e-4)  # no longer whole millimetres
+        assert pts.dtype == CLOUD_DTYPE
+        msg = store.types["sensor_msgs/msg/PointCloud2"](
+            header=_header(store, False, NS + k), height=120, width=160,
+            fields=[field(name=n, offset=o, datatype=7, count=1) for n, o in (("x", 0), ("y", 4), ("z", 8), ("rgb", 16))],  # noqa: E501
+            is_bigendian=False, point_step=32, row_step=160 * 32,
+            data=pts.reshape(-1).view(np.uint8), is_dense=False,
+        )  # fmt: skip
+        msgs.append(("/cam/points", NS + k, msg))
+    bag = write_bag(tmp_path / "z.bag", msgs)
+    with pytest.raises(InputError, match=r"not whole 1/1000 m steps.*cloud_depth='float32'"):
+        pcdcodec.encode(bag, tmp_path / "z.pcdc", intrinsics=intr)
+    summary = pcdcodec.encode(bag, tmp_path / "z.pcdc", intrinsics=intr, cloud_depth="float32")
+    assert summary.frames == 2
+    with pcdcodec.open(tmp_path / "z.pcdc") as rec:
+        z = rec[1].depth
+    want = cloud_array(projector, frames[1][1], None)["z"] + np.float32(1e-4)
+    assert np.array_equal(z, want, equal_nan=True)
 
 
 # -- sync ---------------------------------------------------------------------------------------
@@ -474,7 +512,9 @@ def test_exported_bags_carry_definitions_hashes_and_valid_mcap(tmp_path: Path) -
         assert by_topic["/camera/depth/image_raw"].digest == "060021388200f6f0f447d0fcd9c64743"
         assert "uint32 height" in by_topic["/camera/depth/image_raw"].msgdef.data
         assert by_topic["/camera/depth_registered/points"].msgtype == "sensor_msgs/msg/PointCloud2"
-        assert r.message_count == 2 * 5
+        # Five topics per frame, and /tf: the sample's frames carry poses (its groundtruth.txt).
+        assert "/tf" in by_topic
+        assert r.message_count == 2 * 6
     ros2 = tmp_path / "r2"
     pcdcodec.export_bag(rec_path, ros2, to="rosbag2", storage="mcap")
     mcap_file = next(ros2.glob("*.mcap"))
@@ -486,7 +526,7 @@ def test_exported_bags_carry_definitions_hashes_and_valid_mcap(tmp_path: Path) -
         schemas = {s.name for s in reader.get_summary().schemas.values()}
         count = sum(1 for _ in reader.iter_messages())
     assert "sensor_msgs/msg/Image" in schemas
-    assert count == 2 * 4
+    assert count == 2 * 5  # four topics and /tf
     meta = (ros2 / "metadata.yaml").read_text()
     assert "RIHS01_" in meta  # the type hash ROS 2 Iron+ checks
     assert "mcap" in meta
@@ -682,3 +722,53 @@ def test_real_sequence_cloud_bag_colors_exact_and_xyz_within_1e6(tmp_path: Path)
             assert np.array_equal(valid, np.isfinite(got[..., 2]))
             assert np.abs(got[valid] - want[valid]).max() <= 1e-6
             assert np.array_equal(frame.color, c)
+
+
+# -- pass-through of encoded video -------------------------------------------------------------
+
+_VIDEO_MSG = "builtin_interfaces/Time timestamp\nstring frame_id\nuint8[] data\nstring format\n"
+
+
+def test_compressed_video_passes_through_without_reencoding(tmp_path: Path) -> None:
+    from rosbags.typesys import get_types_from_msg
+
+    from pcdcodec.color.base import encode_frames
+
+    store = _store(True)
+    store.register(get_types_from_msg(_VIDEO_MSG, "foxglove_msgs/msg/CompressedVideo"))
+    frames = _small(6)
+    stamps = [NS + k * 33_333_333 for k in range(6)]
+    codec = pcdcodec.get_codec("h264", kind="color", gop=3)
+    packets, _ = encode_frames(codec, [c for c, _ in frames], stamps)  # type: ignore[arg-type]
+    assert len(packets) == 6
+    video = store.types["foxglove_msgs/msg/CompressedVideo"]
+    time_t = store.types["builtin_interfaces/msg/Time"]
+    msgs = [("/cam/depth/camera_info", 1, _info(store, True, NS, 160, 120))]
+    for k, (p, (_, d)) in enumerate(zip(packets, frames, strict=True)):
+        if k != 4:  # video 4 has no depth: it is kept, since video 5 is decoded from it
+            img = _image(store, True, stamps[k], d, "16UC1")
+            msgs.append(("/cam/depth/image_raw", stamps[k], img))
+        ts = stamps[k] + 2_000_000
+        msg = video(
+            timestamp=time_t(sec=ts // NS, nanosec=ts % NS), frame_id="cam",
+            data=np.frombuffer(p.data, np.uint8), format="h264",
+        )  # fmt: skip
+        msgs.append(("/cam/color/video", ts, msg))
+    msgs.sort(key=lambda m: m[1])
+    bag = write_bag(tmp_path / "v", msgs, ros2=True, store=store)
+    with pcdcodec.open_source(bag) as src:
+        assert "/cam/color/video" in src.video_topics()
+    out = tmp_path / "v.pcdc"
+    summary = pcdcodec.encode(bag, out, passthrough=True)
+    assert summary.frames == 5
+    assert summary.dropped == {"color": 1, "depth": 0}
+    with pcdcodec.open(out) as rec:
+        assert rec.codecs["color"]["id"] == "h264"  # type: ignore[index]
+        # The bag's packets, byte for byte, in order, with the keyframes found in the bitstream.
+        got = list(rec.packets())
+        assert [p.data for p in got] == [p.data for p in packets]
+        assert rec.keyframes == [0, 3]
+        decoded = {f.timestamp_ns: f.color for f in rec}
+    direct = pcdcodec.color.base.decode_packets(codec, packets, 160, 120)
+    for k in (0, 1, 2, 3, 5):
+        assert np.array_equal(decoded[stamps[k]], direct[k].rgb)

@@ -17,7 +17,7 @@ import zlib
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -187,7 +187,14 @@ class VideoDecoder(ABC):
 
 
 class StreamCodec(ColorCodec):
-    """A color codec whose streams are packets (as opposed to whole video files)."""
+    """A color codec whose streams are packets (as opposed to whole video files).
+
+    ``video_format`` names the bitstream for ``foxglove_msgs/CompressedVideo`` (``"h264"``,
+    ``"h265"``, ``"av1"``, ``"vp9"``) when the codec writes one of those, else ``None``:
+    recordings store such packets as CompressedVideo messages, others as raw packets.
+    """
+
+    video_format: ClassVar[str | None] = None
 
     @abstractmethod
     def encoder(self, width: int, height: int, fps: float = 30.0) -> VideoEncoder:

@@ -281,7 +281,8 @@ def encode_image(image: Any, allow_table: bool) -> Any:
             ntable += 1
     use_table = allow_table and nvalid > 0 and 2 * ntable <= nvalid
 
-    out = np.empty(16 + 40 * npix + 8 * ntable, dtype=np.uint8)
+    # A decision never costs more than 16 bits: at most 33 per pixel and 32 per table entry.
+    out = np.empty(80 + 68 * npix + 64 * ntable, dtype=np.uint8)
     out[0] = (1 if use_table else 0) | (2 if nvalid < npix else 0)
     low = 0
     rng = _MASK32

@@ -30,8 +30,8 @@ from .base import FrameCodec
 
 __all__ = ["DepthAC"]
 
-#: The encoder's worst case is about 40 bytes per pixel; larger images are refused.
-_MAX_PIXELS = 2**30
+#: The encoder reserves its worst case, 68 bytes per pixel; larger images are refused.
+_MAX_PIXELS = 2**28
 
 _ERRORS = {
     1: "its value table runs past 65535",

@@ -32,12 +32,19 @@ from ..errors import DecodeError
 
 MAGIC = b"\x89MCAP0\r\n"
 PROFILE = "pcdcodec"
-FORMAT_VERSION = 1
+#: The newest format version this pcdcodec reads and writes. Files that need nothing of a newer
+#: version are written with the oldest one that holds them (see ``docs/format.md``).
+FORMAT_VERSION = 2
 
 TOPIC_COLOR = "/camera/color"
 TOPIC_KEYFRAMES = "/camera/color/keyframes"
 TOPIC_DEPTH = "/camera/depth"
 TOPIC_CALIBRATION = "/camera/calibration"
+TOPIC_COLOR_CALIBRATION = "/camera/color/calibration"  # a color camera apart from depth (v2)
+TOPIC_EXTRINSICS = "/camera/extrinsics"  # where the color camera sits in the depth frame (v2)
+TOPIC_POSE = "/camera/pose"  # camera-to-world pose per frame (FrameTransform)
+TOPIC_POSE_MATRIX = "/camera/pose/matrix"  # the same pose, bit for bit: 16 float64 values
+ENCODING_POSE_MATRIX = "pcdcodec.pose"  # 4 x 4 float64, row-major, little-endian, no schema
 
 ENCODING_DEPTH = "pcdcodec.depth"  # one encoded depth frame (docs/format.md), no schema
 ENCODING_COLOR = "pcdcodec.color"  # one raw codec packet, for codecs without a standard schema

@@ -166,3 +166,46 @@ class CameraCalibration:
             r.doubles(9),
             r.doubles(12),
         )
+
+
+FRAME_TRANSFORM = "foxglove_msgs/msg/FrameTransform"
+FRAME_TRANSFORM_SCHEMA = (
+    "builtin_interfaces/Time timestamp\n"
+    "string parent_frame_id\n"
+    "string child_frame_id\n"
+    "geometry_msgs/Vector3 translation\n"
+    "geometry_msgs/Quaternion rotation\n"
+    + _SEPARATOR
+    + _TIME
+    + _SEPARATOR
+    + "MSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n"
+    + _SEPARATOR
+    + "MSG: geometry_msgs/Quaternion\nfloat64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1\n"
+).encode()
+
+
+@dataclass(frozen=True)
+class FrameTransform:
+    """The pose of ``child_frame_id`` in ``parent_frame_id``: a point ``p`` of the child frame
+    is ``R(rotation) @ p + translation`` in the parent frame (metres, quaternion x, y, z, w)."""
+
+    timestamp: int
+    parent_frame_id: str
+    child_frame_id: str
+    translation: tuple[float, float, float]
+    rotation: tuple[float, float, float, float]
+
+    def encode(self) -> bytes:
+        w = _Writer()
+        w.time(self.timestamp)
+        w.string(self.parent_frame_id)
+        w.string(self.child_frame_id)
+        w.doubles([float(v) for v in (*self.translation, *self.rotation)], sized=False)
+        return bytes(w.buf)
+
+    @classmethod
+    def decode(cls, data: bytes) -> FrameTransform:
+        r = _Reader(data, "FrameTransform message")
+        timestamp, parent, child = r.time(), r.string(), r.string()
+        v = r.doubles(7)
+        return cls(timestamp, parent, child, (v[0], v[1], v[2]), (v[3], v[4], v[5], v[6]))

@@ -64,10 +64,16 @@ def encode(
     metadata: dict[str, Any] | None = None,
     overwrite: bool = False,
     progress: Callable[[int], None] | None = None,
+    passthrough: bool | str = False,
     **source_options: Any,
 ) -> EncodeSummary:
     """Record any input into a ``.pcdc`` file: a :class:`~pcdcodec.Source`, or a path that
     :func:`pcdcodec.open_source` reads (RGB-D folder, ROS 1 or ROS 2 bag, ...).
+
+    ``passthrough`` (``True`` or a topic name) records a bag's encoded video (Foxglove
+    ``CompressedVideo`` or ffmpeg_image_transport packets, h264/h265) as it is, without
+    decoding or re-encoding it; ``color`` is then ignored (see
+    :meth:`~pcdcodec.sources.rosbag.RosbagSource.encoded_frames`).
 
     ``source_options`` go to :func:`~pcdcodec.open_source` (for bags: ``depth_topic``,
     ``color_topic``, ``info_topic``, ``cloud_topic``, ``max_frames``, ...). ``intrinsics`` and
@@ -117,16 +123,24 @@ def encode(
         partial.unlink(missing_ok=True)
         start = time.perf_counter()
         try:
-            with RecordingWriter(
-                partial,
-                intrinsics=source.intrinsics,
-                depth_scale=source.depth_scale,
-                color=color if source.has_color else None,
-                depth=depth,
-                fps=fps,
-                metadata=meta,
-            ) as writer:
-                count = writer.write_source(source, progress=progress)
+            if passthrough:
+                count, writer = _passthrough(
+                    source, partial, passthrough, depth=depth, fps=fps, metadata=meta,
+                    progress=progress,
+                )  # fmt: skip
+            else:
+                with RecordingWriter(
+                    partial,
+                    intrinsics=source.intrinsics,
+                    depth_scale=source.depth_scale,
+                    color=color if source.has_color else None,
+                    depth=depth,
+                    fps=fps,
+                    metadata=meta,
+                    color_intrinsics=source.color_intrinsics,
+                    depth_to_color=source.depth_to_color,
+                ) as writer:
+                    count = writer.write_source(source, progress=progress)
             if count == 0:
                 raise InputError(
                     f"{str(source.path)!r} gave no frames" + _why_empty(source.describe())
@@ -147,6 +161,52 @@ def encode(
     finally:
         if owned:
             source.close()
+
+
+def _passthrough(
+    source: Any,
+    path: Path,
+    topic: bool | str,
+    *,
+    depth: Any,
+    fps: float,
+    metadata: dict[str, Any],
+    progress: Callable[[int], None] | None,
+) -> tuple[int, Any]:
+    from ..sources.rosbag import RosbagSource
+    from .writer import RecordingWriter
+
+    if not isinstance(source, RosbagSource):
+        raise InputError(
+            f"pass-through takes encoded video from ROS bags; {str(source.path)!r} is a "
+            f"{type(source).__name__}"
+        )
+    writer: RecordingWriter | None = None
+    count = 0
+    try:
+        for fmt, packets, image, ts in source.encoded_frames(
+            topic if isinstance(topic, str) else None
+        ):
+            if writer is None:
+                writer = RecordingWriter(
+                    path,
+                    intrinsics=source.intrinsics,
+                    depth_scale=source.depth_scale,
+                    color=fmt,
+                    depth=depth,
+                    fps=fps,
+                    metadata={**metadata, "ros_video_topic": source.color_topic or ""},
+                )
+            writer.write_encoded(packets, image, ts)
+            count += 1
+            if progress is not None:
+                progress(count)
+    finally:
+        if writer is not None:
+            writer.close()
+    if writer is None:
+        raise InputError(f"{str(source.path)!r} gave no frames" + _why_empty(source.describe()))
+    return count, writer
 
 
 def _why_empty(info: dict[str, Any]) -> str:

@@ -28,14 +28,14 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import IO, Any, ClassVar
+from typing import IO, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from .._validate import check_depth
 from ..camera import CameraIntrinsics
-from ..color.base import Packet, StreamCodec, VideoDecoder, VideoEncoder
+from ..color.base import Packet, StreamCodec
 from ..color.pyav import PyAVCodec, ffmpeg_packet
 from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import CodecUnavailableError, DecodeError, InputError, PcdcodecError
@@ -212,8 +212,8 @@ def _write_depth(
     offset = 0
     with open(path, "wb") as fh:
         for i in range(len(rec)):
-            # Recording._depth decodes the depth alone; iterating frames would decode color too.
-            depth = check_depth(rec._depth(i), name=f"frame {i} depth")  # little-endian, C order
+            # Recording.depth decodes the depth alone; iterating frames would decode color too.
+            depth = check_depth(rec.depth(i), name=f"frame {i} depth")  # little-endian, C order
             if not dtype:
                 dtype = depth.dtype.name
             elif depth.dtype.name != dtype:
@@ -249,13 +249,14 @@ def _mux_color(
     codec = rec.color_codec
     assert isinstance(codec, PyAVCodec)
     canonical = _canonical(codec)
-    all_pts = [int(t) for t in rec._packet_pts]
+    all_pts = [int(t) for t in rec.packet_timestamps]
     # Decoding starts at the first keyframe; the reader drops what comes before it too.
-    start = next((j for j in range(len(all_pts)) if j in rec._keyframe_set), None)
-    if start is None:
+    if not rec.keyframes:
         raise DecodeError(f"recording {str(rec.path)!r} has no color keyframe")
+    start = rec.keyframes[0]
     shown = sorted(set(all_pts[start:]))
-    first = rec._packet(start)
+    extradata = rec.extradata
+    first = rec.packet(start)
     # Decoding timestamps only increase, so the first packet's is the smallest of all; starting
     # the clock there keeps every timestamp non-negative (muxers would shift them otherwise).
     origin = min(first.dts, shown[0])
@@ -279,7 +280,7 @@ def _mux_color(
     container: Any = av.open(str(path), "w", format=container_format)
     count = 0
     try:
-        if rec._extradata:
+        if extradata:
             # A stream whose decoder needs set-up bytes (FFV1, HuffYUV) is declared through an
             # encoder context, since only a codec context can carry extradata into the header.
             # Opening it makes the encoder write its own extradata, which is then replaced with
@@ -294,15 +295,14 @@ def _mux_color(
                 raise CodecUnavailableError(
                     f"cannot declare a {codec.name} stream in {str(path)!r}: {exc}"
                 ) from exc
-            ctx.extradata = rec._extradata
+            ctx.extradata = extradata
         else:
             # No codec context at all; PyAV takes H.264/H.265/AV1 parameter sets from the first
             # packet into the header itself.
             stream = container.add_mux_stream(canonical, rate=rate, width=width, height=height)
         stream.time_base = time_base
         last_dts: int | None = None
-        for j in range(start, len(all_pts)):
-            packet = first if j == start else rec._packet(j)
+        for packet in rec.packets(start):
             pts = pts_of[packet.pts]
             if packet.dts == packet.pts:
                 dts = pts
@@ -365,7 +365,7 @@ def _check_video(
             raise DecodeError(
                 f"the {name} just written has time base {stream.time_base}, not {time_base}"
             )
-        if rec._extradata and stream.codec_context.extradata != rec._extradata:
+        if rec.extradata and stream.codec_context.extradata != rec.extradata:
             raise DecodeError(f"the {name} just written lost the codec's extradata")
         stream.thread_type = "AUTO"
         decoded: set[int] = set()
@@ -392,62 +392,6 @@ def _check_video(
 
 
 # -- import --------------------------------------------------------------------------------------
-
-
-class _Preencoded(StreamCodec):
-    """Stands in for a recording's color codec while packets that are already encoded are
-    written: its encoder hands back the packets queued for each frame instead of encoding.
-
-    The writer only sees the wrapped codec's config (recorded in the file as usual), its
-    ``video_format`` and the extradata given here, so the file reads as if that codec wrote it.
-    This relies on nothing but how :class:`RecordingWriter` uses any stream codec: it records
-    ``get_config()``; at the first frame it calls ``encoder(width, height, fps)`` once and
-    stores ``encoder.extradata`` with the color channel; ``video_format`` picks CompressedVideo
-    messages or raw packets; ``encode(rgb, timestamp)`` is called once per frame, in frame
-    order, and the packets it returns are written before that frame's depth; ``close()``
-    writes what ``flush()`` returns. The real encoder is never opened, so a layout recorded
-    with, say, NVENC imports on a machine without it.
-    """
-
-    name: ClassVar[str] = "preencoded"
-
-    def __init__(self, codec: PyAVCodec, extradata: bytes | None) -> None:
-        self.codec = codec
-        self.extradata = extradata
-        #: Packets to hand out with the frame of each timestamp, in decode order.
-        self.queued: dict[int, list[Packet]] = {}
-
-    @property
-    def video_format(self) -> str | None:
-        return self.codec.video_format
-
-    def get_config(self) -> dict[str, Any]:
-        return self.codec.get_config()
-
-    def stored_config(self) -> dict[str, Any]:
-        return self.codec.stored_config()
-
-    def encoder(self, width: int, height: int, fps: float = 30.0) -> VideoEncoder:
-        return _PreencodedEncoder(self, width, height, fps)
-
-    def decoder(self, width: int, height: int, extradata: bytes | None = None) -> VideoDecoder:
-        return self.codec.decoder(width, height, extradata)
-
-
-class _PreencodedEncoder(VideoEncoder):
-    codec: _Preencoded
-
-    @property
-    def extradata(self) -> bytes | None:
-        return self.codec.extradata
-
-    def _encode(self, rgb: npt.NDArray[np.uint8], timestamp: int) -> list[Packet]:
-        return self.codec.queued.pop(timestamp, [])
-
-    def _flush(self) -> list[Packet]:
-        rest = [p for group in self.codec.queued.values() for p in group]
-        self.codec.queued.clear()
-        return rest
 
 
 @dataclass(frozen=True)
@@ -852,9 +796,9 @@ def import_paper(
         source = _VideoSource(video_path, layout)
     tmp = out.with_name(f".{out.name}.import-{os.getpid()}")
     try:
-        color: _Preencoded | None = None
-        if source is not None:
-            color = _Preencoded(_color_codec(layout, source), source.extradata)
+        # The codec that wrote the packets is recorded; its encoder is never opened
+        # (write_encoded), so a layout recorded with, say, NVENC imports anywhere.
+        color = _color_codec(layout, source) if source is not None else None
         tmp.unlink(missing_ok=True)
         writer = RecordingWriter(
             tmp,
@@ -866,7 +810,7 @@ def import_paper(
         )
         try:
             with open(depth_path, "rb") as fh:
-                _write_frames(writer, layout, fh, depth_path, source, color, progress)
+                _write_frames(writer, layout, fh, depth_path, source, progress)
             writer.close()
         except BaseException:
             writer.abort()
@@ -885,19 +829,16 @@ def _write_frames(
     fh: IO[bytes],
     depth_path: Path,
     source: _VideoSource | None,
-    color: _Preencoded | None,
     progress: Callable[[int], None] | None,
 ) -> None:
     n = len(layout.frames)
-    blank = np.zeros((layout.height, layout.width, 3), np.uint8) if color is not None else None
     groups = _frame_groups(source, n) if source is not None else None
     for f in layout.frames:
-        if groups is not None and color is not None:
-            color.queued[f.timestamp_ns] = next(groups)
         image = _read_depth(fh, f, layout, depth_path)
-        # The color given to the writer is a placeholder: its encoder (_PreencodedEncoder)
-        # ignores the pixels and returns the frame's queued packets.
-        writer.write(blank, image, f.timestamp_ns)
+        if groups is not None and source is not None:
+            writer.write_encoded(next(groups), image, f.timestamp_ns, extradata=source.extradata)
+        else:
+            writer.write(None, image, f.timestamp_ns)
         if progress is not None:
             progress(f.index + 1)
 

@@ -23,12 +23,14 @@ from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, Unk
 from ..frame import Frame
 from ..projector import Projector
 from ..registry import codec_for_reading
+from ..transform import as_rigid, quaternion_to_matrix
 from . import _index as fmt
-from ._ros import CameraCalibration, CompressedVideo
+from ._ros import CameraCalibration, CompressedVideo, FrameTransform
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
 
 
+@dataclass
 @dataclass
 class VerifyReport:
     """What :meth:`Recording.verify` found: per-frame problems, empty when all is well."""
@@ -122,6 +124,18 @@ class Recording:
                 f"(version {fmt.FORMAT_VERSION}); upgrade pcdcodec to read it"
             )
         self.format_version = version
+        #: The color camera when it is apart from the depth camera (format version 2), else None.
+        self.color_intrinsics: CameraIntrinsics | None = None
+        #: The rigid 4 × 4 transform from the depth to the color camera frame, or None.
+        self.depth_to_color: npt.NDArray[np.float64] | None = None
+        if meta.get("color_intrinsics"):
+            try:
+                self.color_intrinsics = CameraIntrinsics.from_dict(
+                    json.loads(meta["color_intrinsics"])
+                )
+                self.depth_to_color = as_rigid(json.loads(meta["depth_to_color"]), "depth_to_color")
+            except (KeyError, ValueError) as exc:
+                raise DecodeError(f"{name!r} has a damaged color camera record: {exc}") from None
         try:
             self.intrinsics = CameraIntrinsics.from_dict(json.loads(meta["intrinsics"]))
             self.depth_scale = float(meta["depth_scale"])
@@ -208,6 +222,14 @@ class Recording:
             d_times, d_offsets = d_times[keep], d_offsets[keep]
         self._times = d_times
         self._offsets = d_offsets
+        p_times, p_offsets = index.arrays(fmt.TOPIC_POSE)
+        self._pose_at = {
+            int(t): int(o) for t, o in zip(p_times.tolist(), p_offsets.tolist(), strict=True)
+        }
+        m_times, m_offsets = index.arrays(fmt.TOPIC_POSE_MATRIX)
+        self._pose_matrix_at = {
+            int(t): int(o) for t, o in zip(m_times.tolist(), m_offsets.tolist(), strict=True)
+        }
         self._decoder: VideoDecoder | None = None
         self._next_packet = 0
         self._decoded: dict[int, npt.NDArray[np.uint8]] = {}
@@ -225,7 +247,11 @@ class Recording:
                 "codec": depth_config,
                 "depth_scale": self.depth_scale,
             },
-            fmt.TOPIC_COLOR: {"width": cam.width, "height": cam.height, "codec": color_config},
+            fmt.TOPIC_COLOR: {
+                "width": self.color_shape[1],
+                "height": self.color_shape[0],
+                "codec": color_config,
+            },
         }
         for topic, want in expected.items():
             channel = self.index.channel(topic)
@@ -271,8 +297,61 @@ class Recording:
     def projector(self) -> Projector:
         """The :class:`~pcdcodec.Projector` for this recording's camera and depth scale."""
         if self._projector is None:
-            self._projector = Projector(self.intrinsics, depth_scale=self.depth_scale)
+            self._projector = Projector(
+                self.intrinsics,
+                depth_scale=self.depth_scale,
+                color_intrinsics=self.color_intrinsics,
+                depth_to_color=self.depth_to_color,
+            )
         return self._projector
+
+    @property
+    def color_shape(self) -> tuple[int, int]:
+        """``(height, width)`` of the color images: the color camera's, else the depth's."""
+        return (self.color_intrinsics or self.intrinsics).shape
+
+    @property
+    def has_poses(self) -> bool:
+        """Whether frames were written with a pose."""
+        return bool(self._pose_at)
+
+    def _pose(self, i: int) -> npt.NDArray[np.float64] | None:
+        ts = int(self._times[i])
+        exact = self._pose_matrix_at.get(ts)
+        if exact is not None:
+            with self._lock:
+                messages = fmt.read_chunk_messages(self._file, exact, what=f"frame {i} pose")
+            channel = self.index.channel(fmt.TOPIC_POSE_MATRIX)
+            for m in messages:
+                if channel is not None and m.channel_id == channel.id and m.log_time == ts:
+                    if len(m.data) != 128:
+                        raise DecodeError(
+                            f"frame {i}: pose matrix at byte offset {exact} has {len(m.data)} "
+                            "bytes, expected 128 (16 float64)"
+                        )
+                    matrix = np.frombuffer(m.data, dtype="<f8").reshape(4, 4).astype(np.float64)
+                    try:
+                        return as_rigid(matrix, f"frame {i} pose")
+                    except PcdcodecError as exc:
+                        raise DecodeError(str(exc)) from None
+        offset = self._pose_at.get(ts)
+        if offset is None:
+            return None
+        with self._lock:
+            messages = fmt.read_chunk_messages(self._file, offset, what=f"frame {i} pose")
+        channel = self.index.channel(fmt.TOPIC_POSE)
+        for m in messages:
+            if channel is not None and m.channel_id == channel.id and m.log_time == ts:
+                msg = FrameTransform.decode(m.data)
+                pose = np.eye(4)
+                pose[:3, :3] = quaternion_to_matrix(msg.rotation)
+                pose[:3, 3] = msg.translation
+                return pose
+        raise DecodeError(f"frame {i}: no pose message at byte offset {offset}")
+
+    def poses(self) -> list[npt.NDArray[np.float64] | None]:
+        """The pose of every frame (``None`` for frames written without one)."""
+        return [self._pose(i) for i in range(len(self))]
 
     @property
     def duration(self) -> float:
@@ -290,7 +369,21 @@ class Recording:
 
     # -- frames ----------------------------------------------------------------------------
 
-    def _depth(self, i: int) -> npt.NDArray[Any]:
+    # -- packet level: the encoded streams, as written (the counterpart of write_encoded) -----
+
+    def _index_of(self, i: int) -> int:
+        n = len(self)
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+            raise InputTypeError(f"frame index must be an int, got {type(i).__name__}")
+        if not -n <= i < n:
+            raise IndexError(f"frame index {i} is out of range for {n} frames")
+        return int(i) % n
+
+    def depth_bytes(self, i: int) -> bytes:
+        """The encoded depth of frame ``i``, exactly as its depth codec wrote it (see
+        :func:`pcdcodec.decode_depth`). Raises :class:`~pcdcodec.DecodeError` when the file
+        there is damaged."""
+        i = self._index_of(i)
         offset = int(self._offsets[i])
         ts = int(self._times[i])
         what = f"{str(self.path)!r}: frame {i} (t={ts} ns): depth at byte offset {offset}"
@@ -301,31 +394,72 @@ class Recording:
         channel = self.index.channel(fmt.TOPIC_DEPTH)
         for m in messages:
             if channel is not None and m.channel_id == channel.id and m.log_time == ts:
-                try:
-                    # Checked before decoding, so a frame that claims to be huge is never made.
-                    header = read_header(m.data)
-                    cam = self.intrinsics
-                    if header.shape != (cam.height, cam.width):
-                        raise DecodeError(
-                            f"the frame is {header.width}x{header.height}, but the recording's "
-                            f"camera is {cam.width}x{cam.height}"
-                        )
-                    if header.dtype.name not in self.depth_codec.dtypes:
-                        raise DecodeError(
-                            f"the frame is {header.dtype}, but {self.depth_codec.name!r} writes "
-                            f"{' or '.join(str(d) for d in self.depth_codec.dtypes)}"
-                        )
-                    # The camera bounds the frame; no further pixel limit applies.
-                    depth = self.depth_codec.decode(m.data, max_pixels=None)
-                    if depth.shape != header.shape or depth.dtype != header.dtype:
-                        raise DecodeError(
-                            f"decoded to {depth.dtype} {depth.shape}, expected "
-                            f"{header.dtype} {header.shape}"
-                        )
-                    return depth
-                except DecodeError as exc:
-                    raise DecodeError(f"{what}: {exc}") from exc
+                return bytes(m.data)
         raise DecodeError(f"{what}: no depth message with that time in the chunk there")
+
+    def depth(self, i: int) -> npt.NDArray[Any]:
+        """The depth image of frame ``i`` alone, without decoding its color."""
+        i = self._index_of(i)
+        data = self.depth_bytes(i)
+        what = (
+            f"{str(self.path)!r}: frame {i} (t={int(self._times[i])} ns): depth at byte offset "
+            f"{int(self._offsets[i])}"
+        )
+        try:
+            # Checked before decoding, so a frame that claims to be huge is never made.
+            header = read_header(data)
+            cam = self.intrinsics
+            if header.shape != (cam.height, cam.width):
+                raise DecodeError(
+                    f"the frame is {header.width}x{header.height}, but the recording's "
+                    f"camera is {cam.width}x{cam.height}"
+                )
+            if header.dtype.name not in self.depth_codec.dtypes:
+                raise DecodeError(
+                    f"the frame is {header.dtype}, but {self.depth_codec.name!r} writes "
+                    f"{' or '.join(str(d) for d in self.depth_codec.dtypes)}"
+                )
+            # The camera bounds the frame; no further pixel limit applies.
+            depth = self.depth_codec.decode(data, max_pixels=None)
+            if depth.shape != header.shape or depth.dtype != header.dtype:
+                raise DecodeError(
+                    f"decoded to {depth.dtype} {depth.shape}, expected "
+                    f"{header.dtype} {header.shape}"
+                )
+            return depth
+        except DecodeError as exc:
+            raise DecodeError(f"{what}: {exc}") from exc
+
+    @property
+    def extradata(self) -> bytes | None:
+        """The color decoder's set-up bytes (FFV1, HuffYUV), or ``None``."""
+        return self._extradata
+
+    @property
+    def packet_timestamps(self) -> npt.NDArray[np.int64]:
+        """The pts (ns) of every color packet, in decode (file) order; empty without color."""
+        if self.color_codec is None:
+            return np.zeros(0, np.int64)
+        out: npt.NDArray[np.int64] = np.asarray(self._packet_pts, np.int64).copy()
+        return out
+
+    @property
+    def keyframes(self) -> list[int]:
+        """Indices (into :attr:`packet_timestamps`) of the color packets decoding can start at."""
+        return list(self._keyframes)
+
+    def packet(self, j: int) -> Packet:
+        """Color packet ``j`` in decode order, as written (``checksum`` is ``None``)."""
+        n = len(self.packet_timestamps)
+        if isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 0 <= j < n:
+            raise IndexError(f"packet index {j!r} is out of range for {n} packets")
+        return self._packet(int(j))
+
+    def packets(self, start: int = 0) -> Iterator[Packet]:
+        """The color packets from ``start`` on, in decode order, each read once: with
+        :attr:`extradata`, what a decoder (or a muxer) needs to play the color stream."""
+        for j in range(start, len(self.packet_timestamps)):
+            yield self._packet(j)
 
     def _packet(self, j: int) -> Packet:
         offset = int(self._packet_offsets[j])
@@ -357,9 +491,8 @@ class Recording:
                 return self._decoded.pop(ts)
             k = self._keyframes[bisect.bisect_right(self._keyframes, j) - 1]
             if self._decoder is None or self._next_packet > j or k > self._next_packet:
-                self._decoder = self.color_codec.decoder(
-                    self.intrinsics.width, self.intrinsics.height, self._extradata
-                )
+                ch, cw = self.color_shape
+                self._decoder = self.color_codec.decoder(cw, ch, self._extradata)
                 self._next_packet = k
                 self._decoded.clear()
             while ts not in self._decoded:
@@ -397,17 +530,18 @@ class Recording:
         i = int(i) % n
         try:
             color = self._color(i)
-            cam = self.intrinsics
-            if color is not None and color.shape != (cam.height, cam.width, 3):
+            ch, cw = self.color_shape
+            if color is not None and color.shape != (ch, cw, 3):
                 raise DecodeError(
                     f"{str(self.path)!r}: frame {i}: color decoded to {color.shape}, expected "
-                    f"({cam.height}, {cam.width}, 3) for the recording's camera"
+                    f"({ch}, {cw}, 3) for the recording's color camera"
                 )
             return Frame(
                 color,
-                self._depth(i),
+                self.depth(i),
                 int(self._times[i]),
                 index=i,
+                pose=self._pose(i),
                 projector=self.projector,
             )
         except PcdcodecError:

@@ -12,7 +12,9 @@ and the bag time):
   recording's camera (and the distortion its source had, when it was kept);
 * with ``cloud``, ``<ns>/depth_registered/points``: the organized ``sensor_msgs/PointCloud2``
   XYZRGB (x, y, z float32 at bytes 0, 4, 8, packed rgb at 16, 32 bytes per point, NaN for
-  pixels without depth), as the paper's broadcast node published it.
+  pixels without depth), as the paper's broadcast node published it;
+* for frames with a pose, ``/tf``: ``tf2_msgs/TFMessage`` with one ``TransformStamped`` from
+  ``world`` to the camera frame (the camera-to-world pose), so the trajectory plays in RViz.
 
 Connection headers, message definitions and MD5 sums (ROS 1) or type hashes (ROS 2) come from
 the rosbags typestores of ROS 1 Noetic and ROS 2 Humble. The bag is written beside its final
@@ -50,7 +52,7 @@ CLOUD_DTYPE = np.dtype(
 
 @dataclass
 class _Input:
-    frames: Iterator[tuple[Any, Any, int]]
+    frames: Iterator[tuple[Any, Any, int, Any]]
     intrinsics: Any
     depth_scale: float
     metadata: dict[str, str]
@@ -90,7 +92,7 @@ def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
                 f"source {str(src.path)!r} has no camera: pass intrinsics to write camera info "
                 "and clouds"
             )
-        frames = ((f.color, f.depth, int(f.timestamp_ns)) for f in src)
+        frames = ((f.color, f.depth, int(f.timestamp_ns), f.pose) for f in src)
         return _Input(
             frames,
             intr,
@@ -106,7 +108,7 @@ def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
 
 
 def _from_recording(rec: Any, close: Callable[[], None]) -> _Input:
-    frames = ((f.color, f.depth, int(f.timestamp_ns)) for f in rec)
+    frames = ((f.color, f.depth, int(f.timestamp_ns), f.pose) for f in rec)
     return _Input(frames, rec.intrinsics, rec.depth_scale, dict(rec.metadata), len(rec), close)
 
 
@@ -138,6 +140,15 @@ class _Messages:
 
         self.ros2 = ros2
         self.store = get_typestore(Stores.ROS2_HUMBLE if ros2 else Stores.ROS1_NOETIC)
+        if "tf2_msgs/msg/TFMessage" not in self.store.types:
+            from rosbags.typesys import get_types_from_msg
+
+            # Noetic's store lacks tf2_msgs; its definition is this one line.
+            self.store.register(
+                get_types_from_msg(
+                    "geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"
+                )
+            )
         self.types = self.store.types
         self.frame_id = frame_id
         self.seq = 0
@@ -202,6 +213,28 @@ class _Messages:
             **arrays,
         )
         return self.serialize(msg)
+
+    def tf(self, ns: int, pose: npt.NDArray[np.float64], parent: str) -> bytes:
+        """A ``tf2_msgs/TFMessage`` placing this camera frame in ``parent`` (camera-to-world)."""
+        from ..transform import matrix_to_quaternion
+
+        t = self.types
+        q = matrix_to_quaternion(pose[:3, :3])
+        header = self.header(ns)
+        header.frame_id = parent
+        stamped = t["geometry_msgs/msg/TransformStamped"](
+            header=header,
+            child_frame_id=self.frame_id,
+            transform=t["geometry_msgs/msg/Transform"](
+                translation=t["geometry_msgs/msg/Vector3"](
+                    x=float(pose[0, 3]), y=float(pose[1, 3]), z=float(pose[2, 3])
+                ),
+                rotation=t["geometry_msgs/msg/Quaternion"](
+                    x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])
+                ),
+            ),
+        )
+        return self.serialize(t["tf2_msgs/msg/TFMessage"](transforms=[stamped]))
 
     def cloud(self, ns: int, pts: npt.NDArray[Any]) -> bytes:
         field = self.types["sensor_msgs/msg/PointField"]
@@ -360,7 +393,7 @@ def _write(
     try:
         bag = _BagWriter(tmp_out, to, storage, msgs)
         try:
-            for color, depth, ts in inp.frames:
+            for color, depth, ts, pose in inp.frames:
                 if count == 0:
                     has_color = color is not None
                     if images:
@@ -410,6 +443,11 @@ def _write(
                         bag.write(t_cinfo, ts, msgs.camera_info(ts, intr, model, dist))
                 if projector is not None:
                     bag.write(t_cloud, ts, msgs.cloud(ts, cloud_array(projector, depth, color)))
+                if pose is not None:
+                    if "/tf" not in bag.conns:
+                        topics.append("/tf")
+                        bag.add("/tf", "tf2_msgs/msg/TFMessage")
+                    bag.write("/tf", ts, msgs.tf(ts, pose, "world"))
                 count += 1
                 if progress is not None:
                     progress(count)

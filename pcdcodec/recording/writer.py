@@ -6,7 +6,7 @@ import base64
 import json
 import os
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import IO, Any
@@ -24,16 +24,21 @@ from ..depth import DEFAULT_DEPTH_CODEC
 from ..depth.base import FrameCodec
 from ..errors import InputError, InputTypeError
 from ..frame import OPEN3D_DEPTH_SCALE
+from ..projector import check_color_camera
 from ..registry import get_codec
 from ..sources.base import Source
+from ..transform import as_rigid, matrix_to_quaternion
 from . import _index as fmt
 from ._ros import (
     CAMERA_CALIBRATION,
     CAMERA_CALIBRATION_SCHEMA,
     COMPRESSED_VIDEO,
     COMPRESSED_VIDEO_SCHEMA,
+    FRAME_TRANSFORM,
+    FRAME_TRANSFORM_SCHEMA,
     CameraCalibration,
     CompressedVideo,
+    FrameTransform,
 )
 
 __all__ = ["RecordingWriter"]
@@ -76,6 +81,33 @@ def _codec(spec: Any, kind: str) -> Codec:
     raise InputTypeError(
         f"{kind} codec must be a name, a config dict or a codec, got {type(spec).__name__}"
     )
+
+
+def _calibration(intr: CameraIntrinsics, frame_id: str, timestamp: int) -> bytes:
+    info = intr.to_camera_info()
+    return CameraCalibration(
+        timestamp,
+        frame_id,
+        intr.width,
+        intr.height,
+        info["distortion_model"],
+        [float(v) for v in info["D"]],
+        [float(v) for v in info["K"]],
+        [float(v) for v in info["R"]],
+        [float(v) for v in info["P"]],
+    ).encode()
+
+
+def _transform(matrix: npt.NDArray[np.float64], timestamp: int, parent: str, child: str) -> bytes:
+    q = matrix_to_quaternion(matrix[:3, :3])
+    t = matrix[:3, 3]
+    return FrameTransform(
+        timestamp,
+        parent,
+        child,
+        (float(t[0]), float(t[1]), float(t[2])),
+        (float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+    ).encode()
 
 
 def _intrinsics(value: Any) -> CameraIntrinsics:
@@ -122,9 +154,16 @@ class RecordingWriter:
         overwrite: bool = False,
         in_flight: int = 4,
         frame_id: str = "camera",
+        color_intrinsics: Any = None,
+        depth_to_color: Any = None,
+        world_frame_id: str = "world",
     ) -> None:
         self.path = Path(path)
         self.intrinsics = _intrinsics(intrinsics)
+        self.color_intrinsics, self.depth_to_color = check_color_camera(
+            None if color_intrinsics is None else _intrinsics(color_intrinsics), depth_to_color
+        )
+        self.world_frame_id = world_frame_id
         if isinstance(depth_scale, bool) or not isinstance(depth_scale, (int, float)):
             raise InputTypeError(f"depth_scale must be a number, got {type(depth_scale).__name__}")
         if not (np.isfinite(depth_scale) and depth_scale > 0):
@@ -151,7 +190,6 @@ class RecordingWriter:
                     f"color codec {color_codec.name!r} writes whole video files, not packets; "
                     "recordings need a stream codec such as 'h264' or 'ffv1'"
                 )
-            color_codec._require_available()
             self.color_codec = color_codec
         self.depth_codec._require_available()
         user = _user_metadata(metadata)
@@ -197,6 +235,9 @@ class RecordingWriter:
         self.bytes_color = 0
         self.bytes_depth = 0
         self._sync: Any = None
+        self._poses: dict[int, npt.NDArray[np.float64]] = {}
+        self.poses_written = 0
+        self._mode: str | None = None  # "frames" (write) or "encoded" (write_encoded)
         self._closed = False
 
     def _start(self, user: dict[str, str]) -> None:
@@ -209,11 +250,21 @@ class RecordingWriter:
             self._file, chunk_size=0, compression=CompressionType.NONE, enable_data_crcs=True
         )
         self._mcap.start(profile=fmt.PROFILE, library=f"pcdcodec {__version__}")
+        # Version 2 only where a version 1 reader would give wrong clouds: a color camera
+        # apart from depth, or lens distortion. Everything else stays readable by version 1.
+        two_cameras = self.color_intrinsics is not None
+        version = 2 if two_cameras or self.intrinsics.has_distortion else 1
+        cameras: dict[str, str] = {}
+        if self.color_intrinsics is not None and self.depth_to_color is not None:
+            cameras = {
+                "color_intrinsics": json.dumps(self.color_intrinsics.to_dict()),
+                "depth_to_color": json.dumps(self.depth_to_color.tolist()),
+            }
         # The settings the file is read with; each record is sealed with its digest, and the
         # main record lists the others, so a reader notices any of them changed or missing.
         records: dict[str, dict[str, str]] = {
             fmt.METADATA_NAME: {
-                "format_version": str(fmt.FORMAT_VERSION),
+                "format_version": str(version),
                 "library": f"pcdcodec {__version__}",
                 "intrinsics": json.dumps(self.intrinsics.to_dict()),
                 "depth_scale": repr(self.depth_scale),
@@ -223,6 +274,7 @@ class RecordingWriter:
                 if self.color_codec
                 else "",
                 "frame_id": self.frame_id,
+                **cameras,
             },
         }
         if user:
@@ -236,7 +288,20 @@ class RecordingWriter:
 
     # -- writing -----------------------------------------------------------------------
 
-    def _start_stream(self, height: int, width: int, timestamp: int) -> None:
+    @property
+    def color_shape(self) -> tuple[int, int]:
+        """``(height, width)`` of the color images: the color camera's, else the depth's."""
+        return (self.color_intrinsics or self.intrinsics).shape
+
+    def _start_stream(
+        self,
+        height: int,
+        width: int,
+        timestamp: int,
+        *,
+        encoded: bool = False,
+        extradata: bytes | None = None,
+    ) -> None:
         if (width, height) != (self.intrinsics.width, self.intrinsics.height):
             raise InputError(
                 f"frames are {width}x{height}, but the intrinsics are for "
@@ -244,15 +309,20 @@ class RecordingWriter:
             )
         mcap = self._mcap
         size = {"width": str(width), "height": str(height)}
+        ch, cw = self.color_shape
         if self.color_codec is not None:
-            self._encoder = self.color_codec.encoder(width, height, self.fps)
-            extradata = self._encoder.extradata
+            if not encoded:
+                # Packets encoded elsewhere need no encoder here (nor its library).
+                self.color_codec._require_available()
+                self._encoder = self.color_codec.encoder(cw, ch, self.fps)
+                extradata = self._encoder.extradata
             meta = {
-                **size,
+                "width": str(cw),
+                "height": str(ch),
                 "codec": json.dumps(self.color_codec.stored_config()),
                 "extradata": base64.b64encode(extradata).decode() if extradata else "",
             }
-            video_format = getattr(self.color_codec, "video_format", None)
+            video_format = self.color_codec.video_format
             if video_format:
                 sid = mcap.register_schema(COMPRESSED_VIDEO, "ros2msg", COMPRESSED_VIDEO_SCHEMA)
                 meta["format"] = video_format
@@ -276,47 +346,54 @@ class RecordingWriter:
         )
         sid = mcap.register_schema(CAMERA_CALIBRATION, "ros2msg", CAMERA_CALIBRATION_SCHEMA)
         cal = self._channels["cal"] = mcap.register_channel(fmt.TOPIC_CALIBRATION, "cdr", sid, {})
-        info = self.intrinsics.to_camera_info()
-        msg = CameraCalibration(
-            timestamp,
-            self.frame_id,
-            width,
-            height,
-            info["distortion_model"],
-            [float(v) for v in info["D"]],
-            [float(v) for v in info["K"]],
-            [float(v) for v in info["R"]],
-            [float(v) for v in info["P"]],
+        mcap.add_message(
+            cal, timestamp, _calibration(self.intrinsics, self.frame_id, timestamp), timestamp
         )
-        mcap.add_message(cal, timestamp, msg.encode(), timestamp)
+        if self.color_intrinsics is not None and self.depth_to_color is not None:
+            color_frame = f"{self.frame_id}_color"
+            ccal = mcap.register_channel(fmt.TOPIC_COLOR_CALIBRATION, "cdr", sid, {})
+            mcap.add_message(
+                ccal,
+                timestamp,
+                _calibration(self.color_intrinsics, color_frame, timestamp),
+                timestamp,
+            )
+            # The color camera's pose in the depth camera's frame: the inverse of depth_to_color.
+            tid = self._transform_schema()
+            ext = mcap.register_channel(fmt.TOPIC_EXTRINSICS, "cdr", tid, {})
+            pose = np.asarray(np.linalg.inv(self.depth_to_color), dtype=np.float64)
+            mcap.add_message(
+                ext, timestamp, _transform(pose, timestamp, self.frame_id, color_frame), timestamp
+            )
         self._shape = (height, width)
 
-    def write(self, color: Any, depth: Any, timestamp: int | None = None) -> None:
+    def _transform_schema(self) -> int:
+        if "transform_schema" not in self._channels:
+            self._channels["transform_schema"] = self._mcap.register_schema(
+                FRAME_TRANSFORM, "ros2msg", FRAME_TRANSFORM_SCHEMA
+            )
+        return self._channels["transform_schema"]
+
+    def write(
+        self, color: Any, depth: Any, timestamp: int | None = None, *, pose: Any = None
+    ) -> None:
         """Add one frame: ``color`` H×W×3 uint8 RGB (``None`` when recording depth only) and
         ``depth`` H×W uint16 depth units (or float32 metres where the depth codec takes it).
+        With a color camera apart from depth, ``color`` is of the color camera's size.
 
         ``timestamp`` is in nanoseconds and must increase; without it, frames are spaced at
-        ``1/fps`` from 0. Raises :class:`~pcdcodec.InputError` for frames of another size than
-        the first, color and depth of different sizes, timestamps that do not increase, or
-        bad arrays; the frames already written stay intact.
+        ``1/fps`` from 0. ``pose`` is the camera-to-world pose of the depth camera at this
+        frame, a rigid 4 × 4 transform in metres, stored as a ``FrameTransform`` from
+        ``world_frame_id`` to ``frame_id`` on ``/camera/pose``. Raises
+        :class:`~pcdcodec.InputError` for frames of another size than the first, color of
+        another size than the color camera's, timestamps that do not increase, a pose that is
+        not a rigid 4 × 4 transform, or bad arrays; the frames already written stay intact.
         """
         self._check_open()
-        if timestamp is None:
-            timestamp = 0 if self._last_ts is None else self._last_ts + round(_NS / self.fps)
-        if isinstance(timestamp, bool) or not isinstance(timestamp, (int, np.integer)):
-            raise InputTypeError(f"timestamp must be an int (ns), got {type(timestamp).__name__}")
-        timestamp = int(timestamp)
-        if timestamp < 0:
-            raise InputError(f"timestamp must not be negative, got {timestamp}")
-        if timestamp > MAX_TIMESTAMP_NS:
-            raise InputError(
-                f"timestamp {timestamp} ns is later than a recording can hold: at most "
-                f"{MAX_TIMESTAMP_NS} ns (2038-01-19 03:14:07 UTC; ROS time has int32 seconds)"
-            )
-        if self._last_ts is not None and timestamp <= self._last_ts:
-            raise InputError(
-                f"timestamp {timestamp} ns does not increase (previous frame: {self._last_ts} ns)"
-            )
+        rigid = None if pose is None else as_rigid(pose, "pose")
+        if self._mode == "encoded":
+            raise InputError("this recording takes encoded color (write_encoded), not images")
+        timestamp = self._next_timestamp(timestamp)
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
         rgb: npt.NDArray[np.uint8] | None = None
         if self.color_codec is None and color is not None:
@@ -327,14 +404,14 @@ class RecordingWriter:
         if self.color_codec is not None:
             if color is None:
                 raise InputError("this recording has color: pass a color image with each frame")
-            rgb = check_color(color, d.shape, name="color")
-        if self._shape is None:
-            self._start_stream(d.shape[0], d.shape[1], timestamp)
-        elif d.shape != self._shape:
-            raise InputError(
-                f"depth is {d.shape[1]}x{d.shape[0]}, but this recording's frames are "
-                f"{self._shape[1]}x{self._shape[0]} (width x height)"
-            )
+            if self.color_intrinsics is None:
+                rgb = check_color(color, d.shape, name="color")
+            else:
+                rgb = check_color(
+                    color, self.color_shape, name="color", expected="the color camera's size"
+                )
+        self._check_shape(d, timestamp)
+        self._mode = "frames"
         self._last_ts = timestamp
         # Copies: the caller may reuse its buffers while the threads encode.
         fut_color = (
@@ -342,6 +419,90 @@ class RecordingWriter:
             if rgb is not None
             else None
         )
+        if rigid is not None:
+            self._poses[timestamp] = rigid
+        self._enqueue(timestamp, fut_color, d)
+
+    def write_encoded(
+        self,
+        packets: Sequence[Packet],
+        depth: Any,
+        timestamp: int,
+        *,
+        extradata: bytes | None = None,
+    ) -> None:
+        """Add a frame whose color is already encoded: the muxing half of the writer.
+
+        ``packets`` are the color packets to store with this frame, in decode order, as this
+        recording's color codec (whose config is recorded) would have written them: usually
+        the frame's own packet, none for a frame whose packet came earlier, or several when a
+        B-frame arrives with a later frame. ``depth`` and ``timestamp`` are as for
+        :meth:`write`; ``extradata`` (the decoder's set-up bytes) is taken with the first
+        frame. The codec's encoder is never opened, so packets from hardware encoders, other
+        files or ROS bags go in unchanged. A recording takes either :meth:`write` frames or
+        encoded ones, not both. Raises :class:`~pcdcodec.InputError` for a recording without
+        color, items that are not :class:`~pcdcodec.color.base.Packet`, or the errors of
+        :meth:`write`.
+        """
+        self._check_open()
+        if self.color_codec is None:
+            raise InputError("this recording has no color codec: open it with the codec whose "
+                             "packets these are")  # fmt: skip
+        if self._mode == "frames":
+            raise InputError("this recording encodes images (write); it cannot take packets too")
+        group = list(packets)
+        for k, p in enumerate(group):
+            if not isinstance(p, Packet):
+                raise InputTypeError(f"packet {k} is a {type(p).__name__}, expected a Packet")
+        timestamp = self._next_timestamp(timestamp)
+        d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
+        self._check_shape(d, timestamp, encoded=True, extradata=extradata)
+        self._mode = "encoded"
+        self._last_ts = timestamp
+        done: Future[list[Packet]] = Future()
+        done.set_result(group)
+        self._enqueue(timestamp, done, d)
+
+    def _next_timestamp(self, timestamp: Any) -> int:
+        if timestamp is None:
+            timestamp = 0 if self._last_ts is None else self._last_ts + round(_NS / self.fps)
+        if isinstance(timestamp, bool) or not isinstance(timestamp, (int, np.integer)):
+            raise InputTypeError(f"timestamp must be an int (ns), got {type(timestamp).__name__}")
+        ts = int(timestamp)
+        if ts < 0:
+            raise InputError(f"timestamp must not be negative, got {ts}")
+        if ts > MAX_TIMESTAMP_NS:
+            raise InputError(
+                f"timestamp {ts} ns is later than a recording can hold: at most "
+                f"{MAX_TIMESTAMP_NS} ns (2038-01-19 03:14:07 UTC; ROS time has int32 seconds)"
+            )
+        if self._last_ts is not None and ts <= self._last_ts:
+            raise InputError(
+                f"timestamp {ts} ns does not increase (previous frame: {self._last_ts} ns)"
+            )
+        return ts
+
+    def _check_shape(
+        self,
+        d: npt.NDArray[Any],
+        timestamp: int,
+        *,
+        encoded: bool = False,
+        extradata: bytes | None = None,
+    ) -> None:
+        if self._shape is None:
+            self._start_stream(
+                d.shape[0], d.shape[1], timestamp, encoded=encoded, extradata=extradata
+            )
+        elif d.shape != self._shape:
+            raise InputError(
+                f"depth is {d.shape[1]}x{d.shape[0]}, but this recording's frames are "
+                f"{self._shape[1]}x{self._shape[0]} (width x height)"
+            )
+
+    def _enqueue(
+        self, timestamp: int, fut_color: Future[list[Packet]] | None, d: npt.NDArray[Any]
+    ) -> None:
         fut_depth = self._depth_pool.submit(self.depth_codec.encode, d.copy())
         self._pending.append((timestamp, fut_color, fut_depth))
         while len(self._pending) > self.in_flight:
@@ -407,7 +568,7 @@ class RecordingWriter:
         count = 0
         for item in frames:
             if isinstance(item, Frame):
-                self.write(item.color, item.depth, item.timestamp_ns)
+                self.write(item.color, item.depth, item.timestamp_ns, pose=item.pose)
             elif open3d_rgbd_kind(item) is not None:
                 self.write_rgbd(item, depth_scale=rgbd_depth_scale)
             elif (
@@ -446,6 +607,22 @@ class RecordingWriter:
             raise InputError(
                 f"source {str(source.path)!r} has camera {source.intrinsics.to_dict()}, this "
                 f"recording {self.intrinsics.to_dict()}"
+            )
+        if source.color_intrinsics != self.color_intrinsics or (
+            source.depth_to_color is not None
+            and self.depth_to_color is not None
+            and not np.allclose(source.depth_to_color, self.depth_to_color, rtol=0, atol=1e-12)
+        ):
+
+            def show(cam: CameraIntrinsics | None, d2c: Any) -> str:
+                t = None if d2c is None else np.round(np.asarray(d2c), 6).tolist()
+                return f"color camera {cam.to_dict() if cam else None}, depth_to_color {t}"
+
+            raise InputError(
+                f"source {str(source.path)!r} has "
+                f"{show(source.color_intrinsics, source.depth_to_color)}; this recording has "
+                f"{show(self.color_intrinsics, self.depth_to_color)} "
+                "(open the recording with the source's color_intrinsics and depth_to_color)"
             )
         if float(source.depth_scale) != self.depth_scale:
             raise InputError(
@@ -497,7 +674,7 @@ class RecordingWriter:
 
     def _write_packets(self, packets: list[Packet]) -> None:
         mcap = self._mcap
-        video_format = getattr(self.color_codec, "video_format", None)
+        video_format = self.color_codec.video_format if self.color_codec else None
         for packet in packets:
             if packet.keyframe:
                 mcap.add_message(
@@ -534,6 +711,21 @@ class RecordingWriter:
             self._channels["depth"], timestamp, data, timestamp, self.frames_written
         )
         self.bytes_depth += len(data)
+        pose = self._poses.pop(timestamp, None)
+        if pose is not None:
+            if "pose" not in self._channels:
+                self._channels["pose"] = self._mcap.register_channel(
+                    fmt.TOPIC_POSE, "cdr", self._transform_schema(), {}
+                )
+                self._channels["pose_matrix"] = self._mcap.register_channel(
+                    fmt.TOPIC_POSE_MATRIX, fmt.ENCODING_POSE_MATRIX, 0, {}
+                )
+            msg = _transform(pose, timestamp, self.world_frame_id, self.frame_id)
+            self._mcap.add_message(self._channels["pose"], timestamp, msg, timestamp)
+            # The quaternion is a rounding away from the matrix given; keep that exactly too.
+            exact = np.ascontiguousarray(pose, dtype="<f8").tobytes()
+            self._mcap.add_message(self._channels["pose_matrix"], timestamp, exact, timestamp)
+            self.poses_written += 1
         self.frames_written += 1
         self._depth_written.append(timestamp)
         self._count_complete()

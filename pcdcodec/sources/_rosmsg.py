@@ -31,6 +31,7 @@ __all__ = [
     "fit_intrinsics",
     "image_kind",
     "stamp_ns",
+    "video_packet",
 ]
 
 DEPTH_ENCODINGS = ("16UC1", "mono16", "32FC1")
@@ -46,8 +47,8 @@ _FIELD_NAMES.update({7: "FLOAT32", 8: "FLOAT64"})
 
 
 def stamp_ns(msg: Any) -> int:
-    """The header stamp of ``msg`` in nanoseconds."""
-    s = msg.header.stamp
+    """The header stamp of ``msg`` in nanoseconds (``timestamp`` for Foxglove messages)."""
+    s = msg.header.stamp if hasattr(msg, "header") else msg.timestamp
     return int(s.sec) * 1_000_000_000 + int(s.nanosec)
 
 
@@ -211,6 +212,43 @@ def decode_compressed(msg: Any, role: str, topic: str) -> npt.NDArray[Any]:
     valid = image != 0
     out[valid] = np.float32(quant_a) / (image[valid].astype(np.float32) - np.float32(quant_b))
     return out
+
+
+def video_packet(msg: Any, topic: str) -> tuple[str, bytes, bool]:
+    """(video format, bitstream, keyframe) of a ``foxglove_msgs/CompressedVideo`` or an
+    ffmpeg_image_transport ``FFMPEGPacket``; H.264 and H.265 in Annex B are recorded as they
+    are."""
+    data = bytes(msg.data) if not isinstance(msg.data, bytes) else msg.data
+    if hasattr(msg, "format"):
+        fmt = str(msg.format).lower()
+        key = None
+    else:  # FFMPEGPacket: the encoder's name, and flags bit 0 for keyframes
+        enc = str(msg.encoding).lower()
+        fmt = "h265" if ("hevc" in enc or "265" in enc) else "h264" if "264" in enc else enc
+        key = bool(int(msg.flags) & 1)
+    fmt = {"hevc": "h265"}.get(fmt, fmt)
+    if fmt not in ("h264", "h265"):
+        raise InputError(
+            f"video topic {topic!r} holds {fmt!r}; pass-through records h264 and h265 packets"
+        )
+    if key is None:
+        key = _annexb_keyframe(data, fmt)
+    return fmt, data, key
+
+
+def _annexb_keyframe(data: bytes, fmt: str) -> bool:
+    """Whether an Annex B access unit starts a decodable sequence (IDR/IRAP with parameter sets
+    or an IDR alone)."""
+    i = data.find(b"\x00\x00\x01")
+    while i != -1 and i + 3 < len(data):
+        head = data[i + 3]
+        if fmt == "h264":
+            if head & 0x1F in (5, 7):
+                return True
+        elif 16 <= (head >> 1) & 0x3F <= 21 or (head >> 1) & 0x3F in (32, 33):
+            return True
+        i = data.find(b"\x00\x00\x01", i + 3)
+    return False
 
 
 def compressed_depth_encode(depth: npt.NDArray[np.uint16], *, rvl: bool = False) -> bytes:

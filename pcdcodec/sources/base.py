@@ -44,6 +44,9 @@ class Source(abc.ABC):
     * ``intrinsics``: the depth camera (``None`` when the source does not know it);
     * ``depth_scale``: depth units per metre of uint16 depth (float32 depth is metres);
     * ``metadata``: strings kept in the recording (device name, serial, topics, ...);
+    * ``color_intrinsics`` and ``depth_to_color``: for sensors whose color camera is apart from
+      the depth camera, the color camera and the rigid 4 × 4 transform from the depth to the
+      color camera frame (both ``None`` when color is registered to depth, the default).
     * ``has_color``: whether frames carry color (``RGBDFrame.color`` is ``None`` otherwise).
 
     Iterating yields frames one at a time, so a source of any length runs in bounded memory.
@@ -54,6 +57,8 @@ class Source(abc.ABC):
     intrinsics: CameraIntrinsics | None
     depth_scale: float
     metadata: dict[str, str]
+    color_intrinsics: CameraIntrinsics | None = None
+    depth_to_color: Any = None
     has_color: bool = True
 
     @abc.abstractmethod
@@ -90,6 +95,9 @@ class Source(abc.ABC):
             "frames": self.frame_count,
             "intrinsics": self.intrinsics.to_dict() if self.intrinsics is not None else None,
             "depth_scale": self.depth_scale,
+            "color_intrinsics": self.color_intrinsics.to_dict()
+            if self.color_intrinsics is not None
+            else None,
         }
 
     def close(self) -> None:  # noqa: B027 - optional hook, most sources hold nothing open
@@ -203,4 +211,9 @@ def _load_builtin() -> None:
     if _loaded:
         return
     _loaded = True
-    from . import folder, rosbag  # noqa: F401 - each registers itself
+    from . import (  # noqa: F401 - each registers itself
+        azure_kinect,
+        folder,
+        realsense,
+        rosbag,
+    )

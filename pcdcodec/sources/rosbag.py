@@ -187,8 +187,13 @@ class RosbagSource(Source):
         depth_scale: float | None = None,
         max_difference: int = 20_000_000,
         max_frames: int | None = None,
+        cloud_depth: str = "auto",
     ) -> None:
         self.path = Path(path)
+        if cloud_depth not in ("auto", "float32"):
+            raise InputError(f"cloud_depth must be 'auto' or 'float32', got {cloud_depth!r}")
+        self.cloud_depth = cloud_depth
+        self._cloud_units: Any = None  # Projector that maps uint16 units back to the cloud's z
         if max_frames is not None and max_frames < 1:
             raise InputError(f"max_frames must be at least 1, got {max_frames}")
         self.max_frames = max_frames
@@ -352,6 +357,8 @@ class RosbagSource(Source):
             anchor = cloud_topic
             self.depth_scale = 1.0 if depth_scale is None else float(depth_scale)
             first_pts = rm.cloud_points(first, self._layout, cloud_topic)
+            if self.cloud_depth == "auto" and depth_scale is None:
+                self._pick_units(first_pts["z"].astype(np.float32))
         else:
             if depth_topic is None:
                 # Raw images before compressed ones, then the busiest topic.
@@ -623,9 +630,132 @@ class RosbagSource(Source):
             if [(f.name, f.offset, f.datatype) for f in msg.fields] != self._cloud_fields:
                 layout = rm.cloud_layout(msg, topic)
             z, rgb, _ = rm.cloud_to_rgbd(msg, layout, topic)
+            if self._cloud_units is not None:
+                units = self._as_units(z)
+                if units is None:
+                    raise InputError(
+                        f"cloud topic {topic!r}: the cloud at {ts} ns has z values that are not "
+                        f"whole 1/{self.depth_scale:g} m steps, unlike the first cloud; open the "
+                        "bag with cloud_depth='float32' to keep z as float32 metres"
+                    )
+                yield rgb, units, ts
+                continue
             with np.errstate(invalid="ignore"):
                 z[~np.isfinite(z)] = np.nan
             yield rgb, z, ts
+
+    def _as_units(self, z: Any) -> Any:
+        """``z`` as uint16 units when they give back every z bit for bit, else ``None``."""
+        scale = self.depth_scale
+        with np.errstate(invalid="ignore", over="ignore"):
+            scaled = np.rint(z.astype(np.float64) * scale)
+            finite = np.isfinite(z)
+            if not ((scaled[finite] >= 1) & (scaled[finite] <= 65535)).all():
+                return None
+        units = np.where(finite, scaled, 0).astype(np.uint16)
+        back = self._cloud_units.to_organized(units)[..., 2]
+        same = (back.view(np.uint32) == z.view(np.uint32)) | (~finite & np.isnan(back))
+        return units if bool(same.all()) else None
+
+    def _pick_units(self, z: Any) -> None:
+        """Drivers compute z from integer depth (millimetres): such clouds are stored as uint16
+        units, which rebuild every z bit for bit and encode several times faster than float32."""
+        from ..camera import CameraIntrinsics
+        from ..projector import Projector
+
+        h, w = z.shape
+        for scale in (1000.0, 5000.0, 4000.0, 10000.0):
+            self._cloud_units = Projector(
+                CameraIntrinsics(w, h, 1.0, 1.0, w / 2, h / 2), depth_scale=scale
+            )
+            self.depth_scale = scale
+            if self._as_units(z) is not None:
+                self.notes.append(
+                    f"cloud z values are whole 1/{scale:g} m steps: stored as uint16 units at "
+                    f"depth scale {scale:g} (every z rebuilds bit for bit)"
+                )
+                return
+        self._cloud_units = None
+        self.depth_scale = 1.0
+
+    # -- pass-through of encoded video -------------------------------------------------------
+
+    def video_topics(self) -> list[str]:
+        """Topics holding encoded video (Foxglove CompressedVideo, ffmpeg_image_transport)."""
+        return [c.topic for c in self._reader.connections if c.msgtype in VIDEO_TYPES]
+
+    def encoded_frames(self, video_topic: str | None = None) -> Iterator[tuple[str, Any, Any, int]]:
+        """Frames whose color is the bag's encoded video, not decoded: ``(video_format,
+        packets, depth, timestamp)`` for :meth:`pcdcodec.RecordingWriter.write_encoded`.
+
+        Each video message is one packet, paired with a depth image by stamp as images are.
+        The paired packet takes the depth's stamp; packets without a depth partner are kept
+        (later packets may need them to decode) and go with the next frame, at their own
+        stamps. Raises :class:`~pcdcodec.InputError` without a video topic or for a format
+        other than h264/h265.
+        """
+        from ..color.base import Packet
+        from ..sync import Synchronizer
+
+        topics = self.video_topics()
+        if video_topic is None:
+            if not topics:
+                raise InputError(
+                    f"bag {str(self.path)!r} has no encoded video topic (foxglove_msgs/"
+                    "CompressedVideo or ffmpeg_image_transport_msgs/FFMPEGPacket)"
+                )
+            video_topic = topics[0]
+        vconn = self._conn(video_topic, "video")
+        if vconn.msgtype not in VIDEO_TYPES:
+            raise InputError(f"video topic {video_topic!r} is a {vconn.msgtype}")
+        if self.mode != "images":
+            raise InputError("pass-through pairs video with depth images, not with clouds")
+        dconn = self._depth_conn
+        self.color_topic = video_topic
+        self.stats = _Stats()
+        sync: Synchronizer[Any, Any] = Synchronizer(max_difference=self.max_difference)
+        waiting: list[tuple[int, bytes, bool]] = []  # video packets not yet written
+        last = {"depth": -1, "video": -1}
+        fmt_seen: str | None = None
+
+        def groups(ready: list[Any]) -> Iterator[tuple[str, Any, Any, int]]:
+            for cts, _, dts, dmsg in ready:
+                group = []
+                while waiting and waiting[0][0] <= cts:
+                    ts, data, key = waiting.pop(0)
+                    pts = dts if ts == cts else ts
+                    group.append(Packet.create(data, pts, pts, key))
+                depth = self._decode(dmsg, dconn, "depth")
+                self.stats.frames += 1
+                assert fmt_seen is not None
+                yield fmt_seen, group, depth, dts
+
+        for conn, t, msg in self._messages([dconn, vconn]):
+            role = "depth" if conn.topic == dconn.topic else "video"
+            ts = self._stamp(msg, t)
+            if ts <= last[role]:
+                self.stats.out_of_order += 1
+                continue
+            last[role] = ts
+            if role == "video":
+                fmt, data, key = rm.video_packet(msg, video_topic)
+                if fmt_seen is not None and fmt != fmt_seen:
+                    raise InputError(
+                        f"video topic {video_topic!r} changes from {fmt_seen} to {fmt}"
+                    )
+                fmt_seen = fmt
+                waiting.append((ts, data, key))
+                ready = sync.add_color(ts, None)
+            else:
+                ready = sync.add_depth(ts, msg)
+            self.stats.dropped_color = len(sync.dropped_color)
+            self.stats.dropped_depth = len(sync.dropped_depth)
+            yield from groups(ready)
+            if self.max_frames is not None and self.stats.frames >= self.max_frames:
+                return
+        yield from groups(sync.flush())
+        self.stats.dropped_color = len(sync.dropped_color)
+        self.stats.dropped_depth = len(sync.dropped_depth)
 
     def close(self) -> None:
         reader = getattr(self, "_reader", None)

@@ -1,0 +1,103 @@
+"""The ``depthac`` codec beyond the registry-wide tests: its modes, edge cases, hostile input."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+import pcdcodec
+from pcdcodec.depth import DepthAC, read_header
+
+from .conftest import DEPTH_SETS, load_frames
+from .fuzzing import fuzz_frames, fuzz_images
+
+
+def round_trip(image: np.ndarray[Any, Any]) -> bytes:
+    codec = DepthAC()
+    data = codec.encode(image)
+    decoded = codec.decode(data)
+    assert decoded.dtype == image.dtype
+    view = np.uint32 if image.dtype.itemsize == 4 else np.uint16
+    np.testing.assert_array_equal(decoded.view(view), np.ascontiguousarray(image).view(view))
+    return data
+
+
+def body_flags(data: bytes) -> int:
+    return data[read_header(data).header_size]
+
+
+@pytest.mark.parametrize("name", DEPTH_SETS)
+def test_bit_exact_on_every_test_set(name: str) -> None:
+    for depth in load_frames(name, 3):
+        round_trip(depth)
+
+
+def test_sparse_frames_are_sparse_and_compress_better() -> None:
+    dense = load_frames("sample", 2)
+    sparse = load_frames("sample-sparse", 2)
+    for d, s in zip(dense, sparse, strict=True):
+        assert 0.45 < float(np.mean(s == 0)) < 0.75
+        assert np.all((s == 0) | (s == d))  # only removes pixels
+        assert len(round_trip(s)) < len(round_trip(d))
+
+
+def test_smaller_than_jpegxl_on_the_sample() -> None:
+    depths = load_frames("sample", 6)
+    ours = sum(len(DepthAC().encode(d)) for d in depths)
+    jxl = pcdcodec.get_codec("jpegxl")
+    theirs = sum(len(jxl.encode(d)) for d in depths)
+    assert theirs / ours > 1.3
+
+
+def test_value_table_or_raw_values_per_frame() -> None:
+    kinect = load_frames("sample", 1)[0]
+    assert body_flags(round_trip(kinect)) & 1  # few distinct values: a table
+    rng = np.random.default_rng(3)
+    noise = rng.integers(1, 65536, size=(40, 50)).astype(np.uint16)
+    assert not body_flags(round_trip(noise)) & 1  # all distinct: raw values
+    assert body_flags(round_trip(noise)) & 2 == 0  # and no holes, so no mask
+
+
+@pytest.mark.parametrize(
+    "image",
+    [
+        np.zeros((7, 9), np.uint16),
+        np.full((5, 6), 65535, np.uint16),
+        np.array([[1]], np.uint16),
+        np.array([[0]], np.uint16),
+        np.array([[65535, 0, 1, 65535, 0, 1]], np.uint16),
+        np.arange(65536, dtype=np.uint16).reshape(256, 256),
+        np.arange(65536, dtype=np.uint16)[::-1].reshape(64, 1024).copy(),
+    ],
+    ids=["zeros", "max", "one", "hole", "extremes", "ramp", "all-values"],
+)
+def test_edge_images(image: np.ndarray[Any, Any]) -> None:
+    round_trip(image)
+    round_trip(image.T.copy())
+
+
+def test_holes_cost_little() -> None:
+    depth = load_frames("sample", 1)[0]
+    holes = depth.copy()
+    holes[100:300, 200:500] = 0
+    assert len(round_trip(holes)) < len(round_trip(depth))
+
+
+def test_fuzzed_frames_raise_decode_error_or_decode_exactly() -> None:
+    rng = np.random.default_rng(2024)
+    images = fuzz_images(load_frames("sample", 4), rng, 10)
+    images.append(load_frames("sample-sparse", 1)[0])
+    outcome = fuzz_frames(DepthAC(), images, 2000, seed=7)
+    assert sum(outcome.values()) == 2000
+    assert sum(v for k, v in outcome.items() if not k.endswith(":exact")) > 1600
+
+
+def test_corrupt_body_is_reported_as_such() -> None:
+    depth = load_frames("sample", 1)[0]
+    data = bytearray(DepthAC().encode(depth))
+    start = read_header(bytes(data)).header_size
+    data[start] = 0xF0  # unknown flag bits
+    with pytest.raises(pcdcodec.DecodeError, match="flags"):
+        DepthAC().decode(bytes(data))

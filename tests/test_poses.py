@@ -1,0 +1,175 @@
+"""Camera poses: rigid-transform checks, interpolation, folder poses, and poses in recordings."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pcdcodec
+from pcdcodec import InputError
+from pcdcodec.datasets import open_folder, sample_dir
+from pcdcodec.transform import (
+    as_rigid,
+    interpolate_poses,
+    matrix_to_quaternion,
+    quaternion_to_matrix,
+    rigid_from_quaternion,
+)
+
+from .conftest import SHARED_DATA
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> float:
+    r = a[:3, :3].T @ b[:3, :3]
+    return float(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1)))
+
+
+def test_quaternion_round_trip_and_rigid_checks() -> None:
+    rng = np.random.default_rng(4)
+    for q in rng.normal(size=(50, 4)):
+        r = quaternion_to_matrix(q)
+        np.testing.assert_allclose(r.T @ r, np.eye(3), atol=1e-12)
+        assert np.linalg.det(r) == pytest.approx(1.0)
+        np.testing.assert_allclose(quaternion_to_matrix(matrix_to_quaternion(r)), r, atol=1e-12)
+    with pytest.raises(InputError, match="pose must be a 4x4 rigid transform, got shape"):
+        as_rigid(np.eye(3), "pose")
+    scaled = np.diag([2.0, 2.0, 2.0, 1.0])
+    with pytest.raises(InputError, match=r"pose is not a rigid transform.*det = 8"):
+        as_rigid(scaled, "pose")
+    mirror = np.diag([1.0, 1.0, -1.0, 1.0])
+    with pytest.raises(InputError, match="det = -1"):
+        as_rigid(mirror, "pose")
+    bottom = np.eye(4)
+    bottom[3, 0] = 1.0
+    with pytest.raises(InputError, match=r"last row of pose must be \[0, 0, 0, 1\]"):
+        as_rigid(bottom, "pose")
+    with pytest.raises(InputError, match="must be finite"):
+        as_rigid(np.full((4, 4), np.nan), "pose")
+
+
+def test_interpolation_is_linear_in_translation_and_geodesic_in_rotation() -> None:
+    a = rigid_from_quaternion([0, 0, 0], [0, 0, 0, 1])
+    b = rigid_from_quaternion([1.0, 2.0, -3.0], [0, np.sin(0.4), 0, np.cos(0.4)])  # 0.8 rad
+    mid, quarter, outside, exact = interpolate_poses([0, 100], [a, b], [50, 25, 101, 100])
+    assert mid is not None
+    assert quarter is not None
+    np.testing.assert_allclose(mid[:3, 3], [0.5, 1.0, -1.5])
+    np.testing.assert_allclose(quarter[:3, 3], [0.25, 0.5, -0.75])
+    assert _angle(a, mid) == pytest.approx(0.4)
+    assert _angle(a, quarter) == pytest.approx(0.2)
+    assert outside is None
+    assert exact is not None
+    np.testing.assert_array_equal(exact, b)
+    assert interpolate_poses([0, 100], [a, b], [50], max_gap=99) == [None]
+
+
+def test_tum_sample_poses_are_interpolated_at_the_depth_stamps() -> None:
+    source = open_folder(sample_dir())
+    assert source.poses is not None
+    assert all(p is not None for p in source.poses)
+    # Frame 0: depth 1305031229.528784 lies between these two groundtruth lines.
+    rows = {}
+    for line in (sample_dir() / "groundtruth.txt").read_text().splitlines():
+        if line.startswith(("1305031229.5232", "1305031229.5332")):
+            rows[line.split()[0]] = [float(v) for v in line.split()[1:]]
+    (t0, r0), (t1, r1) = sorted((float(k), v) for k, v in rows.items())
+    a = (1305031229.528784 - t0) / (t1 - t0)
+    expected = (1 - a) * np.array(r0[:3]) + a * np.array(r1[:3])
+    pose = source.poses[0]
+    assert pose is not None
+    np.testing.assert_allclose(pose[:3, 3], expected, atol=1e-9)
+    p0, p1 = rigid_from_quaternion(r0[:3], r0[3:]), rigid_from_quaternion(r1[:3], r1[3:])
+    assert _angle(p0, pose) == pytest.approx(a * _angle(p0, p1), abs=1e-7)
+    frames = list(source)
+    assert frames[0].pose is not None
+    np.testing.assert_array_equal(frames[0].pose, pose)
+
+
+@pytest.mark.skipif(
+    not (SHARED_DATA / "7scenes_redkitchen" / "pose").is_dir(), reason="7-Scenes is not present"
+)
+def test_7scenes_poses() -> None:
+    root = SHARED_DATA / "7scenes_redkitchen"
+    source = open_folder(root, max_frames=3)
+    assert source.poses is not None
+    for (_, _, depth), pose in zip(source.pairs, source.poses, strict=True):
+        name = depth.name.split(".")[0]
+        assert pose is not None
+        np.testing.assert_array_equal(pose, np.loadtxt(root / "pose" / f"{name}.pose.txt"))
+
+
+def test_recording_stores_poses_as_frame_transforms(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    source = open_folder(sample_dir(), max_frames=4)
+    path = tmp_path / "poses.pcdc"
+    with pcdcodec.open(
+        path, "w", intrinsics=source.intrinsics, depth_scale=source.depth_scale, color="ffv1"
+    ) as rec:
+        rec.write_frames(source)
+        depth = np.zeros((480, 640), np.uint16)
+        scaled = np.diag([2.0, 2.0, 2.0, 1.0])
+        with pytest.raises(InputError, match="pose is not a rigid transform"):
+            rec.write(np.zeros((480, 640, 3), np.uint8), depth, 10**18, pose=scaled)
+    assert source.poses is not None
+    with pcdcodec.open(path) as rec:
+        assert rec.format_version == 1  # poses need no new version: old readers skip them
+        assert rec.has_poses
+        for frame, want in zip(rec, source.poses, strict=True):
+            assert frame.pose is not None
+            assert want is not None
+            np.testing.assert_allclose(frame.pose, want, atol=1e-12)
+    # Any MCAP + ROS 2 tool reads them: decode with rosbags from the schema in the file.
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with path.open("rb") as f:
+        reader = make_reader(f)
+        messages = list(reader.iter_messages(topics=["/camera/pose"]))
+        schema = messages[0][0]
+        assert schema is not None
+        assert schema.name == "foxglove_msgs/msg/FrameTransform"
+        main = schema.data.decode().split("=" * 80)[0]
+        store.register(get_types_from_msg(main, "foxglove_msgs/msg/FrameTransform"))
+        first = store.deserialize_cdr(messages[0][2].data, "foxglove_msgs/msg/FrameTransform")
+    assert len(messages) == 4
+    assert first.parent_frame_id == "world"
+    assert first.child_frame_id == "camera"
+    pose0 = source.poses[0]
+    assert pose0 is not None
+    t = first.translation
+    np.testing.assert_allclose([t.x, t.y, t.z], pose0[:3, 3])
+    q = first.rotation
+    np.testing.assert_allclose(
+        quaternion_to_matrix([q.x, q.y, q.z, q.w]), pose0[:3, :3], atol=1e-12
+    )
+
+
+@pytest.mark.parametrize("to", ["rosbag1", "rosbag2"])
+def test_bag_export_writes_poses_to_tf(tmp_path: Path, to: str) -> None:
+    from rosbags.highlevel import AnyReader
+
+    source = open_folder(sample_dir(), max_frames=3)
+    rec = tmp_path / "p.pcdc"
+    with pcdcodec.open(
+        rec, "w", intrinsics=source.intrinsics, depth_scale=source.depth_scale, color="ffv1"
+    ) as w:
+        w.write_frames(source)
+    out = tmp_path / ("p.bag" if to == "rosbag1" else "p")
+    summary = pcdcodec.export_bag(rec, out, to=to)
+    assert "/tf" in summary["topics"]
+    assert source.poses is not None
+    with AnyReader([out]) as reader:
+        conns = [c for c in reader.connections if c.topic == "/tf"]
+        msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(conns)]
+    assert len(msgs) == 3
+    for msg, pose in zip(msgs, source.poses, strict=True):
+        (tf,) = msg.transforms
+        assert pose is not None
+        assert tf.header.frame_id == "world"
+        t, q = tf.transform.translation, tf.transform.rotation
+        np.testing.assert_allclose([t.x, t.y, t.z], pose[:3, 3])
+        np.testing.assert_allclose(
+            quaternion_to_matrix([q.x, q.y, q.z, q.w]), pose[:3, :3], atol=1e-12
+        )
