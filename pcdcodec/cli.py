@@ -278,10 +278,25 @@ def _cmd_encode(args: argparse.Namespace) -> int:
                 progress=bar.update,
                 passthrough=args.passthrough,
             )
+        # encode() put the camera and scale it recorded into the source.
+        used_camera, used_scale = source.intrinsics, source.depth_scale
+        assert used_camera is not None  # encode() refuses a source without a camera
+        if args.depth_scale is not None:
+            scale_from = "--depth-scale"
+        elif args.camera is not None:
+            scale_from = f"--camera {args.camera}"
+        else:
+            scale_from = getattr(source, "depth_scale_origin", None) or "the input"
+    camera_from = "the input" if camera is None else "the camera flags"
     n = summary.frames
     print(
         f"wrote {n} frames to {args.output} ({_mib(summary.bytes)}, "
         f"{summary.bytes / n / 1024:.1f} KiB/frame, {summary.fps:.1f} fps)"
+    )
+    print(f"  depth scale  {used_scale:g} units per metre (from {scale_from})")
+    print(
+        f"  intrinsics   {used_camera.width}x{used_camera.height}, fx={used_camera.fx:g} "
+        f"fy={used_camera.fy:g} cx={used_camera.cx:g} cy={used_camera.cy:g} (from {camera_from})"
     )
     info = summary.source
     for key in ("depth_topic", "color_topic", "info_topic", "cloud_topic"):
@@ -491,6 +506,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from .evaluation import evaluate
 
     frames = args.frames
+    if frames < 1:
+        raise InputError(f"--frames must be at least 1, got {frames}")
     source: Any = args.src
     intrinsics, depth_scale = _camera_from_args(args)
     quiet = args.quiet or not sys.stderr.isatty()

@@ -9,7 +9,10 @@ Two folder layouts are understood:
   sorted file-name order; timestamps are then the frame index at ``fps``.
 
 Intrinsics and depth scale come from the arguments or, when not given, from a ``camera.json``
-in the folder (``width``, ``height``, ``fx``, ``fy``, ``cx``, ``cy``, ``depth_scale``).
+in the folder (``width``, ``height``, ``fx``, ``fy``, ``cx``, ``cy``, ``depth_scale``). Without
+either, the depth scale of a TUM RGB-D dataset folder (its ``depth.txt`` names the dataset's
+``rgbd_dataset_…`` bag) is TUM's 5000 units per metre; for any other folder the scale cannot
+be known, and opening it raises :class:`~pcdcodec.InputError` asking for ``depth_scale``.
 """
 
 from __future__ import annotations
@@ -44,6 +47,8 @@ __all__ = [
 ]
 
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
+#: Depth units per metre of the TUM RGB-D benchmark's 16-bit depth PNGs.
+TUM_DEPTH_SCALE = 5000.0
 _NS_PER_S = 1_000_000_000
 
 
@@ -243,6 +248,9 @@ class FolderSource(Source):
     metadata: dict[str, str] = field(default_factory=dict)
     #: Camera-to-world pose per pair (TUM groundtruth.txt, 7-Scenes pose/), or None.
     poses: list[npt.NDArray[np.float64] | None] | None = None
+    #: Where :attr:`depth_scale` came from: ``"given"``, ``"camera.json"`` or
+    #: ``"TUM RGB-D dataset"``.
+    depth_scale_origin: str = "given"
 
     @property
     def path(self) -> Path:  # type: ignore[override]
@@ -283,6 +291,35 @@ class FolderSource(Source):
             yield frame
 
 
+def _is_tum_dataset(root: Path) -> bool:
+    """Whether ``depth.txt`` is one of the TUM RGB-D benchmark's own lists.
+
+    TUM writes ``# file: 'rgbd_dataset_freiburg…bag'`` in its header. Other recordings use the
+    same list layout with other units (RealSense millimetres), so the layout alone says nothing.
+    """
+    try:
+        with open(root / "depth.txt", encoding="utf-8", errors="replace") as fh:
+            head = [fh.readline() for _ in range(3)]
+    except OSError:
+        return False
+    return any(line.startswith("# file:") and "rgbd_dataset_" in line for line in head)
+
+
+def _depth_scale(root: Path, given: float | None, meta: dict[str, Any]) -> tuple[float, str]:
+    """The folder's depth scale and where it came from."""
+    if given is not None:
+        return float(given), "given"
+    if "depth_scale" in meta:
+        return float(meta["depth_scale"]), "camera.json"
+    if _is_tum_dataset(root):
+        return TUM_DEPTH_SCALE, "TUM RGB-D dataset"
+    raise InputError(
+        f"no depth scale for {str(root)!r}: nothing in the folder says how many depth units make "
+        "a metre; pass depth_scale=UNITS_PER_METRE (1000 for millimetres), or put depth_scale "
+        "in a camera.json in the folder"
+    )
+
+
 def open_folder(
     path: str | Path,
     *,
@@ -321,14 +358,13 @@ def open_folder(
     if intrinsics is None and {"fx", "fy", "cx", "cy"} <= meta.keys():
         keys = ("width", "height", "fx", "fy", "cx", "cy")
         intrinsics = CameraIntrinsics.from_dict({k: meta[k] for k in keys if k in meta})
-    if depth_scale is None:
-        depth_scale = float(meta.get("depth_scale", 1000.0))
+    scale, origin = _depth_scale(root, depth_scale, meta)
     intrinsics, camera_from = _folder_camera(root, intrinsics, pairs)
     is_tum_pairs = layout == "tum" or (layout == "auto" and is_tum)
     from .sources.poses import folder_poses
 
     poses = folder_poses(root, pairs, tum=is_tum_pairs)
-    source = FolderSource(root, pairs, intrinsics, depth_scale, poses=poses)
+    source = FolderSource(root, pairs, intrinsics, scale, poses=poses, depth_scale_origin=origin)
     source.metadata["timestamps"] = _timestamp_note(root, is_tum_pairs, pairs, fps)
     if camera_from and camera_from != "given":
         source.metadata["intrinsics_file"] = Path(camera_from).name
@@ -349,15 +385,17 @@ def load_folder(
 
     ``layout`` is ``"auto"``, ``"tum"`` or ``"folders"``; ``max_dt`` is the largest color/depth
     time difference in seconds accepted when pairing TUM lists without ``associations.txt``.
-    Intrinsics and depth scale default to the folder's ``camera.json`` (depth scale 1000
-    without one); ``intrinsics`` may also be an intrinsics file
+    Intrinsics and depth scale default to the folder's ``camera.json``; without a depth scale
+    there, a TUM RGB-D dataset folder gets TUM's 5000 and any other folder raises
+    :class:`~pcdcodec.InputError` asking for ``depth_scale``. ``intrinsics`` may also be an
+    intrinsics file
     (:func:`~pcdcodec.camera.read_intrinsics`), and without either, a file the folder ships
     with (``intrinsics.K.txt``, ``camera-intrinsics.txt``, a CameraInfo YAML, an Open3D
     intrinsic JSON) is read. Plain folders without time lists are timed at ``fps`` from the
     frame numbers in their file names, so dropped frames keep their gap; the source's
     ``metadata["timestamps"]`` says how the times were made. Raises
     :class:`~pcdcodec.InputError` for a missing folder, an unknown layout, an empty sequence,
-    unreadable images or frames of different sizes.
+    an unknown depth scale, unreadable images or frames of different sizes.
     """
     source = open_folder(
         path,

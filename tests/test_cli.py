@@ -91,11 +91,16 @@ def test_encode_with_codec_options_and_explicit_camera(tmp_path: Path) -> None:
         shutil.copy(c, src / "rgb" / f"{i}.png")
         shutil.copy(d, src / "depth" / f"{i}.png")
     out = tmp_path / "x.pcdc"
-    missing = run("encode", str(src), "-o", str(out))
+    no_scale = run("encode", str(src), "-o", str(out))
+    assert no_scale.returncode == 1
+    assert "no depth scale" in no_scale.stderr
+    assert "--depth-scale" in no_scale.stderr
+    assert not out.exists()
+    missing = run("encode", str(src), "-o", str(out), "--depth-scale", "5000")
     assert missing.returncode == 1
     assert "no intrinsics" in missing.stderr
     assert not out.exists()
-    partial = run("encode", str(src), "-o", str(out), "--fx", "525")
+    partial = run("encode", str(src), "-o", str(out), "--fx", "525", "--depth-scale", "5000")
     assert partial.returncode == 1
     assert "--fy" in partial.stderr
     ok = run(
@@ -119,13 +124,19 @@ def test_encode_with_codec_options_and_explicit_camera(tmp_path: Path) -> None:
         "zstd:level=9",
     )
     assert ok.returncode == 0, ok.stderr
+    assert "depth scale  5000 units per metre (from --depth-scale)" in ok.stdout
+    assert "640x480, fx=525 fy=525 cx=319.5 cy=239.5 (from the camera flags)" in ok.stdout
     with pcdcodec.open(out) as rec:
         assert rec.codecs["depth"] == {"id": "zstd", "level": 9}
         assert rec.codecs["color"]["id"] == "ffv1"  # type: ignore[index]
         np.testing.assert_array_equal(rec[2].color, seq[2].color)
         np.testing.assert_array_equal(rec[2].depth, seq[2].depth)
     again = run(
-        "encode", str(src), "-o", str(out), "--fx", "1", "--fy", "1", "--cx", "1", "--cy", "1"
+        "encode",
+        str(src),
+        "-o",
+        str(out),
+        *("--fx", "1", "--fy", "1", "--cx", "1", "--cy", "1", "--depth-scale", "1000"),
     )
     assert again.returncode == 1
     assert "overwrite" in again.stderr

@@ -123,7 +123,7 @@ def _plain_folder(root: Path, numbers: list[int], k_file: str | None = None) -> 
 def test_folder_finds_its_intrinsics_file_and_keeps_gaps(tmp_path: Path) -> None:
     root = _plain_folder(tmp_path / "f", [3, 4, 7], "camera-intrinsics.txt")
     assert find_intrinsics_file(root) == root / "camera-intrinsics.txt"
-    source = open_folder(root, fps=10.0)
+    source = open_folder(root, fps=10.0, depth_scale=1000.0)
     assert source.intrinsics == CAM
     assert [t for t, _, _ in source.pairs] == [0, 100_000_000, 400_000_000]  # 5, 6 dropped
     assert source.metadata["timestamps"].startswith("not recorded: frame numbers")

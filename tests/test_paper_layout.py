@@ -52,7 +52,10 @@ def _record(path: Path, color: Any, depth: Any = "jpegxl") -> Path:
         color=color,
         depth=depth,
     ) as rec:
-        rec.write_frames(seq)
+        if color is None:  # depth only: the sample's color is left out on purpose
+            rec.write_frames((None, f.depth, f.timestamp_ns) for f in seq)
+        else:
+            rec.write_frames(seq)
     return path
 
 

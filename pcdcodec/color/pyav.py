@@ -55,6 +55,24 @@ def _context(name: str, mode: Literal["r", "w"]) -> Any:
     return av.CodecContext.create(name, mode)
 
 
+def ffmpeg_packet(data: bytes | bytearray | memoryview) -> Any:
+    """An ``av.Packet`` holding a copy of ``data`` in memory that FFmpeg allocated and owns.
+
+    ``av.Packet(data)`` would lend FFmpeg the Python object's memory, released through a
+    callback that takes the GIL. Threaded codecs (dav1d, frame-threaded decoders, muxers)
+    release packets on their own worker threads, and one that does so while the main thread
+    holds the GIL and waits for those workers (``avcodec_free_context`` -> ``dav1d_flush``)
+    deadlocks the process. A packet FFmpeg owns is freed without Python, on any thread.
+    """
+    import av
+
+    size = len(memoryview(data).cast("B"))
+    packet = av.Packet(size)
+    if size:
+        memoryview(packet)[:] = memoryview(data).cast("B")
+    return packet
+
+
 @functools.cache
 def _probe(
     encoder: str, decoder: str, pix_fmt: str, options: tuple[tuple[str, str], ...]
@@ -261,9 +279,7 @@ class _PyAVDecoder(VideoDecoder):
             ) from exc
 
     def _decode(self, packet: Packet) -> list[DecodedFrame]:
-        import av
-
-        avp = av.Packet(packet.data)
+        avp = ffmpeg_packet(packet.data)
         avp.pts, avp.dts = packet.pts, packet.dts
         return self._run(avp, packet.pts)
 
@@ -286,6 +302,13 @@ _X26X_PRESETS = (
 )
 
 
+def _x264_tune(tune: str | None, low_delay: bool) -> str | None:
+    """x264's tune string: one psy tuning and zerolatency may be combined ("film,zerolatency")."""
+    if not low_delay or tune == "zerolatency":
+        return tune
+    return f"{tune},zerolatency" if tune else "zerolatency"
+
+
 class H264(PyAVCodec):
     """H.264 through libx264: the default color codec.
 
@@ -293,7 +316,11 @@ class H264(PyAVCodec):
     lossless), ``preset`` the speed/size trade-off, ``tune`` an optional x264 tuning
     (``film``, ``grain``, ``stillimage``, …), ``gop`` the keyframe interval in frames (default:
     one second), ``bframes`` the number of B-frames (0 keeps decode order = display order),
-    ``pix_fmt`` ``yuv420p`` (most compatible) or ``yuv444p`` (full chroma).
+    ``pix_fmt`` ``yuv420p`` (most compatible) or ``yuv444p`` (full chroma). ``low_delay``
+    (the default) adds x264's ``zerolatency`` tuning: no lookahead and sliced threads, so every
+    frame's packet comes out as it goes in and a crash loses no frame the encoder held back;
+    ``False`` lets x264 hold about a dozen frames for a file a few percent smaller at most
+    (see ``docs/format.md``).
     """
 
     video_format: ClassVar[str | None] = "h264"
@@ -312,9 +339,11 @@ class H264(PyAVCodec):
         bframes: int = 0,
         pix_fmt: str = "yuv420p",
         threads: int = 0,
+        low_delay: bool = True,
     ) -> None:
         check_number(self.name, "crf", crf, 0, 51)
         check_choice(self.name, "preset", preset, _X26X_PRESETS)
+        check_choice(self.name, "low_delay", low_delay, (True, False))
         check_choice(
             self.name,
             "tune",
@@ -337,16 +366,23 @@ class H264(PyAVCodec):
         check_int(self.name, "threads", threads, 0, 64)
         self.crf, self.preset, self.tune = crf, preset, tune
         self.gop, self.bframes, self.pix_fmt, self.threads = gop, bframes, pix_fmt, threads
+        self.low_delay = low_delay
 
     def _options(self) -> dict[str, str]:
         opts = {"crf": str(self.crf), "preset": self.preset}
-        if self.tune:
-            opts["tune"] = self.tune
+        tune = _x264_tune(self.tune, self.low_delay)
+        if tune:
+            opts["tune"] = tune
         return opts
 
 
 class H265(PyAVCodec):
-    """H.265/HEVC through libx265: smaller than H.264 at equal quality, slower to encode."""
+    """H.265/HEVC through libx265: smaller than H.264 at equal quality, slower to encode.
+
+    ``low_delay`` (the default) selects x265's ``zerolatency`` tuning, so the encoder holds no
+    frames back (with B-frames, only as many as a B-frame run); ``False`` lets it keep a
+    lookahead of several frames.
+    """
 
     video_format: ClassVar[str | None] = "h265"
     name: ClassVar[str] = "h265"
@@ -364,6 +400,7 @@ class H265(PyAVCodec):
         bframes: int = 0,
         pix_fmt: str = "yuv420p",
         threads: int = 0,
+        low_delay: bool = True,
     ) -> None:
         check_number(self.name, "crf", crf, 0, 51)
         check_choice(self.name, "preset", preset, _X26X_PRESETS)
@@ -371,19 +408,31 @@ class H265(PyAVCodec):
         check_int(self.name, "bframes", bframes, 0, 16)
         check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
         check_int(self.name, "threads", threads, 0, 64)
+        check_choice(self.name, "low_delay", low_delay, (True, False))
         self.crf, self.preset, self.gop, self.bframes = crf, preset, gop, bframes
-        self.pix_fmt, self.threads = pix_fmt, threads
+        self.pix_fmt, self.threads, self.low_delay = pix_fmt, threads, low_delay
 
     def _options(self) -> dict[str, str]:
-        return {
+        opts = {
             "crf": str(self.crf),
             "preset": self.preset,
             "x265-params": "log-level=error:repeat-headers=1",
         }
+        if self.low_delay and self.bframes == 0:
+            opts["tune"] = "zerolatency"
+        elif self.low_delay:  # x265 needs a lookahead deeper than its B-frame runs
+            opts["x265-params"] += f":rc-lookahead={self.bframes + 1}:frame-threads=1"
+        return opts
 
 
 class AV1(PyAVCodec):
-    """AV1 through SVT-AV1 (decoded by dav1d): the smallest lossy files; ``preset`` 0–13."""
+    """AV1 through SVT-AV1 (decoded by dav1d): the smallest lossy files; ``preset`` 0–13.
+
+    Unlike the other codecs, ``low_delay`` is off by default: SVT-AV1's random-access
+    structure holds back about 55 frames (a crash loses them), but its low-delay structure
+    (``low_delay=True``: no frame held back) made streams 78–121 % larger on every measured
+    sequence, which defeats the point of AV1 (``docs/format.md`` has the numbers).
+    """
 
     video_format: ClassVar[str | None] = "av1"
     name: ClassVar[str] = "av1"
@@ -398,12 +447,14 @@ class AV1(PyAVCodec):
         gop: int | None = None,
         pix_fmt: str = "yuv420p",
         threads: int = 0,
+        low_delay: bool = False,
     ) -> None:
         check_int(self.name, "crf", crf, 1, 63)
         check_int(self.name, "preset", preset, 0, 13)
         check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
         check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
         check_int(self.name, "threads", threads, 0, 64)
+        check_choice(self.name, "low_delay", low_delay, (True, False))
         self.crf, self.preset, self.gop, self.pix_fmt, self.threads = (
             crf,
             preset,
@@ -411,13 +462,21 @@ class AV1(PyAVCodec):
             pix_fmt,
             threads,
         )
+        self.low_delay = low_delay
 
     def _options(self) -> dict[str, str]:
-        return {"crf": str(self.crf), "preset": str(self.preset)}
+        opts = {"crf": str(self.crf), "preset": str(self.preset)}
+        if self.low_delay:
+            opts["svtav1-params"] = "pred-struct=1"
+        return opts
 
 
 class VP9(PyAVCodec):
-    """VP9 through libvpx in constant-quality mode; ``speed`` is libvpx's cpu-used (0–8)."""
+    """VP9 through libvpx in constant-quality mode; ``speed`` is libvpx's cpu-used (0–8).
+
+    ``low_delay`` (the default) sets libvpx's ``lag-in-frames`` to 0, so every frame's packet
+    comes out as it goes in; ``False`` lets libvpx look up to 25 frames ahead (alt-ref frames).
+    """
 
     video_format: ClassVar[str | None] = "vp9"
     name: ClassVar[str] = "vp9"
@@ -433,12 +492,14 @@ class VP9(PyAVCodec):
         gop: int | None = None,
         pix_fmt: str = "yuv420p",
         threads: int = 0,
+        low_delay: bool = True,
     ) -> None:
         check_int(self.name, "crf", crf, 0, 63)
         check_int(self.name, "speed", speed, 0, 8)
         check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
         check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
         check_int(self.name, "threads", threads, 0, 64)
+        check_choice(self.name, "low_delay", low_delay, (True, False))
         self.crf, self.speed, self.gop, self.pix_fmt, self.threads = (
             crf,
             speed,
@@ -446,15 +507,19 @@ class VP9(PyAVCodec):
             pix_fmt,
             threads,
         )
+        self.low_delay = low_delay
 
     def _options(self) -> dict[str, str]:
-        return {
+        opts = {
             "crf": str(self.crf),
             "b": "0",
             "cpu-used": str(self.speed),
             "deadline": "realtime" if self.speed >= 5 else "good",
             "row-mt": "1",
         }
+        if self.low_delay:
+            opts["lag-in-frames"] = "0"
+        return opts
 
 
 class MJPEG(PyAVCodec):
@@ -561,7 +626,10 @@ class FFVHuff(HuffYUV):
 
 
 class H264Lossless(PyAVCodec):
-    """Lossless H.264 on RGB through libx264rgb at qp 0: bit-exact, and inter-frame coded."""
+    """Lossless H.264 on RGB through libx264rgb at qp 0: bit-exact, and inter-frame coded.
+
+    ``low_delay`` (the default) adds x264's ``zerolatency`` tuning, as for :class:`H264`.
+    """
 
     video_format: ClassVar[str | None] = "h264"
     name: ClassVar[str] = "h264-lossless"
@@ -571,16 +639,26 @@ class H264Lossless(PyAVCodec):
     lossless: ClassVar[bool] = True
 
     def __init__(
-        self, *, preset: str = "veryfast", gop: int | None = None, threads: int = 0
+        self,
+        *,
+        preset: str = "veryfast",
+        gop: int | None = None,
+        threads: int = 0,
+        low_delay: bool = True,
     ) -> None:
         check_choice(self.name, "preset", preset, _X26X_PRESETS)
         check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
         check_int(self.name, "threads", threads, 0, 64)
+        check_choice(self.name, "low_delay", low_delay, (True, False))
         self.preset, self.gop, self.threads = preset, gop, threads
         self.pix_fmt = "rgb24"
+        self.low_delay = low_delay
 
     def _options(self) -> dict[str, str]:
-        return {"qp": "0", "preset": self.preset}
+        opts = {"qp": "0", "preset": self.preset}
+        if self.low_delay:
+            opts["tune"] = "zerolatency"
+        return opts
 
 
 # -- GPU encoders ------------------------------------------------------------------------------

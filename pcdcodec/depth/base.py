@@ -21,7 +21,15 @@ from .._validate import check_depth
 from ..codec import Codec
 from ..errors import DecodeError, InputTypeError
 
-__all__ = ["FORMAT_VERSION", "MAGIC", "FrameCodec", "FrameHeader", "read_header"]
+__all__ = [
+    "DEFAULT_MAX_PIXELS",
+    "FORMAT_VERSION",
+    "MAGIC",
+    "FrameCodec",
+    "FrameHeader",
+    "check_frame_size",
+    "read_header",
+]
 
 MAGIC = b"PCDF"
 FORMAT_VERSION = 1
@@ -33,6 +41,11 @@ _CODE_OF_DTYPE = {v.str: k for k, v in _DTYPE_CODES.items()}
 LAYOUT_DIRECT = 0  # the image itself
 LAYOUT_TABLE = 1  # float32: a table of distinct values + a uint16 index image
 LAYOUT_PLANES = 2  # float32: high and low 16-bit halves stacked as a (2H, W) uint16 image
+
+#: The most pixels :meth:`FrameCodec.decode` accepts unless told otherwise: 8192 × 8192, a
+#: 128 MiB uint16 or 256 MiB float32 image, well above any depth camera. A frame header is only
+#: a few bytes, so without a limit a tiny hostile frame could ask for gigabytes.
+DEFAULT_MAX_PIXELS = 8192 * 8192
 
 _FIXED = struct.Struct("<4sBBBB")  # magic, version, dtype code, layout, name length
 _TAIL = struct.Struct("<IIQI")  # height, width, body length, crc32
@@ -106,6 +119,26 @@ def read_header(data: bytes | bytearray | memoryview) -> FrameHeader:
             f"encoded depth is {state}: {mv.nbytes} bytes, header says {header_size + body_len}"
         )
     return FrameHeader(name, _DTYPE_CODES[dcode], layout, height, width, body_len, crc, header_size)
+
+
+def check_frame_size(
+    header: FrameHeader,
+    *,
+    shape: tuple[int, int] | None = None,
+    max_pixels: int | None = DEFAULT_MAX_PIXELS,
+) -> None:
+    """Raise :class:`~pcdcodec.DecodeError` when a frame is not of ``shape`` or has more than
+    ``max_pixels`` pixels (``None``: no limit), before anything is decompressed."""
+    if shape is not None and header.shape != tuple(shape):
+        raise DecodeError(
+            f"depth frame is {header.width}x{header.height}, expected {shape[1]}x{shape[0]}"
+        )
+    if max_pixels is not None and header.height * header.width > max_pixels:
+        raise DecodeError(
+            f"depth frame declares {header.width}x{header.height} = "
+            f"{header.height * header.width} pixels, more than the limit of {max_pixels}; "
+            "pass max_pixels= to decode larger frames"
+        )
 
 
 def _float_to_table(
@@ -205,11 +238,22 @@ class FrameCodec(Codec):
         crc = zlib.crc32(image.data, zlib.crc32(header))
         return header + struct.pack("<I", crc) + body
 
-    def decode(self, data: bytes | bytearray | memoryview) -> npt.NDArray[Any]:
+    def decode(
+        self,
+        data: bytes | bytearray | memoryview,
+        *,
+        shape: tuple[int, int] | None = None,
+        max_pixels: int | None = DEFAULT_MAX_PIXELS,
+    ) -> npt.NDArray[Any]:
         """Decode bytes written by :meth:`encode` back into the exact depth image.
 
-        Raises :class:`~pcdcodec.DecodeError` when the bytes are corrupt, truncated, of another
-        format version, or were written by another codec.
+        Memory is bounded by what the frame's header declares: a frame of more than
+        ``max_pixels`` pixels (default :data:`DEFAULT_MAX_PIXELS`, 8192 × 8192; ``None`` for no
+        limit), or not of ``shape`` (height, width) when given, is refused before anything is
+        decompressed, and no codec body may decompress into more than the header's size.
+
+        Raises :class:`~pcdcodec.DecodeError` when the bytes are corrupt, truncated, too large,
+        of another format version, or were written by another codec.
         """
         self._require_available()
         header = read_header(data)
@@ -218,6 +262,7 @@ class FrameCodec(Codec):
                 f"depth frame was written by codec {header.codec!r}, not {self.name!r}; "
                 "pcdcodec.decode_depth() picks the right codec from the bytes"
             )
+        check_frame_size(header, shape=shape, max_pixels=max_pixels)
         body = memoryview(data)[header.header_size :]
         try:
             image = self._decode_layout(header, body)

@@ -8,7 +8,40 @@ import numpy as np
 import numpy.typing as npt
 
 from .._validate import check_int
+from ..errors import DecodeError
 from .base import FrameCodec, bytes_body
+
+
+def lz4_decompress_bounded(data: bytes | bytearray | memoryview, expected: int) -> bytearray:
+    """Decompress one LZ4 frame that must hold exactly ``expected`` bytes.
+
+    The frame's declared content size (when it has one) is checked before anything is
+    allocated, and decompression stops after ``expected`` bytes, so a small hostile frame
+    cannot make this allocate more than ``expected``. Raises :class:`~pcdcodec.DecodeError`
+    when the frame is invalid or holds another amount.
+    """
+    import lz4.frame
+
+    try:
+        info = lz4.frame.get_frame_info(data)
+    except Exception as exc:  # lz4 raises RuntimeError for a bad frame header
+        raise DecodeError(f"not a valid LZ4 frame: {exc}") from exc
+    declared = int(info["content_size"])
+    if declared and declared != expected:
+        raise DecodeError(f"LZ4 frame declares {declared} bytes of content, expected {expected}")
+    decompressor = lz4.frame.LZ4FrameDecompressor()
+    try:
+        raw = decompressor.decompress(data, max_length=expected)
+    except Exception as exc:
+        raise DecodeError(f"not a valid LZ4 frame: {exc}") from exc
+    if len(raw) != expected or not decompressor.eof:
+        more = "more than" if len(raw) == expected else "only"
+        raise DecodeError(f"LZ4 frame holds {more} {len(raw)} bytes, expected {expected}")
+    if decompressor.unused_data:
+        raise DecodeError(
+            f"LZ4 frame is followed by {len(decompressor.unused_data)} unexpected bytes"
+        )
+    return bytearray(raw)
 
 
 class LZ4(FrameCodec):
@@ -43,7 +76,5 @@ class LZ4(FrameCodec):
     def _decode_body(
         self, body: memoryview, shape: tuple[int, int], dtype: np.dtype[Any]
     ) -> npt.NDArray[Any]:
-        import lz4.frame
-
-        raw = lz4.frame.decompress(body, return_bytearray=True)
-        return bytes_body(raw, shape, dtype)
+        expected = shape[0] * shape[1] * dtype.itemsize
+        return bytes_body(lz4_decompress_bounded(body, expected), shape, dtype)

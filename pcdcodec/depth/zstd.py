@@ -8,7 +8,38 @@ import numpy as np
 import numpy.typing as npt
 
 from .._validate import check_int
+from ..errors import DecodeError
 from .base import FrameCodec, bytes_body
+
+
+def zstd_decompress_bounded(data: bytes | bytearray | memoryview, expected: int) -> bytes:
+    """Decompress one Zstandard frame that must hold exactly ``expected`` bytes.
+
+    The frame's declared content size is checked before anything is allocated, and a frame
+    without one is decompressed into at most ``expected`` bytes, so a small hostile frame
+    cannot make this allocate more than ``expected``. Raises
+    :class:`~pcdcodec.DecodeError` when the frame holds another amount.
+    """
+    import zstandard
+
+    try:
+        declared = zstandard.get_frame_parameters(data).content_size
+    except zstandard.ZstdError as exc:
+        raise DecodeError(f"not a valid Zstandard frame: {exc}") from exc
+    if declared != zstandard.CONTENTSIZE_UNKNOWN and declared != expected:
+        raise DecodeError(
+            f"Zstandard frame declares {declared} bytes of content, expected {expected}"
+        )
+    # With a declared size zstandard allocates exactly that; without one, max_output_size.
+    try:
+        raw = zstandard.ZstdDecompressor().decompress(data, max_output_size=expected)
+    except zstandard.ZstdError as exc:
+        raise DecodeError(
+            f"Zstandard frame does not decompress into {expected} bytes: {exc}"
+        ) from exc
+    if len(raw) != expected:
+        raise DecodeError(f"Zstandard frame holds {len(raw)} bytes, expected {expected}")
+    return raw
 
 
 class Zstd(FrameCodec):
@@ -36,8 +67,5 @@ class Zstd(FrameCodec):
     def _decode_body(
         self, body: memoryview, shape: tuple[int, int], dtype: np.dtype[Any]
     ) -> npt.NDArray[Any]:
-        import zstandard
-
         expected = shape[0] * shape[1] * dtype.itemsize
-        raw = zstandard.ZstdDecompressor().decompress(body, max_output_size=expected)
-        return bytes_body(raw, shape, dtype)
+        return bytes_body(zstd_decompress_bounded(body, expected), shape, dtype)

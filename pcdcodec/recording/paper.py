@@ -36,7 +36,7 @@ import numpy.typing as npt
 from .._validate import check_depth
 from ..camera import CameraIntrinsics
 from ..color.base import Packet, StreamCodec
-from ..color.pyav import PyAVCodec
+from ..color.pyav import PyAVCodec, ffmpeg_packet
 from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import CodecUnavailableError, DecodeError, InputError, PcdcodecError
 from ..registry import codec_class, get_codec
@@ -311,7 +311,7 @@ def _mux_color(
                 if last_dts is not None:
                     dts = max(dts, last_dts)
             last_dts = dts
-            avp: Any = av.Packet(packet.data)
+            avp: Any = ffmpeg_packet(packet.data)
             avp.stream = stream
             avp.time_base = time_base
             avp.pts, avp.dts = pts, dts
@@ -844,21 +844,21 @@ def _write_frames(
 
 
 def _read_depth(fh: IO[bytes], f: _Frame, layout: _Layout, path: Path) -> npt.NDArray[Any]:
-    import lz4.frame
+    from ..depth.lz4 import lz4_decompress_bounded
 
     fh.seek(f.depth_offset)
     blob = fh.read(f.depth_length)
     where = f"{str(path)!r}: frame {f.index} (bytes {f.depth_offset}..+{f.depth_length})"
-    try:
-        raw = lz4.frame.decompress(blob)
-    except Exception as exc:
-        raise DecodeError(f"{where} is not a valid LZ4 frame: {exc}") from exc
     expected = layout.width * layout.height * layout.depth_dtype.itemsize
-    if len(raw) != expected:
+    # Bounded by the layout's image size: a frame declaring or holding more is refused before
+    # more than one image's worth of memory is allocated.
+    try:
+        raw = lz4_decompress_bounded(blob, expected)
+    except DecodeError as exc:
         raise DecodeError(
-            f"{where} holds {len(raw)} bytes, expected {expected} for a {layout.width}x"
-            f"{layout.height} {layout.depth_dtype.name} image"
-        )
+            f"{where} is not an LZ4 frame of a {layout.width}x{layout.height} "
+            f"{layout.depth_dtype.name} image: {exc}"
+        ) from exc
     image: npt.NDArray[Any] = np.frombuffer(raw, layout.depth_dtype).reshape(
         layout.height, layout.width
     )

@@ -419,7 +419,8 @@ class Recording:
                     f"the frame is {header.dtype}, but {self.depth_codec.name!r} writes "
                     f"{' or '.join(str(d) for d in self.depth_codec.dtypes)}"
                 )
-            depth = self.depth_codec.decode(data)
+            # The camera bounds the frame; no further pixel limit applies.
+            depth = self.depth_codec.decode(data, max_pixels=None)
             if depth.shape != header.shape or depth.dtype != header.dtype:
                 raise DecodeError(
                     f"decoded to {depth.dtype} {depth.shape}, expected "

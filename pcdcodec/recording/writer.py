@@ -44,6 +44,31 @@ from ._ros import (
 __all__ = ["RecordingWriter"]
 
 _NS = 1_000_000_000
+#: The latest timestamp a recording holds: the ROS messages it stores (camera calibration,
+#: CompressedVideo) keep time as int32 seconds, so 2038-01-19 03:14:07.999999999 UTC.
+MAX_TIMESTAMP_NS = (2**31) * _NS - 1
+
+
+def _user_metadata(metadata: Any) -> dict[str, str]:
+    """User metadata as MCAP's str -> str map: strings kept, other values as JSON."""
+    if metadata is None:
+        return {}
+    if not isinstance(metadata, dict):
+        raise InputTypeError(f"metadata must be a dict, got {type(metadata).__name__}")
+    out: dict[str, str] = {}
+    for key, value in metadata.items():
+        if not isinstance(key, str):
+            raise InputTypeError(f"metadata key {key!r} must be a str, got {type(key).__name__}")
+        if isinstance(value, str):
+            out[key] = value
+            continue
+        try:
+            out[key] = json.dumps(value, allow_nan=False)
+        except (TypeError, ValueError) as exc:
+            raise InputError(
+                f"metadata[{key!r}] = {value!r} is not a str and cannot be stored as JSON ({exc})"
+            ) from None
+    return out
 
 
 def _codec(spec: Any, kind: str) -> Codec:
@@ -112,8 +137,8 @@ class RecordingWriter:
     Each message is written and flushed as soon as it is encoded: if the process dies, every
     frame whose messages were written (``frames_complete``) can be read back, and
     ``pcdcodec recover`` rewrites the file with an index. Frames still in flight are lost: the
-    ``in_flight`` queue plus the frames a video encoder holds back (x264 at its defaults keeps
-    about a dozen for its lookahead and threads).
+    ``in_flight`` queue plus the frames a video encoder holds back, which at the codecs'
+    defaults (``low_delay=True``) is none, except for AV1 (about 55; see ``docs/format.md``).
     """
 
     def __init__(
@@ -150,6 +175,8 @@ class RecordingWriter:
         if not isinstance(in_flight, int) or in_flight < 1:
             raise InputError(f"in_flight must be a positive int, got {in_flight!r}")
         self.in_flight = in_flight
+        if not isinstance(frame_id, str):
+            raise InputTypeError(f"frame_id must be a str, got {frame_id!r}")
         self.frame_id = frame_id
         depth_codec = _codec(depth, "depth")
         if not isinstance(depth_codec, FrameCodec):
@@ -165,9 +192,7 @@ class RecordingWriter:
                 )
             self.color_codec = color_codec
         self.depth_codec._require_available()
-        user = {
-            str(k): v if isinstance(v, str) else json.dumps(v) for k, v in (metadata or {}).items()
-        }
+        user = _user_metadata(metadata)
         if fmt.DIGEST_KEY in user:
             raise InputError(f"metadata key {fmt.DIGEST_KEY!r} is reserved for the file's digest")
 
@@ -185,10 +210,40 @@ class RecordingWriter:
             if self.path.exists()
             else self.path
         )
-        from mcap.writer import CompressionType, Writer
-
         mode = "xb" if self._writing == self.path else "wb"
         self._file: IO[bytes] = open(self._writing, mode)  # noqa: SIM115 - closed by close()
+        try:
+            self._start(user)
+        except BaseException:
+            # A writer that never started leaves nothing behind, so a retry finds no file.
+            self._file.close()
+            self._writing.unlink(missing_ok=True)
+            raise
+        self._encoder: VideoEncoder | None = None
+        self._shape: tuple[int, int] | None = None
+        self._last_ts: int | None = None
+        self._pending: deque[tuple[int, Future[list[Packet]] | None, Future[bytes]]] = deque()
+        self._color_pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-color")
+        self._depth_pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-depth")
+        self._channels: dict[str, int] = {}
+        self._sequence = 0
+        # Frames count as complete once their depth and their color packet are both written.
+        self._depth_written: deque[int] = deque()
+        self._color_written: set[int] = set()
+        self.frames_complete = 0
+        self.frames_written = 0
+        self.bytes_color = 0
+        self.bytes_depth = 0
+        self._sync: Any = None
+        self._poses: dict[int, npt.NDArray[np.float64]] = {}
+        self.poses_written = 0
+        self._mode: str | None = None  # "frames" (write) or "encoded" (write_encoded)
+        self._closed = False
+
+    def _start(self, user: dict[str, str]) -> None:
+        """Write the file's header and metadata."""
+        from mcap.writer import CompressionType, Writer
+
         # One chunk per message: each is on disk (with its CRC) as soon as it is written, and
         # MCAP's chunk index then gives every message's time and offset directly.
         self._mcap = Writer(
@@ -218,7 +273,7 @@ class RecordingWriter:
                 "color_codec": json.dumps(self.color_codec.stored_config())
                 if self.color_codec
                 else "",
-                "frame_id": frame_id,
+                "frame_id": self.frame_id,
                 **cameras,
             },
         }
@@ -230,27 +285,6 @@ class RecordingWriter:
         for name, data in records.items():
             self._mcap.add_metadata(name, fmt.seal(name, data))
         self._file.flush()
-
-        self._encoder: VideoEncoder | None = None
-        self._shape: tuple[int, int] | None = None
-        self._last_ts: int | None = None
-        self._pending: deque[tuple[int, Future[list[Packet]] | None, Future[bytes]]] = deque()
-        self._color_pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-color")
-        self._depth_pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-depth")
-        self._channels: dict[str, int] = {}
-        self._sequence = 0
-        # Frames count as complete once their depth and their color packet are both written.
-        self._depth_written: deque[int] = deque()
-        self._color_written: set[int] = set()
-        self.frames_complete = 0
-        self.frames_written = 0
-        self.bytes_color = 0
-        self.bytes_depth = 0
-        self._sync: Any = None
-        self._poses: dict[int, npt.NDArray[np.float64]] = {}
-        self.poses_written = 0
-        self._mode: str | None = None  # "frames" (write) or "encoded" (write_encoded)
-        self._closed = False
 
     # -- writing -----------------------------------------------------------------------
 
@@ -362,6 +396,11 @@ class RecordingWriter:
         timestamp = self._next_timestamp(timestamp)
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
         rgb: npt.NDArray[np.uint8] | None = None
+        if self.color_codec is None and color is not None:
+            raise InputError(
+                "this recording is depth only (color=None); pass None as color, or open it "
+                "with a color codec to keep the color images"
+            )
         if self.color_codec is not None:
             if color is None:
                 raise InputError("this recording has color: pass a color image with each frame")
@@ -432,6 +471,11 @@ class RecordingWriter:
         ts = int(timestamp)
         if ts < 0:
             raise InputError(f"timestamp must not be negative, got {ts}")
+        if ts > MAX_TIMESTAMP_NS:
+            raise InputError(
+                f"timestamp {ts} ns is later than a recording can hold: at most "
+                f"{MAX_TIMESTAMP_NS} ns (2038-01-19 03:14:07 UTC; ROS time has int32 seconds)"
+            )
         if self._last_ts is not None and ts <= self._last_ts:
             raise InputError(
                 f"timestamp {ts} ns does not increase (previous frame: {self._last_ts} ns)"
@@ -499,7 +543,8 @@ class RecordingWriter:
                 f"recording with depth_scale={float(depth_scale):g}"
             )
         color, depth = from_open3d_rgbd(rgbd, depth_scale=depth_scale)
-        self.write(color, depth, timestamp)
+        # An RGBDImage always carries color; a depth-only recording keeps its depth only.
+        self.write(color if self.color_codec is not None else None, depth, timestamp)
 
     def write_frames(
         self,
@@ -693,25 +738,50 @@ class RecordingWriter:
             raise InputError(f"recording {str(self.path)!r} is closed")
 
     def close(self) -> None:
-        """Write what is still pending, the index and the summary, and close the file."""
+        """Write what is still pending, the index and the summary, and close the file.
+
+        Every step is tried even when an earlier one fails (a frame that cannot be encoded, a
+        full disk), so the frames already written stay readable and the file gets its index
+        whenever it can; the first error is raised at the end. When replacing a file, the old
+        one is kept unless the new one closed without error (the new one's frames then stay in
+        the partial file the error names).
+        """
         if self._closed:
             return
-        try:
-            if self._sync is not None:
-                for _, rgb, depth_ts, depth in self._sync.flush():
-                    self.write(rgb, depth, depth_ts)
-        finally:
-            self._closed = True
-        try:
-            while self._pending:
-                self._drain_one()
-            if self._encoder is not None:
-                self._write_packets(self._encoder.flush())
-            self._mcap.finish()  # type: ignore[no-untyped-call]
-        finally:
-            self._color_pool.shutdown(wait=True)
-            self._depth_pool.shutdown(wait=True)
-            self._file.close()
+        errors: list[BaseException] = []
+
+        def attempt(step: Callable[[], Any]) -> None:
+            try:
+                step()
+            except BaseException as exc:  # every step is tried; the first error is raised
+                errors.append(exc)
+
+        def flush_sync() -> None:
+            for _, rgb, depth_ts, depth in self._sync.flush():
+                self.write(rgb, depth, depth_ts)
+
+        if self._sync is not None:
+            attempt(flush_sync)
+        self._closed = True
+        # Bounded: each frame gets one try, whether or not its step took it off the queue.
+        for _ in range(len(self._pending)):
+            attempt(self._drain_one)
+        self._pending.clear()
+        encoder = self._encoder
+        if encoder is not None:
+            attempt(lambda: self._write_packets(encoder.flush()))
+        attempt(self._mcap.finish)
+        self._color_pool.shutdown(wait=True)
+        self._depth_pool.shutdown(wait=True)
+        attempt(self._file.close)
+        if errors:
+            add_note = getattr(errors[0], "add_note", None)  # Python 3.11+
+            if self._writing != self._target and add_note is not None:
+                add_note(
+                    f"{str(self._target)!r} was left as it was; the frames written are in "
+                    f"{str(self._writing)!r}"
+                )
+            raise errors[0]
         if self._writing != self._target:
             os.replace(self._writing, self._target)
 
