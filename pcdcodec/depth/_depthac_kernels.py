@@ -62,7 +62,7 @@ _G_LUT = np.array([0, 1, 2, 3, 3, 4, 4, 4, 4] + [5] * 8 + [6] * 16, dtype=np.int
 _E_LUT = np.array([0, 1, 2, 3, 3, 4, 4, 4, 4], dtype=np.int64)  # < 9
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _rate(cnt: Any, i: int) -> int:
     c = cnt[i]
     if c < 24:
@@ -77,7 +77,7 @@ def _rate(cnt: Any, i: int) -> int:
     return 5
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _enc(
     low: int, rng: int, pos: int, out: Any, probs: Any, cnt: Any, i: int, bit: int
 ) -> tuple[int, int, int]:
@@ -107,7 +107,7 @@ def _enc(
     return low, rng, pos
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _dec(
     code: int, rng: int, pos: int, buf: Any, n: int, probs: Any, cnt: Any, i: int
 ) -> tuple[int, int, int, int]:
@@ -140,7 +140,7 @@ _Q9_LUT = np.array(
 _PAD = 2  # rows above and columns on each side of the padded working arrays
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _q9(d: int) -> Any:
     """Quantise a signed index gradient to 9 levels (0..8, 4 = zero): 0, 1, 2-3, 4-8, 9+."""
     if d > 11:
@@ -150,7 +150,7 @@ def _q9(d: int) -> Any:
     return _Q9_LUT[d + 11]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _mask_ctx(valid: Any, o: int, s: int) -> Any:
     """Ten causal mask bits around flat position ``o`` of a padded array of row stride ``s``."""
     n = o - s
@@ -169,19 +169,19 @@ def _mask_ctx(valid: Any, o: int, s: int) -> Any:
     )
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _absdiff(a: int, b: int) -> int:
     return a - b if a > b else b - a
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _ctx(g: int, e: int, cls: int, glut: Any, elut: Any) -> int:
     gb = glut[g] if g < 33 else 7
     eb = elut[e] if e < 9 else 5
     return (cls * _NGBIN + gb) * _NEBIN + eb
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _predict(
     idx: Any, err: Any, valid: Any, o: int, s: int, last: int, glut: Any, elut: Any
 ) -> tuple[int, int, int]:
@@ -228,7 +228,7 @@ def _predict(
     return last, _ctx(0, 0, 4, glut, elut), _NOBIAS
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _coding_ctx(ctx: int, q: int, err: Any, o: int, s: int) -> tuple[int, int]:
     """Models of the zero flag and of the sign."""
     if q == _NOBIAS:
@@ -240,7 +240,7 @@ def _coding_ctx(ctx: int, q: int, err: Any, o: int, s: int) -> tuple[int, int]:
     return _M_QZERO + q * _NQE + (eb if eb < _NQE else _NQE - 1), _M_QSIGN + q * 9 + sg
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", error_model="numpy")
 def _gap_ctx(pgap: int) -> int:
     if pgap < 2:
         return pgap
@@ -254,7 +254,7 @@ def _gap_ctx(pgap: int) -> int:
 # -- encoder ------------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def encode_image(image: Any, allow_table: bool) -> Any:
     """Encode a 2-D uint16 image; returns the body as a uint8 array."""
     h, w = image.shape
@@ -375,7 +375,7 @@ def encode_image(image: Any, allow_table: bool) -> Any:
 # -- decoder ------------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def decode_image(buf: Any, out_img: Any) -> int:
     """Decode a body into ``out_img`` (uint16, h×w); returns ``OK`` or an ``ERR_*`` status."""
     h, w = out_img.shape
