@@ -62,35 +62,29 @@ _G_LUT = np.array([0, 1, 2, 3, 3, 4, 4, 4, 4] + [5] * 8 + [6] * 16, dtype=np.int
 _E_LUT = np.array([0, 1, 2, 3, 3, 4, 4, 4, 4], dtype=np.int64)  # < 9
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def _rate(cnt: Any, i: int) -> int:
-    c = cnt[i]
-    if c < 24:
-        cnt[i] = c + 1
-        if c < 1:
-            return 1
-        if c < 3:
-            return 2
-        if c < 8:
-            return 3
-        return 4
-    return 5
+# Adaptation shift by use count (0..24); a model's state packs its count above its 16-bit
+# probability (which stays within 1..65535), so one load and one store update it.
+_RATE_LUT = np.array([1] + [2] * 2 + [3] * 5 + [4] * 16 + [5], dtype=np.int64)
+_STATE_INIT = _PROB_INIT
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _enc(
-    low: int, rng: int, pos: int, out: Any, probs: Any, cnt: Any, i: int, bit: int
+    low: int, rng: int, pos: int, out: Any, probs: Any, i: int, bit: int
 ) -> tuple[int, int, int]:
-    p = probs[i]
+    s = probs[i]
+    p = s & 0xFFFF
+    c = s >> 16
     bound = (rng >> 16) * p
-    r = _rate(cnt, i)
+    r = _RATE_LUT[c]
+    c = (c + 1 if c < 24 else c) << 16
     if bit == 0:
         rng = bound
-        probs[i] = p + ((65536 - p) >> r)
+        probs[i] = c | (p + ((65536 - p) >> r))
     else:
         low += bound
         rng -= bound
-        probs[i] = p - (p >> r)
+        probs[i] = c | (p - (p >> r))
         if low > _MASK32:
             # Carry into the bytes already written; it cannot pass the first one.
             low &= _MASK32
@@ -109,19 +103,22 @@ def _enc(
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _dec(
-    code: int, rng: int, pos: int, buf: Any, n: int, probs: Any, cnt: Any, i: int
+    code: int, rng: int, pos: int, buf: Any, n: int, probs: Any, i: int
 ) -> tuple[int, int, int, int]:
-    p = probs[i]
+    s = probs[i]
+    p = s & 0xFFFF
+    c = s >> 16
     bound = (rng >> 16) * p
-    r = _rate(cnt, i)
+    r = _RATE_LUT[c]
+    c = (c + 1 if c < 24 else c) << 16
     if code < bound:
         rng = bound
-        probs[i] = p + ((65536 - p) >> r)
+        probs[i] = c | (p + ((65536 - p) >> r))
         bit = 0
     else:
         code -= bound
         rng -= bound
-        probs[i] = p - (p >> r)
+        probs[i] = c | (p - (p >> r))
         bit = 1
     while rng < _TOP:
         byte = np.int64(buf[pos]) if pos < n else np.int64(0)
@@ -287,13 +284,12 @@ def encode_image(image: Any, allow_table: bool) -> Any:
     low = 0
     rng = _MASK32
     pos = 1
-    probs = np.full(_NMODELS, _PROB_INIT, dtype=np.int64)
-    cnt = np.zeros(_NMODELS, dtype=np.int64)
+    probs = np.full(_NMODELS, _STATE_INIT, dtype=np.int64)
 
     if use_table:
         for j in range(16):
             low, rng, pos = _enc(
-                low, rng, pos, out, probs, cnt, _M_HDR + j, (ntable - 1) >> (15 - j) & 1
+                low, rng, pos, out, probs, _M_HDR + j, (ntable - 1) >> (15 - j) & 1
             )
         prev = 0
         pgap = 0
@@ -303,19 +299,19 @@ def encode_image(image: Any, allow_table: bool) -> Any:
             gap = v - prev - 1
             g = _gap_ctx(pgap)
             if gap == 0:
-                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_TZERO + g, 0)
+                low, rng, pos = _enc(low, rng, pos, out, probs, _M_TZERO + g, 0)
             else:
-                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_TZERO + g, 1)
+                low, rng, pos = _enc(low, rng, pos, out, probs, _M_TZERO + g, 1)
                 k = 0
                 while (gap >> (k + 1)) != 0:
                     k += 1
                 for j in range(k):
-                    low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_TEXP + g * 16 + j, 1)
+                    low, rng, pos = _enc(low, rng, pos, out, probs, _M_TEXP + g * 16 + j, 1)
                 if k < 15:
-                    low, rng, pos = _enc(low, rng, pos, out, probs, cnt, _M_TEXP + g * 16 + k, 0)
+                    low, rng, pos = _enc(low, rng, pos, out, probs, _M_TEXP + g * 16 + k, 0)
                 for j in range(k - 1, -1, -1):
                     low, rng, pos = _enc(
-                        low, rng, pos, out, probs, cnt, _M_TMANT + k * 16 + j, (gap >> j) & 1
+                        low, rng, pos, out, probs, _M_TMANT + k * 16 + j, (gap >> j) & 1
                     )
             pgap = gap
             prev = v
@@ -334,7 +330,7 @@ def encode_image(image: Any, allow_table: bool) -> Any:
         for o in range(o0, o0 + w):
             if code_mask:
                 low, rng, pos = _enc(
-                    low, rng, pos, out, probs, cnt, _M_MASK + _mask_ctx(valid, o, st), valid[o]
+                    low, rng, pos, out, probs, _M_MASK + _mask_ctx(valid, o, st), valid[o]
                 )
             if valid[o] == 0:
                 continue
@@ -345,26 +341,26 @@ def encode_image(image: Any, allow_table: bool) -> Any:
             err[o] = e
             last = v
             if e == 0:
-                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, zc, 0)
+                low, rng, pos = _enc(low, rng, pos, out, probs, zc, 0)
                 continue
-            low, rng, pos = _enc(low, rng, pos, out, probs, cnt, zc, 1)
+            low, rng, pos = _enc(low, rng, pos, out, probs, zc, 1)
             m = e
             if e < 0:
-                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, sc, 1)
+                low, rng, pos = _enc(low, rng, pos, out, probs, sc, 1)
                 m = -e
             else:
-                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, sc, 0)
+                low, rng, pos = _enc(low, rng, pos, out, probs, sc, 0)
             k = 0
             while (m >> (k + 1)) != 0:
                 k += 1
             e0 = _M_EXP + ctx * _EXP
             for j in range(k):
-                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, e0 + j, 1)
+                low, rng, pos = _enc(low, rng, pos, out, probs, e0 + j, 1)
             if k < 15:
-                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, e0 + k, 0)
+                low, rng, pos = _enc(low, rng, pos, out, probs, e0 + k, 0)
             m0 = _M_MANT + (ctx // _PERCLASS) * 256 + k * 16
             for j in range(k - 1, -1, -1):
-                low, rng, pos = _enc(low, rng, pos, out, probs, cnt, m0 + j, (m >> j) & 1)
+                low, rng, pos = _enc(low, rng, pos, out, probs, m0 + j, (m >> j) & 1)
     for _ in range(4):
         out[pos] = low >> 24
         pos += 1
@@ -397,37 +393,32 @@ def decode_image(buf: Any, out_img: Any) -> int:
     )
     rng = _MASK32
     pos = 5
-    probs = np.full(_NMODELS, _PROB_INIT, dtype=np.int64)
-    cnt = np.zeros(_NMODELS, dtype=np.int64)
+    probs = np.full(_NMODELS, _STATE_INIT, dtype=np.int64)
 
     table = np.zeros(65536, dtype=np.int64)
     maxidx = 65535
     if use_table:
         ntable = 0
         for j in range(16):
-            bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, _M_HDR + j)
+            bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_HDR + j)
             ntable = (ntable << 1) | bit
         ntable += 1
         prev = 0
         pgap = 0
         for i in range(ntable):
             g = _gap_ctx(pgap)
-            bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, _M_TZERO + g)
+            bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TZERO + g)
             gap = 0
             if bit:
                 k = 0
                 while k < 15:
-                    bit, code, rng, pos = _dec(
-                        code, rng, pos, buf, n, probs, cnt, _M_TEXP + g * 16 + k
-                    )
+                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TEXP + g * 16 + k)
                     if bit == 0:
                         break
                     k += 1
                 gap = 1
                 for j in range(k - 1, -1, -1):
-                    bit, code, rng, pos = _dec(
-                        code, rng, pos, buf, n, probs, cnt, _M_TMANT + k * 16 + j
-                    )
+                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TMANT + k * 16 + j)
                     gap = (gap << 1) | bit
             v = prev + gap + 1
             if v > 65535:
@@ -455,7 +446,7 @@ def decode_image(buf: Any, out_img: Any) -> int:
             o = o0 + x
             if code_mask:
                 bit, code, rng, pos = _dec(
-                    code, rng, pos, buf, n, probs, cnt, _M_MASK + _mask_ctx(valid, o, st)
+                    code, rng, pos, buf, n, probs, _M_MASK + _mask_ctx(valid, o, st)
                 )
                 if bit == 0:
                     out_img[y, x] = 0
@@ -463,21 +454,21 @@ def decode_image(buf: Any, out_img: Any) -> int:
             valid[o] = 1
             p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
             zc, sc = _coding_ctx(ctx, q, err, o, st)
-            nz, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, zc)
+            nz, code, rng, pos = _dec(code, rng, pos, buf, n, probs, zc)
             e = 0
             if nz:
-                neg, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, sc)
+                neg, code, rng, pos = _dec(code, rng, pos, buf, n, probs, sc)
                 e0 = _M_EXP + ctx * _EXP
                 k = 0
                 while k < 15:
-                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, e0 + k)
+                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, e0 + k)
                     if bit == 0:
                         break
                     k += 1
                 m0 = _M_MANT + (ctx // _PERCLASS) * 256 + k * 16
                 m = 1
                 for j in range(k - 1, -1, -1):
-                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, cnt, m0 + j)
+                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, m0 + j)
                     m = (m << 1) | bit
                 e = -m if neg else m
             v = p + e
