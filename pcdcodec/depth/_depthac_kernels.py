@@ -147,23 +147,53 @@ def _q9(d: int) -> Any:
     return _Q9_LUT[d + 11]
 
 
+def _mask_lut() -> Any:
+    """Mask-bit context from the bit windows kept while walking a row.
+
+    The context holds ten causal mask bits, from its low bit: west, west-west, north,
+    north-west, north-east, north-west-west, north-east-east, north-north,
+    north-north-west, north-north-east.
+
+    The key holds, from its low bit: west and west-west (2 bits), the row above from two
+    columns left to two right (5 bits, leftmost highest), and the row two above from one
+    column left to one right (3 bits, leftmost highest).
+    """
+    lut = np.zeros(1024, dtype=np.int64)
+    for key in range(1024):
+        wb = key & 3
+        r1 = (key >> 2) & 31
+        r2 = key >> 7
+        lut[key] = (
+            wb
+            | (((r1 >> 2) & 1) << 2)
+            | (((r1 >> 3) & 1) << 3)
+            | (((r1 >> 1) & 1) << 4)
+            | (((r1 >> 4) & 1) << 5)
+            | ((r1 & 1) << 6)
+            | (((r2 >> 1) & 1) << 7)
+            | (((r2 >> 2) & 1) << 8)
+            | ((r2 & 1) << 9)
+        )
+    return lut
+
+
+_MASK_LUT = _mask_lut()
+
+
 @njit(cache=True, inline="always", error_model="numpy")
-def _mask_ctx(valid: Any, o: int, s: int) -> Any:
-    """Ten causal mask bits around flat position ``o`` of a padded array of row stride ``s``."""
+def _mask_row_start(valid: Any, o: int, s: int) -> tuple[int, int]:
+    """Bit windows of the two rows above for the first pixel of a row (see :func:`_mask_lut`)."""
     n = o - s
     nn = n - s
-    return (
-        np.int64(valid[o - 1])
-        | (np.int64(valid[o - 2]) << 1)
-        | (np.int64(valid[n]) << 2)
+    r1 = (
+        (np.int64(valid[n - 2]) << 4)
         | (np.int64(valid[n - 1]) << 3)
-        | (np.int64(valid[n + 1]) << 4)
-        | (np.int64(valid[n - 2]) << 5)
-        | (np.int64(valid[n + 2]) << 6)
-        | (np.int64(valid[nn]) << 7)
-        | (np.int64(valid[nn - 1]) << 8)
-        | (np.int64(valid[nn + 1]) << 9)
+        | (np.int64(valid[n]) << 2)
+        | (np.int64(valid[n + 1]) << 1)
+        | np.int64(valid[n + 2])
     )
+    r2 = (np.int64(valid[nn - 1]) << 2) | (np.int64(valid[nn]) << 1) | np.int64(valid[nn + 1])
+    return r1, r2
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -284,7 +314,7 @@ def encode_image(image: Any, allow_table: bool) -> Any:
     low = 0
     rng = _MASK32
     pos = 1
-    probs = np.full(_NMODELS, _STATE_INIT, dtype=np.int64)
+    probs = np.full(_NMODELS, _STATE_INIT, dtype=np.int32)
 
     if use_table:
         for j in range(16):
@@ -325,14 +355,20 @@ def encode_image(image: Any, allow_table: bool) -> Any:
     err = np.zeros(valid.size, dtype=np.int32)
     code_mask = nvalid < npix
     last = 0
+    mlut = _MASK_LUT
     for y in range(h):
         o0 = (y + _PAD) * st + _PAD
+        r1, r2 = _mask_row_start(valid, o0, st)
+        wb = 0
         for o in range(o0, o0 + w):
+            vo = np.int64(valid[o])
             if code_mask:
-                low, rng, pos = _enc(
-                    low, rng, pos, out, probs, _M_MASK + _mask_ctx(valid, o, st), valid[o]
-                )
-            if valid[o] == 0:
+                mc = mlut[(r2 << 7) | (r1 << 2) | wb]
+                low, rng, pos = _enc(low, rng, pos, out, probs, _M_MASK + mc, vo)
+                r1 = ((r1 << 1) & 31) | np.int64(valid[o - st + 3])
+                r2 = ((r2 << 1) & 7) | np.int64(valid[o - 2 * st + 2])
+                wb = ((wb << 1) | vo) & 3
+            if vo == 0:
                 continue
             p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
             zc, sc = _coding_ctx(ctx, q, err, o, st)
@@ -393,7 +429,7 @@ def decode_image(buf: Any, out_img: Any) -> int:
     )
     rng = _MASK32
     pos = 5
-    probs = np.full(_NMODELS, _STATE_INIT, dtype=np.int64)
+    probs = np.full(_NMODELS, _STATE_INIT, dtype=np.int32)
 
     table = np.zeros(65536, dtype=np.int64)
     maxidx = 65535
@@ -438,16 +474,21 @@ def decode_image(buf: Any, out_img: Any) -> int:
     idx = np.zeros(valid.size, dtype=np.int32)
     err = np.zeros(valid.size, dtype=np.int32)
     last = 0
+    mlut = _MASK_LUT
     for y in range(h):
         if pos > n:
             return ERR_LENGTH
         o0 = (y + _PAD) * st + _PAD
+        r1, r2 = _mask_row_start(valid, o0, st)
+        wb = 0
         for x in range(w):
             o = o0 + x
             if code_mask:
-                bit, code, rng, pos = _dec(
-                    code, rng, pos, buf, n, probs, _M_MASK + _mask_ctx(valid, o, st)
-                )
+                mc = mlut[(r2 << 7) | (r1 << 2) | wb]
+                bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_MASK + mc)
+                r1 = ((r1 << 1) & 31) | np.int64(valid[o - st + 3])
+                r2 = ((r2 << 1) & 7) | np.int64(valid[o - 2 * st + 2])
+                wb = ((wb << 1) | bit) & 3
                 if bit == 0:
                     out_img[y, x] = 0
                     continue
