@@ -346,12 +346,11 @@ def encode_image(image: Any, allow_table: bool) -> Any:
             pgap = gap
             prev = v
 
+    if not use_table:
+        for v in range(65536):
+            rank[v] = v + 1
+    # Indices are filled in as the pixels are coded: the model reads only valid causal ones.
     idx = np.zeros(valid.size, dtype=np.int32)
-    for y in range(h):
-        o = (y + _PAD) * st + _PAD
-        for x in range(w):
-            v = image[y, x]
-            idx[o + x] = rank[v] - 1 if use_table else v
     err = np.zeros(valid.size, dtype=np.int32)
     code_mask = nvalid < npix
     last = 0
@@ -370,9 +369,10 @@ def encode_image(image: Any, allow_table: bool) -> Any:
                 wb = ((wb << 1) | vo) & 3
             if vo == 0:
                 continue
+            v = rank[np.int64(image[y, o - o0])] - 1
+            idx[o] = v
             p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
             zc, sc = _coding_ctx(ctx, q, err, o, st)
-            v = np.int64(idx[o])
             e = v - p
             err[o] = e
             last = v
