@@ -100,3 +100,45 @@ def load_colors(name: str, count: int) -> list[np.ndarray[Any, Any]]:
         paths = sorted(seq.root.glob(seq.color_glob))[:count]
         _cache[key] = [_read(p)[..., :3] for p in paths]
     return _cache[key]
+
+
+SPOT_BAG = SHARED_DATA / "bags" / "spot" / "raw.bag"
+SPOT_TOPIC = "/spot/depth/frontleft/image"
+_spot: list[np.ndarray[Any, Any]] = []
+
+
+def load_spot_depth() -> np.ndarray[Any, Any]:
+    """The one Spot front-left depth frame (424×240 16UC1, mm, 36 % holes); skips when absent."""
+    if not SPOT_BAG.is_file():
+        pytest.skip(f"{SPOT_BAG} is not present")
+    if not _spot:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        typestore = get_typestore(Stores.ROS1_NOETIC)
+        with AnyReader([SPOT_BAG], default_typestore=typestore) as reader:
+            conns = [c for c in reader.connections if c.topic == SPOT_TOPIC]
+            _, _, raw = next(iter(reader.messages(connections=conns)))
+            msg = reader.deserialize(raw, conns[0].msgtype)
+        order = ">u2" if msg.is_bigendian else "<u2"
+        image = np.frombuffer(bytes(msg.data), order).reshape(msg.height, msg.width)
+        _spot.append(np.ascontiguousarray(image, dtype=np.uint16))
+    return _spot[0]
+
+
+def load_frames(name: str, count: int) -> list[np.ndarray[Any, Any]]:
+    """Depth frames of a sequence, of its ``-sparse`` variant, or the Spot frame (``spot``)."""
+    from pcdcodec.bench.sparse import sparsify_depth
+
+    if name == "spot":
+        return [load_spot_depth()]
+    if name.endswith("-sparse"):
+        return [
+            sparsify_depth(d, seed=i)
+            for i, d in enumerate(load_depths(name.removesuffix("-sparse"), count))
+        ]
+    return load_depths(name, count)
+
+
+#: Every depth test set: the sequences, their sparse variants and the Spot frame.
+DEPTH_SETS = [*SEQUENCES, *(f"{n}-sparse" for n in SEQUENCES), "spot"]

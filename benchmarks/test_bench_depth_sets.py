@@ -6,7 +6,7 @@ the same run (``benchmarks/conftest.py``).
 The ratio is over the set's sampled frames and is kept in ``extra_info``.
 
 The test sets are the real sequences (640×480), their sparse variants (``-sparse``: large
-regions removed the way sensors lose depth, ``tests.conftest.sparsify_depth``) and the Spot
+regions removed the way sensors lose depth, ``pcdcodec.bench.sparse.sparsify_depth``) and the Spot
 depth frame (424×240, ``spot``). Every registered codec runs with its defaults; ``zstd-19``
 adds Zstandard at level 19, the strongest general-purpose baseline.
 """
@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 import pcdcodec
+from benchmarks.data import DEPTH_SETS, SEQUENCES, SPOT_BAG, load_frames
 from pcdcodec.depth import FrameCodec
-from tests.conftest import DEPTH_SETS, SEQUENCES, SPOT_BAG, load_frames
 
 CONFIGS: dict[str, dict[str, Any]] = {
     name: {"id": name} for name in pcdcodec.list_codecs("depth", available_only=True)

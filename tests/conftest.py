@@ -9,6 +9,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from benchmarks.data import load_spot_depth
+from pcdcodec.bench.sparse import sparsify_depth
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"
 SAMPLE = REPO / "pcdcodec" / "data" / "tum_fr1_rpy"
@@ -98,96 +101,6 @@ def to_metres(depth: np.ndarray[Any, Any], scale: float) -> np.ndarray[Any, Any]
 @pytest.fixture(scope="session")
 def sample_depths() -> list[np.ndarray[Any, Any]]:
     return load_depths("sample", 15)
-
-
-SPOT_BAG = SHARED_DATA / "bags" / "spot" / "raw.bag"
-SPOT_TOPIC = "/spot/depth/frontleft/image"
-
-
-def load_spot_depth() -> np.ndarray[Any, Any]:
-    """The one Spot front-left depth frame (424×240 16UC1, mm, 36 % holes); skips when absent."""
-    if not SPOT_BAG.is_file():
-        pytest.skip(f"{SPOT_BAG} is not present")
-    if "spot" not in _cache:
-        from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
-
-        typestore = get_typestore(Stores.ROS1_NOETIC)
-        with AnyReader([SPOT_BAG], default_typestore=typestore) as reader:
-            conns = [c for c in reader.connections if c.topic == SPOT_TOPIC]
-            _, _, raw = next(iter(reader.messages(connections=conns)))
-            msg = reader.deserialize(raw, conns[0].msgtype)
-        order = ">u2" if msg.is_bigendian else "<u2"
-        image = np.frombuffer(bytes(msg.data), order).reshape(msg.height, msg.width)
-        _cache["spot"] = [np.ascontiguousarray(image, dtype=np.uint16)]
-    return _cache["spot"][0]
-
-
-def sparsify_depth(depth: np.ndarray[Any, Any], seed: int = 0) -> np.ndarray[Any, Any]:
-    """Real depth with large regions removed the way active depth sensors lose them.
-
-    Deterministic for a given ``seed``. Four physical causes are imitated, each on the image
-    itself (so edges and surfaces stay the sensor's own):
-
-    * **range limit**: everything beyond the 75th percentile of the valid depth is dropped
-      (the projector's pattern is too faint far away);
-    * **dark and shiny surfaces**: smooth blobs covering about a third of the view are
-      dropped (a low-frequency random field, thresholded: absorbing or specular materials
-      return no pattern);
-    * **occlusion shadows**: on the far side of every depth step of more than 8 % a band of
-      12 pixels is dropped (the projector does not see behind the near object's edge);
-    * **edge speckle**: half the pixels within 2 pixels of a step are dropped at random
-      (mixed pixels the sensor's filters reject).
-
-    The result keeps 35–50 % of the pixels of a dense frame, like a RealSense looking at
-    a cluttered scene with dark and glossy objects.
-    """
-    rng = np.random.default_rng(seed)
-    d = np.asarray(depth)
-    h, w = d.shape
-    out = d.copy()
-    valid = d > 0
-    if not valid.any():
-        return out
-    drop = d > np.percentile(d[valid], 75)
-    # A smooth random field: a coarse grid of noise, upsampled bilinearly.
-    gh, gw = max(2, h // 60 + 2), max(2, w // 60 + 2)
-    grid = rng.standard_normal((gh, gw))
-    ys = np.linspace(0, gh - 1, h)
-    xs = np.linspace(0, gw - 1, w)
-    y0 = np.minimum(ys.astype(int), gh - 2)
-    x0 = np.minimum(xs.astype(int), gw - 2)
-    fy = (ys - y0)[:, None]
-    fx = (xs - x0)[None, :]
-    field = (
-        grid[y0][:, x0] * (1 - fy) * (1 - fx)
-        + grid[y0 + 1][:, x0] * fy * (1 - fx)
-        + grid[y0][:, x0 + 1] * (1 - fy) * fx
-        + grid[y0 + 1][:, x0 + 1] * fy * fx
-    )
-    drop |= field > np.quantile(field, 0.67)
-    # Depth steps: the far side of a jump between horizontal neighbours.
-    left = d[:, :-1].astype(np.float64)
-    right = d[:, 1:].astype(np.float64)
-    both = (left > 0) & (right > 0)
-    far_right = both & (right > left * 1.08)
-    far_left = both & (left > right * 1.08)
-    step = np.zeros_like(valid)
-    step[:, 1:] |= far_right
-    step[:, :-1] |= far_left
-    shadow = np.zeros_like(valid)
-    for k in range(12):
-        shadow[:, 1 + k :] |= far_right[:, : w - 1 - k]
-    drop |= shadow
-    near = step.copy()
-    for k in (1, 2):
-        near[:, k:] |= step[:, :-k]
-        near[:, :-k] |= step[:, k:]
-        near[k:, :] |= step[:-k, :]
-        near[:-k, :] |= step[k:, :]
-    drop |= near & (rng.random((h, w)) < 0.5)
-    out[drop] = 0
-    return out
 
 
 def load_frames(name: str, count: int) -> list[np.ndarray[Any, Any]]:

@@ -30,8 +30,9 @@ from .base import FrameCodec
 
 __all__ = ["DepthAC"]
 
-#: The encoder reserves its worst case, 68 bytes per pixel; larger images are refused.
-_MAX_PIXELS = 2**28
+#: The encoder reserves its worst case, 68 bytes per pixel, and the decoder 11 bytes per pixel
+#: of working arrays; larger frames (over 8192×8192) are refused.
+_MAX_PIXELS = 2**26
 
 _ERRORS = {
     1: "its value table runs past 65535",
