@@ -139,7 +139,8 @@ def test_exported_bag_gives_each_camera_its_own_info(tmp_path: Path) -> None:
     rec_path = tmp_path / "rs.pcdc"
     with pcdcodec.open_source(BAG) as src:
         depth_cam, color_cam = src.intrinsics, src.color_intrinsics
-        assert depth_cam is not None and color_cam is not None
+        assert depth_cam is not None
+        assert color_cam is not None
         pcdcodec.encode(src, rec_path, color="ffv1")
     bag = tmp_path / "rs-out.bag"
     pcdcodec.export_bag(rec_path, bag, to="rosbag1", cloud=True)
