@@ -502,6 +502,8 @@ class _Manifest:
         self.interval = interval
         self._last = 0.0
         self._dirty = False
+        #: Why the last save failed for a full disk (the previous manifest stays in place).
+        self.disk_full: str | None = None
         self.entries: dict[str, dict[str, Any]] = {}
         if self.path.exists():
             try:
@@ -532,9 +534,15 @@ class _Manifest:
         except OSError as exc:
             tmp.unlink(missing_ok=True)
             full = _disk_full(exc, self.path)
-            raise full if full is not None else exc from None
+            if full is None:
+                raise
+            # The manifest written before stays whole (it is only ever replaced); the run
+            # stops with the reason, and the next save tries again.
+            self.disk_full = str(full)
+            return
         self._last = time.monotonic()
         self._dirty = False
+        self.disk_full = None
 
 
 def _sweep(out: Path) -> None:
@@ -800,6 +808,8 @@ def _archive(
             finally:
                 bar.close()
                 manifest.save()
+    if stopped is None and manifest.disk_full is not None:
+        stopped = manifest.disk_full
     return ArchiveSummary(
         [items[rel] for _, rel in inputs],
         time.perf_counter() - started,

@@ -91,8 +91,9 @@ def test_cli_encodes_a_camera_recording(tmp_path: Path, capsys: pytest.CaptureFi
 
     out = tmp_path / "ak.pcdc"
     assert main(["encode", str(MKV), "-o", str(out), "--color", "ffv1", "-q"]) == 0
+    assert "depth scale  1000 units per metre" in capsys.readouterr().out
     assert main(["info", str(out), "--json"]) == 0
-    info = json.loads(capsys.readouterr().out.split("\n", 1)[1])
+    info = json.loads(capsys.readouterr().out)
     assert info["format_version"] == 2
     assert info["color_intrinsics"]["width"] == 1280
     assert info["intrinsics"]["distortion_model"] == "rational_polynomial"

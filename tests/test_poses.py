@@ -92,7 +92,7 @@ def test_tum_sample_poses_are_interpolated_at_the_depth_stamps() -> None:
 )
 def test_7scenes_poses() -> None:
     root = SHARED_DATA / "7scenes_redkitchen"
-    source = open_folder(root, max_frames=3)
+    source = open_folder(root, max_frames=3, depth_scale=1000.0)  # millimetres, per its README
     assert source.poses is not None
     for (_, _, depth), pose in zip(source.pairs, source.poses, strict=True):
         name = depth.name.split(".")[0]

@@ -129,3 +129,31 @@ def test_bag_without_depth_units(tmp_path: Path) -> None:
     _copy_without(BAG, no_tf, "Color_0/tf")
     with pytest.raises(InputError, match="no extrinsic for /device_0/sensor_1/Color_0"):
         pcdcodec.open_source(no_tf)
+
+
+def test_exported_bag_gives_each_camera_its_own_info(tmp_path: Path) -> None:
+    """A two-camera recording exported as a bag: the color CameraInfo is the color camera's
+    (not the depth camera's), and the colored cloud is made through the color camera."""
+    from rosbags.highlevel import AnyReader
+
+    rec_path = tmp_path / "rs.pcdc"
+    with pcdcodec.open_source(BAG) as src:
+        depth_cam, color_cam = src.intrinsics, src.color_intrinsics
+        assert depth_cam is not None
+        assert color_cam is not None
+        pcdcodec.encode(src, rec_path, color="ffv1")
+    bag = tmp_path / "rs-out.bag"
+    pcdcodec.export_bag(rec_path, bag, to="rosbag1", cloud=True)
+    infos: dict[str, list[float]] = {}
+    clouds = 0
+    with AnyReader([bag]) as reader:
+        for conn, _, raw in reader.messages():
+            if conn.topic.endswith("camera_info"):
+                msg = reader.deserialize(raw, conn.msgtype)
+                infos[conn.topic] = [float(v) for v in msg.K]
+            elif conn.msgtype.endswith("PointCloud2"):
+                clouds += 1
+    assert infos["/camera/depth/camera_info"] == [float(v) for v in depth_cam.K.ravel()]
+    assert infos["/camera/color/camera_info"] == [float(v) for v in color_cam.K.ravel()]
+    assert infos["/camera/color/camera_info"] != infos["/camera/depth/camera_info"]
+    assert clouds == 2

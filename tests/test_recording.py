@@ -291,6 +291,12 @@ def test_sigkill_loses_at_most_the_frames_in_flight(
             break
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
+    # The writer may have gone on between the last line read and the kill: count every line
+    # it printed (each one after a write() returned), so the bounds below hold exactly.
+    rest = proc.stdout.read().split()
+    lines += len(rest)
+    if rest:
+        written = int(rest[-1])
     with pcdcodec.open(path) as rec:
         assert not rec.indexed
         # Every frame whose messages were written is there; lost are only those in flight.

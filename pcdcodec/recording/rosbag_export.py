@@ -58,6 +58,9 @@ class _Input:
     metadata: dict[str, str]
     total: int | None
     close: Callable[[], None]
+    #: The color camera and the depth-to-color transform, where color is not registered.
+    color_intrinsics: Any = None
+    depth_to_color: Any = None
 
 
 def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
@@ -100,6 +103,8 @@ def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
             dict(src.metadata),
             src.frame_count,
             src.close if owned else (lambda: None),
+            src.color_intrinsics,
+            src.depth_to_color,
         )
     raise InputError(
         f"export_bag takes a .pcdc path, a Recording, a Source or a path open_source reads, "
@@ -109,7 +114,16 @@ def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
 
 def _from_recording(rec: Any, close: Callable[[], None]) -> _Input:
     frames = ((f.color, f.depth, int(f.timestamp_ns), f.pose) for f in rec)
-    return _Input(frames, rec.intrinsics, rec.depth_scale, dict(rec.metadata), len(rec), close)
+    return _Input(
+        frames,
+        rec.intrinsics,
+        rec.depth_scale,
+        dict(rec.metadata),
+        len(rec),
+        close,
+        rec.color_intrinsics,
+        rec.depth_to_color,
+    )
 
 
 def cloud_array(
@@ -374,7 +388,23 @@ def _write(
         dist = [0.0] * 5
     fid = frame_id or inp.metadata.get("frame_id") or "camera_color_optical_frame"
     msgs = _Messages(to == "rosbag2", fid)
-    projector = Projector(intr, depth_scale=scale) if cloud else None
+    color_cam = inp.color_intrinsics
+    projector = (
+        Projector(
+            intr,
+            depth_scale=scale,
+            color_intrinsics=color_cam,
+            depth_to_color=inp.depth_to_color if color_cam is not None else None,
+        )
+        if cloud
+        else None
+    )
+    if color_cam is not None:
+        # The color image comes from its own camera: its CameraInfo says so.
+        color_info = color_cam.to_camera_info()
+        color_model, color_dist = color_info["distortion_model"], list(color_info["D"])
+    else:
+        color_cam, color_model, color_dist = intr, model, dist
 
     t_depth = f"{namespace}/depth/image_raw"
     t_cdepth = f"{t_depth}/compressedDepth"
@@ -440,7 +470,9 @@ def _write(
                     info = msgs.camera_info(ts, intr, model, dist)
                     bag.write(t_dinfo, ts, info)
                     if color is not None:
-                        bag.write(t_cinfo, ts, msgs.camera_info(ts, intr, model, dist))
+                        bag.write(
+                            t_cinfo, ts, msgs.camera_info(ts, color_cam, color_model, color_dist)
+                        )
                 if projector is not None:
                     bag.write(t_cloud, ts, msgs.cloud(ts, cloud_array(projector, depth, color)))
                 if pose is not None:

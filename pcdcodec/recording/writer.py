@@ -767,12 +767,15 @@ class RecordingWriter:
         for _ in range(len(self._pending)):
             attempt(self._drain_one)
         self._pending.clear()
+        # Wait for every encode still running (a frame whose write() failed part way may have
+        # left one behind) before the encoder is flushed: an FFmpeg codec context used from
+        # two threads at once crashes the process.
+        self._color_pool.shutdown(wait=True)
+        self._depth_pool.shutdown(wait=True)
         encoder = self._encoder
         if encoder is not None:
             attempt(lambda: self._write_packets(encoder.flush()))
         attempt(self._mcap.finish)
-        self._color_pool.shutdown(wait=True)
-        self._depth_pool.shutdown(wait=True)
         attempt(self._file.close)
         if errors:
             add_note = getattr(errors[0], "add_note", None)  # Python 3.11+
