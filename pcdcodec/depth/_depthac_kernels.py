@@ -137,7 +137,7 @@ _Q9_LUT = np.array(
 _PAD = 2  # rows above and columns on each side of the padded working arrays
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _q9(d: int) -> Any:
     """Quantise a signed index gradient to 9 levels (0..8, 4 = zero): 0, 1, 2-3, 4-8, 9+."""
     if d > 11:
@@ -180,7 +180,7 @@ def _mask_lut() -> Any:
 _MASK_LUT = _mask_lut()
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _mask_row_start(valid: Any, o: int, s: int) -> tuple[int, int]:
     """Bit windows of the two rows above for the first pixel of a row (see :func:`_mask_lut`)."""
     n = o - s
@@ -196,12 +196,12 @@ def _mask_row_start(valid: Any, o: int, s: int) -> tuple[int, int]:
     return r1, r2
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _absdiff(a: int, b: int) -> int:
     return a - b if a > b else b - a
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _ctx(g: int, e: int, cls: int, glut: Any, elut: Any) -> int:
     gb = glut[g] if g < 33 else 7
     eb = elut[e] if e < 9 else 5
@@ -267,7 +267,7 @@ def _coding_ctx(ctx: int, q: int, err: Any, o: int, s: int) -> tuple[int, int]:
     return _M_QZERO + q * _NQE + (eb if eb < _NQE else _NQE - 1), _M_QSIGN + q * 9 + sg
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _gap_ctx(pgap: int) -> int:
     if pgap < 2:
         return pgap
