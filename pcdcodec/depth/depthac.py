@@ -11,8 +11,7 @@ of these on its own, in one pass over the pixels with one adaptive binary range 
   bits;
 * each valid pixel is predicted from valid neighbours only (the median edge detector of
   LOCO-I when the west, north and north-west neighbours are valid, simpler fallbacks
-  otherwise), the prediction is corrected by a per-context bias (LOCO-I bias cancellation),
-  and the residual is binarised (zero flag, sign, unary exponent, mantissa bits) with
+  otherwise), and the residual is binarised (zero flag, sign, unary exponent, mantissa bits) with
   contexts from the local gradient and the neighbours' residuals.
 
 The bitstream is in ``docs/format.md``. The loops are compiled with numba and cached on disk.
