@@ -45,6 +45,8 @@ def test_av1_read_twice_does_not_deadlock() -> None:
 
 def test_the_watchdog_dumps_every_thread_on_a_timeout() -> None:
     result = _stress("--runs", "1", "--codecs", "ffv1", "--frames", "40", "--timeout", "0.01")
-    assert result.returncode == 1
+    # The watchdog stops the process after the dump (exit status 1); reading other threads'
+    # stacks while they run can also end it with a signal once the dump is out.
+    assert result.returncode != 0
     assert "Timeout (0:00:00.01" in result.stderr
     assert "most recent call first" in result.stderr
