@@ -9,9 +9,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-from benchmarks.data import load_spot_depth
-from pcdcodec.bench.sparse import sparsify_depth
-
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"
 SAMPLE = REPO / "pcdcodec" / "data" / "tum_fr1_rpy"
@@ -101,19 +98,3 @@ def to_metres(depth: np.ndarray[Any, Any], scale: float) -> np.ndarray[Any, Any]
 @pytest.fixture(scope="session")
 def sample_depths() -> list[np.ndarray[Any, Any]]:
     return load_depths("sample", 15)
-
-
-def load_frames(name: str, count: int) -> list[np.ndarray[Any, Any]]:
-    """Depth frames of a sequence, of its ``-sparse`` variant, or the Spot frame (``spot``)."""
-    if name == "spot":
-        return [load_spot_depth()]
-    if name.endswith("-sparse"):
-        return [
-            sparsify_depth(d, seed=i)
-            for i, d in enumerate(load_depths(name.removesuffix("-sparse"), count))
-        ]
-    return load_depths(name, count)
-
-
-#: Every depth test set: the sequences, their sparse variants and the Spot frame.
-DEPTH_SETS = [*SEQUENCES, *(f"{n}-sparse" for n in SEQUENCES), "spot"]

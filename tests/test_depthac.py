@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import pcdcodec
+from benchmarks.data import DEPTH_SETS, load_frames
 from pcdcodec.depth import DepthAC, read_header
 
-from .conftest import DEPTH_SETS, load_frames
 from .fuzzing import fuzz_frames, fuzz_images
 
 
