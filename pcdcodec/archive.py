@@ -8,11 +8,16 @@ machine, or an existing one given by its scheduler address (for SLURM, start one
 
 How a run is organised:
 
-* **Segments.** A long input is cut into segments of ``segment_frames`` frames. Each segment is
-  one task that opens the source, seeks to its first frame and writes a recording with a new
-  color encoder, so it starts with a keyframe. When all of an input's segments are written, a
-  join task copies their messages into one recording (:func:`pcdcodec.recording.join`),
-  which reads exactly like a file from one writer.
+* **Segments.** A long input is cut into segments (:func:`segment_plan`: about
+  :data:`SEGMENT_BYTES` of source and at least :data:`SEGMENT_MIN_FRAMES` frames each by
+  default, lengths a multiple of the color keyframe interval). Each segment is one task that
+  opens the source, seeks to its first frame and writes a recording with a new color encoder,
+  so it starts with a keyframe, where a single writer would have put one too. Folders seek by
+  frame number; bags through a frame index the probe builds from the message headers
+  (:meth:`pcdcodec.sources.Source.frame_index`), so a segment reads only its own messages.
+  When all of an input's segments are written, a join task copies their messages into one
+  recording (:func:`pcdcodec.recording.join`), which reads exactly like a file from one
+  writer.
 * **Manifest.** ``OUT/pcdcodec-archive.json`` records each input's size, modification time,
   content hash (BLAKE2b), frame count, segments, state and error. A rerun skips inputs that are
   done and unchanged (same size and modification time, same codecs), keeps the segments of a
@@ -56,12 +61,17 @@ from .errors import (
     VerificationError,
 )
 
-__all__ = ["ArchiveItem", "ArchiveSummary", "archive", "find_inputs"]
+__all__ = ["ArchiveItem", "ArchiveSummary", "archive", "find_inputs", "segment_plan"]
 
 MANIFEST = "pcdcodec-archive.json"
 LOCK = "pcdcodec-archive.lock"
 PARTS = ".pcdcodec-parts"
 _PARTIAL = ".partial-"
+
+#: default segment size: about this many bytes of source per segment ...
+SEGMENT_BYTES = 1_000_000_000
+#: ... and at least this many frames (a segment's fixed costs: a task, opening the source)
+SEGMENT_MIN_FRAMES = 300
 
 #: states an input goes through in the manifest
 DONE_STATES = ("done", "verified", "source-deleted")
@@ -305,20 +315,32 @@ def _disk_full(exc: BaseException, where: Path) -> DiskFullError | None:
 # -- tasks (run on the workers) ------------------------------------------------------------------
 
 
-def _probe(src: str, options: dict[str, Any]) -> dict[str, Any]:
-    """Size, hash and frame count of one input."""
+def _probe(
+    src: str, options: dict[str, Any], segment_frames: int | None, keyframes: int
+) -> dict[str, Any]:
+    """Size, hash and frame count of one input, and its frame index where it needs one."""
+    import operator
+
     from .sources import open_source
 
     path = Path(src)
     size, mtime = _stat(path)
     digest = _hash(path)
+    index = None
     with open_source(path, **options) as source:
         if source.intrinsics is None:
             raise InputError(
                 f"{src!r} does not say its camera intrinsics; pass them as a source option"
             )
         frames = source.frame_count
-    return {"size": size, "mtime_ns": mtime, "hash": digest, "frames": frames}
+        if frames is None:
+            # Index only inputs that may need more than one segment: a bag's message count
+            # bounds its frame count from above.
+            most = operator.length_hint(source, -1)
+            if most < 0 or len(segment_plan(most, size, segment_frames, keyframes)) > 1:
+                index = source.frame_index()
+                frames = len(index) if index is not None else None
+    return {"size": size, "mtime_ns": mtime, "hash": digest, "frames": frames, "index": index}
 
 
 def _partial(path: Path) -> Path:
@@ -333,8 +355,10 @@ def _encode_segment(
     stop: int | None,
     writer_options: dict[str, Any],
     digests: bool,
+    index: Any = None,
 ) -> dict[str, Any]:
-    """Write frames ``start:stop`` of ``src`` into the recording ``part`` (atomically)."""
+    """Write frames ``start:stop`` of ``src`` into the recording ``part`` (atomically); with
+    ``index`` (a :class:`~pcdcodec.sources.FrameIndex` slice), the frames it lists."""
     from .recording import Recording, RecordingWriter
     from .sources import open_source
 
@@ -343,7 +367,7 @@ def _encode_segment(
     tmp = _partial(target)
     try:
         with open_source(src, **options) as source:
-            frames = source.frames(start, stop)
+            frames = source.frames_at(index) if index is not None else source.frames(start, stop)
             meta = dict(source.metadata)
             opts = dict(writer_options)
             if not source.has_color:
@@ -563,12 +587,34 @@ def _prune(folder: Path) -> None:
             os.rmdir(dirpath)  # only succeeds when empty
 
 
-def _plan(frames: int | None, segment_frames: int) -> list[tuple[int, int | None]]:
-    if frames is None or frames <= segment_frames:
+def segment_plan(
+    frames: int | None, size: int, segment_frames: int | None = None, keyframes: int = 1
+) -> list[tuple[int, int | None]]:
+    """The segments ``(start, stop)`` an input of ``frames`` frames and ``size`` bytes is cut
+    into; ``[(0, None)]`` (one task) when it is not cut.
+
+    A segment holds at most ``segment_frames`` frames; by default (``None``) as many as make
+    about :data:`SEGMENT_BYTES` of source, and at least :data:`SEGMENT_MIN_FRAMES`. Segments
+    are then made about equal, and where a segment is at least ``keyframes`` frames (the color
+    codec's keyframe interval) their lengths are multiples of it, so every segment starts where
+    a single writer puts a keyframe anyway and cutting costs no compression.
+    """
+    if frames is None or frames < 2:
+        return [(0, None)]
+    if segment_frames is None:
+        per_frame = max(size, 1) / frames
+        segment_frames = max(SEGMENT_MIN_FRAMES, math.ceil(SEGMENT_BYTES / per_frame))
+        align = max(keyframes, 1)
+        segment_frames = -(-segment_frames // align) * align
+    else:
+        align = keyframes if keyframes > 1 and segment_frames >= keyframes else 1
+        segment_frames -= segment_frames % align
+    if frames <= segment_frames:
         return [(0, None)]
     k = math.ceil(frames / segment_frames)
-    bounds = [round(i * frames / k) for i in range(k + 1)]
-    return [(bounds[i], bounds[i + 1]) for i in range(k)]
+    length = align * math.ceil(frames / (k * align))
+    bounds = [min(i * length, frames) for i in range(k)] + [frames]
+    return [(bounds[i], bounds[i + 1]) for i in range(k) if bounds[i] < bounds[i + 1]]
 
 
 class _ByteProgress:
@@ -650,7 +696,7 @@ def archive(
     color: Any = "h264",
     depth: Any = "jpegxl",
     fps: float = 30.0,
-    segment_frames: int = 300,
+    segment_frames: int | None = None,
     verify: bool = False,
     delete_source_after_verify: bool = False,
     source_options: dict[str, Any] | None = None,
@@ -664,8 +710,9 @@ def archive(
     it a local cluster of ``workers`` processes (default: one per CPU core) runs the work
     (``processes=False`` makes them threads of this process). ``color`` and ``depth`` are
     codec names, configs or codecs as for :func:`pcdcodec.open`; ``fps`` is the nominal rate.
-    Inputs longer than ``segment_frames`` frames are encoded in that many frames per task and
-    joined. ``verify`` decodes every output and compares it with its source;
+    Long inputs are cut into segments of at most ``segment_frames`` frames (default: about
+    1 GB of source and at least 300 frames; see :func:`segment_plan`), encoded one task each
+    and joined. ``verify`` decodes every output and compares it with its source;
     ``delete_source_after_verify`` (implies ``verify``) then deletes each verified source.
     ``source_options`` go to :func:`pcdcodec.open_source` for every input. ``progress`` is
     ``True`` for a progress line on stderr (default: when stderr is a terminal), ``False``
@@ -687,14 +734,18 @@ def archive(
         isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
     ):
         raise InputError(f"workers must be a positive int, got {workers!r}")
-    if (
+    if segment_frames is not None and (
         isinstance(segment_frames, bool)
         or not isinstance(segment_frames, int)
         or segment_frames < 1
     ):
         raise InputError(f"segment_frames must be a positive int, got {segment_frames!r}")
     verify = verify or delete_source_after_verify
-    color_config = _codec(color, "color").get_config() if color is not None else None
+    color_codec = _codec(color, "color") if color is not None else None
+    color_config = color_codec.get_config() if color_codec is not None else None
+    # Segments are cut on the color codec's keyframe interval (one for intra-only codecs).
+    gop = getattr(color_codec, "_gop", None)
+    keyframes = int(gop(float(fps))) if callable(gop) else 1
     depth_config = _codec(depth, "depth").get_config()
     writer_options = {"color": color_config, "depth": depth_config, "fps": float(fps)}
     options = dict(source_options or {})
@@ -718,7 +769,7 @@ def archive(
                 options,
                 writer_options,
                 settings,
-                segment_frames,
+                (segment_frames, keyframes),
                 verify,
                 delete_source_after_verify,
                 progress,
@@ -741,7 +792,7 @@ def _archive(
     options: dict[str, Any],
     writer_options: dict[str, Any],
     settings: dict[str, Any],
-    segment_frames: int,
+    segment: tuple[int | None, int],
     verify: bool,
     delete_source_after_verify: bool,
     progress: bool | Callable[[int, int], None] | None,
@@ -799,7 +850,7 @@ def _archive(
                     options,
                     writer_options,
                     settings,
-                    segment_frames,
+                    segment,
                     verify,
                     delete_source_after_verify,
                     advance,
@@ -843,7 +894,7 @@ def _run(
     options: dict[str, Any],
     writer_options: dict[str, Any],
     settings: dict[str, Any],
-    segment_frames: int,
+    segment: tuple[int | None, int],
     verify: bool,
     delete_source: bool,
     advance: Callable[[float], None],
@@ -876,7 +927,7 @@ def _run(
             submit(rel, "verify", 0, _verify, str(path), options, str(out / rel), None)
             advance(size)
             continue
-        submit(rel, "probe", 0, _probe, str(path), options)
+        submit(rel, "probe", 0, _probe, str(path), options, *segment)
 
     def fail(rel: str, exc: BaseException) -> None:
         job = jobs[rel]
@@ -941,7 +992,8 @@ def _run(
         fut.release()
         if step == "probe":
             entry = manifest.entries.get(rel, {})
-            plan = _plan(result["frames"], segment_frames)
+            plan = segment_plan(result["frames"], result["size"], *segment)
+            index = result.get("index") if len(plan) > 1 else None
             parts_dir = out / PARTS / rel
             same = (
                 entry.get("hash") == result["hash"]
@@ -982,6 +1034,7 @@ def _run(
                     stop,
                     writer_options,
                     verify,
+                    index.slice(start, stop) if index is not None else None,
                 )
         elif step == "segment":
             job.remaining -= 1

@@ -705,8 +705,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--segment-frames",
         type=int,
-        default=300,
-        help="frames per parallel segment of a long input (default: %(default)s)",
+        default=None,
+        help="frames per parallel segment of a long input (default: about 1 GB of source "
+        "and at least 300 frames, on keyframe boundaries)",
     )
     p.add_argument("--verify", action="store_true", help="decode and compare every output")
     p.add_argument(

@@ -2,6 +2,6 @@
 
 from __future__ import annotations
 
-from .base import Source, SourceKind, open_source, register_source, source_kinds
+from .base import FrameIndex, Source, SourceKind, open_source, register_source, source_kinds
 
-__all__ = ["Source", "SourceKind", "open_source", "register_source", "source_kinds"]
+__all__ = ["FrameIndex", "Source", "SourceKind", "open_source", "register_source", "source_kinds"]

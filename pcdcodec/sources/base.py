@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     from ..datasets import RGBDFrame
 
 __all__ = [
+    "FrameIndex",
     "Source",
     "SourceKind",
     "detect_kind",
@@ -33,6 +34,37 @@ __all__ = [
     "register_source",
     "source_kinds",
 ]
+
+
+@dataclass(frozen=True, eq=False)
+class FrameIndex:
+    """Where each frame of a source is, so that a stretch of frames can be read on its own.
+
+    ``rows`` is an N × K int64 array, one row per frame in the order the source yields them:
+    column 0 is the frame's timestamp (ns), the other columns say where the source finds the
+    frame (for a bag: the log time and header stamp of each message the frame is made of).
+    ``first`` is the number of the frame in row 0. A :meth:`slice` is small and picklable, so
+    it can be sent to another process, which reads just those frames with
+    :meth:`Source.frames_at` on a source of the same input.
+    """
+
+    rows: Any
+    first: int = 0
+
+    def __len__(self) -> int:
+        return int(self.rows.shape[0])
+
+    @property
+    def timestamps(self) -> Any:
+        """The frames' timestamps (int64 ns)."""
+        return self.rows[:, 0]
+
+    def slice(self, start: int = 0, stop: int | None = None) -> FrameIndex:
+        """Frames ``start`` to ``stop`` (exclusive, counted from this index's first row)."""
+        n = len(self)
+        stop = n if stop is None else min(stop, n)
+        start = min(max(start, 0), stop)
+        return FrameIndex(self.rows[start:stop].copy(), self.first + start)
 
 
 class Source(abc.ABC):
@@ -74,6 +106,23 @@ class Source(abc.ABC):
         import itertools
 
         return itertools.islice(iter(self), start, stop)
+
+    def frame_index(self) -> FrameIndex | None:
+        """An index of the frames for :meth:`frames_at`, or ``None`` for sources that seek by
+        frame number on their own (folders) or cannot seek at all.
+
+        Sources whose frame count is not known without reading (bags) build it in one pass
+        over the message headers, without decoding images, and keep it.
+        """
+        return None
+
+    def frames_at(self, index: FrameIndex) -> Iterator[RGBDFrame]:
+        """The frames an :meth:`frame_index` slice lists, read without reading those before.
+
+        The frames are those that iterating the whole source yields at those positions, with the
+        same timestamps and data. Sources without an index read ``frames(first, first + n)``.
+        """
+        return self.frames(index.first, index.first + len(index))
 
     def __len__(self) -> int:
         """The number of frames; sources that cannot tell cheaply raise ``TypeError``."""

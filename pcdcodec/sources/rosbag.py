@@ -34,7 +34,7 @@ import numpy as np
 
 from ..errors import DecodeError, InputError, PcdcodecError
 from . import _rosmsg as rm
-from .base import Source, read_magic, register_source
+from .base import FrameIndex, Source, read_magic, register_source
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
 
@@ -199,6 +199,7 @@ class RosbagSource(Source):
         self.max_frames = max_frames
         self.max_difference = int(max_difference)
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
+        self._index: FrameIndex | None = None
         self._reader = self._open_reader()
         try:
             self._setup(depth_topic, color_topic, info_topic, cloud_topic, intrinsics, depth_scale)
@@ -536,8 +537,6 @@ class RosbagSource(Source):
         return rm.decode_compressed(msg, role, conn.topic)
 
     def __iter__(self) -> Iterator[Any]:
-        from ..datasets import RGBDFrame
-
         self.stats = _Stats()
         if self.mode == "cloud":
             frames: Iterator[Any] = self._cloud_frames()
@@ -545,6 +544,11 @@ class RosbagSource(Source):
             frames = self._depth_frames()
         else:
             frames = self._paired_frames()
+        return self._emit(frames, self.max_frames)
+
+    def _emit(self, frames: Iterator[tuple[Any, Any, int]], limit: int | None) -> Iterator[Any]:
+        from ..datasets import RGBDFrame
+
         for color, depth, ts in frames:
             if depth.shape != self._shape:
                 topic = self.depth_topic or self.cloud_topic
@@ -554,7 +558,7 @@ class RosbagSource(Source):
                 )
             self.stats.frames += 1
             yield RGBDFrame(color, depth, ts)
-            if self.max_frames is not None and self.stats.frames >= self.max_frames:
+            if limit is not None and self.stats.frames >= limit:
                 return
 
     def _messages(self, conns: list[Any]) -> Iterator[tuple[Any, int, Any]]:
@@ -586,15 +590,7 @@ class RosbagSource(Source):
 
         def pairs(ready: list[Any]) -> Iterator[tuple[Any, Any, int]]:
             for _, cmsg, dts, dmsg in ready:
-                color = self._decode(cmsg, cconn, "color")
-                depth = self._decode(dmsg, dconn, "depth")
-                if color.shape[:2] != depth.shape:
-                    raise InputError(
-                        f"color topic {cconn.topic!r} is {color.shape[1]}x{color.shape[0]} but "
-                        f"depth topic {dconn.topic!r} is {depth.shape[1]}x{depth.shape[0]} "
-                        f"at {dts} ns"
-                    )
-                yield color, depth, dts
+                yield self._pair(cmsg, dmsg, dts)
 
         for conn, t, msg in self._messages([dconn, cconn]):
             role = "depth" if conn.topic == dconn.topic else "color"
@@ -612,37 +608,208 @@ class RosbagSource(Source):
         self.stats.dropped_depth = len(sync.dropped_depth)
         yield from pairs(ready)
 
+    def _pair(self, cmsg: Any, dmsg: Any, dts: int) -> tuple[Any, Any, int]:
+        cconn, dconn = self._color_conn, self._depth_conn
+        assert cconn is not None
+        color = self._decode(cmsg, cconn, "color")
+        depth = self._decode(dmsg, dconn, "depth")
+        if color.shape[:2] != depth.shape:
+            raise InputError(
+                f"color topic {cconn.topic!r} is {color.shape[1]}x{color.shape[0]} but "
+                f"depth topic {dconn.topic!r} is {depth.shape[1]}x{depth.shape[0]} "
+                f"at {dts} ns"
+            )
+        return color, depth, dts
+
     def _cloud_frames(self) -> Iterator[tuple[Any, Any, int]]:
         last = -1
-        topic = self._depth_conn.topic
         for _, t, msg in self._messages([self._depth_conn]):
             ts = self._stamp(msg, t)
             if ts <= last:
                 self.stats.out_of_order += 1
                 continue
             last = ts
-            layout = self._layout
-            if (int(msg.width), int(msg.height)) != (layout.width, layout.height):
+            yield self._cloud_frame(msg, ts)
+
+    def _cloud_frame(self, msg: Any, ts: int) -> tuple[Any, Any, int]:
+        topic = self._depth_conn.topic
+        layout = self._layout
+        if (int(msg.width), int(msg.height)) != (layout.width, layout.height):
+            raise InputError(
+                f"cloud topic {topic!r}: cloud at {ts} ns is {msg.width}x{msg.height}, earlier "
+                f"clouds {layout.width}x{layout.height}"
+            )
+        if [(f.name, f.offset, f.datatype) for f in msg.fields] != self._cloud_fields:
+            layout = rm.cloud_layout(msg, topic)
+        z, rgb, _ = rm.cloud_to_rgbd(msg, layout, topic)
+        if self._cloud_units is not None:
+            units = self._as_units(z)
+            if units is None:
                 raise InputError(
-                    f"cloud topic {topic!r}: cloud at {ts} ns is {msg.width}x{msg.height}, earlier "
-                    f"clouds {layout.width}x{layout.height}"
+                    f"cloud topic {topic!r}: the cloud at {ts} ns has z values that are not "
+                    f"whole 1/{self.depth_scale:g} m steps, unlike the first cloud; open the "
+                    "bag with cloud_depth='float32' to keep z as float32 metres"
                 )
-            if [(f.name, f.offset, f.datatype) for f in msg.fields] != self._cloud_fields:
-                layout = rm.cloud_layout(msg, topic)
-            z, rgb, _ = rm.cloud_to_rgbd(msg, layout, topic)
-            if self._cloud_units is not None:
-                units = self._as_units(z)
-                if units is None:
-                    raise InputError(
-                        f"cloud topic {topic!r}: the cloud at {ts} ns has z values that are not "
-                        f"whole 1/{self.depth_scale:g} m steps, unlike the first cloud; open the "
-                        "bag with cloud_depth='float32' to keep z as float32 metres"
-                    )
-                yield rgb, units, ts
+            return rgb, units, ts
+        with np.errstate(invalid="ignore"):
+            z[~np.isfinite(z)] = np.nan
+        return rgb, z, ts
+
+    # -- reading a stretch of frames without reading the bag from the top --------------------
+
+    def _raw(
+        self, conns: list[Any], start: int | None = None, stop: int | None = None
+    ) -> Iterator[tuple[Any, int, bytes]]:
+        """Serialised messages of ``conns`` with log times in ``[start, stop)``, not decoded."""
+        try:
+            yield from self._reader.messages(connections=conns, start=start, stop=stop)
+        except PcdcodecError:
+            raise
+        except Exception as exc:
+            raise _wrap(exc, self.path) from exc
+
+    def _raw_stamp(self, raw: bytes, conn: Any, log_time: int) -> int:
+        """The header stamp of a serialised message, read from its first bytes (every message
+        read here starts with a std_msgs/Header), or the log time where the stamp is 0."""
+        if self._reader.is2:
+            # CDR: a 4-byte encapsulation header (byte 1 odd: little-endian), then the stamp.
+            if len(raw) < 12 or raw[1] not in (0, 1):
+                msg = self._reader.deserialize(raw, conn.msgtype)
+                return self._stamp(msg, log_time)
+            sec, nsec = struct.unpack_from("<iI" if raw[1] == 1 else ">iI", raw, 4)
+        else:
+            if len(raw) < 12:
+                raise DecodeError(
+                    f"cannot read bag {str(self.path)!r}: a {conn.topic!r} message of "
+                    f"{len(raw)} bytes is too short for its header"
+                )
+            _, sec, nsec = struct.unpack_from("<III", raw, 0)  # seq, then the stamp
+        ns = int(sec) * 1_000_000_000 + int(nsec)
+        return ns if ns > 0 else int(log_time)
+
+    def frame_index(self) -> FrameIndex:
+        """Every frame's timestamp and the messages it is made of, from one pass over the bag
+        that reads each depth and color message's header stamp but decodes no image.
+
+        Rows are ``(timestamp, depth log time, depth stamp, color log time, color stamp)`` (the
+        color columns -1 without color), in the order iteration yields the frames: color and
+        depth are paired here by the same rule and state as when iterating, so the index lists
+        exactly the frames :meth:`__iter__` gives. Built once and kept.
+        """
+        if self._index is None:
+            self._index = self._build_index()
+        return self._index
+
+    def _build_index(self) -> FrameIndex:
+        from ..sync import Synchronizer
+
+        rows: list[tuple[int, int, int, int, int]] = []
+        limit = self.max_frames
+        dconn, cconn = self._depth_conn, self._color_conn
+        if cconn is None:
+            last = -1
+            for conn, t, raw in self._raw([dconn]):
+                ts = self._raw_stamp(raw, conn, t)
+                if ts <= last:
+                    continue
+                last = ts
+                rows.append((ts, t, ts, -1, -1))
+                if limit is not None and len(rows) >= limit:
+                    break
+        else:
+            sync: Synchronizer[int, int] = Synchronizer(max_difference=self.max_difference)
+            latest = {"depth": -1, "color": -1}
+            for conn, t, raw in self._raw([dconn, cconn]):
+                role = "depth" if conn.topic == dconn.topic else "color"
+                ts = self._raw_stamp(raw, conn, t)
+                if ts <= latest[role]:
+                    continue
+                latest[role] = ts
+                ready = sync.add_depth(ts, t) if role == "depth" else sync.add_color(ts, t)
+                rows.extend((dts, dlog, dts, clog, cts) for cts, clog, dts, dlog in ready)
+                if limit is not None and len(rows) >= limit:
+                    break
+            else:
+                rows.extend((dts, dlog, dts, clog, cts) for cts, clog, dts, dlog in sync.flush())
+            if limit is not None:
+                del rows[limit:]
+        table = np.array(rows, dtype=np.int64).reshape(-1, 5)
+        return FrameIndex(table, 0)
+
+    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[Any]:
+        """Frames ``start`` to ``stop`` (exclusive). From the top this is plain iteration;
+        from a later frame the bag is indexed first (:meth:`frame_index`) and only the
+        messages of those frames are read (:meth:`frames_at`)."""
+        import itertools
+
+        if start < 0 or (stop is not None and stop < 0):
+            raise InputError(f"frames start and stop must be at least 0, got {start}, {stop}")
+        if start == 0:
+            return itertools.islice(iter(self), stop)
+        return self.frames_at(self.frame_index().slice(start, stop))
+
+    def frames_at(self, index: FrameIndex) -> Iterator[Any]:
+        """The frames of a :meth:`frame_index` slice, found by their messages' log times.
+
+        Only messages logged between the slice's first and last message are read (ROS 1 and
+        MCAP bags skip to them through their chunk index, sqlite3 through its time index), and
+        only the listed ones are decoded, so reading segment k of a bag costs the same
+        whatever k is. Raises :class:`~pcdcodec.DecodeError` when a listed message is not in
+        the bag (the index was made from another bag, or the bag changed).
+        """
+        rows = np.asarray(index.rows)
+        if rows.ndim != 2 or rows.shape[1] != 5:
+            raise InputError(
+                f"a bag frame index has 5 columns per frame, got an array of shape {rows.shape}"
+            )
+        self.stats = _Stats()
+        return self._emit(self._indexed(rows, index.first), None)
+
+    def _indexed(self, rows: Any, first: int) -> Iterator[tuple[Any, Any, int]]:
+        if rows.shape[0] == 0:
+            return
+        dconn, cconn = self._depth_conn, self._color_conn
+        paired = cconn is not None
+        logs = rows[:, [1, 3]] if paired else rows[:, [1]]
+        lo, hi = int(logs.min()), int(logs.max()) + 1
+        wanted: set[tuple[bool, int, int]] = set()
+        for row in rows.tolist():
+            wanted.add((True, row[1], row[2]))
+            if paired:
+                wanted.add((False, row[3], row[4]))
+        got: dict[tuple[bool, int, int], Any] = {}
+        todo = rows.tolist()
+        i = 0
+        conns = [dconn, cconn] if paired else [dconn]
+        for conn, t, raw in self._raw(conns, lo, hi):
+            is_depth = conn.topic == dconn.topic
+            key = (is_depth, t, self._raw_stamp(raw, conn, t))
+            if key not in wanted:
                 continue
-            with np.errstate(invalid="ignore"):
-                z[~np.isfinite(z)] = np.nan
-            yield rgb, z, ts
+            wanted.discard(key)
+            try:
+                got[key] = self._reader.deserialize(raw, conn.msgtype)
+            except Exception as exc:
+                raise _wrap(exc, self.path) from exc
+            while i < len(todo):
+                ts, dlog, dts, clog, cts = todo[i]
+                dkey, ckey = (True, dlog, dts), (False, clog, cts)
+                if dkey not in got or (paired and ckey not in got):
+                    break
+                dmsg = got.pop(dkey)
+                if paired:
+                    yield self._pair(got.pop(ckey), dmsg, ts)
+                elif self.mode == "cloud":
+                    yield self._cloud_frame(dmsg, ts)
+                else:
+                    yield None, self._decode(dmsg, dconn, "depth"), ts
+                i += 1
+        if i < len(todo):
+            raise DecodeError(
+                f"bag {str(self.path)!r} has no message for frame {first + i} "
+                f"(at {todo[i][0]} ns) where its index says: the index was made from another "
+                "bag, or the bag changed since"
+            )
 
     def _as_units(self, z: Any) -> Any:
         """``z`` as uint16 units when they give back every z bit for bit, else ``None``."""
