@@ -12,7 +12,7 @@ How a run is organised:
   :data:`SEGMENT_BYTES` of source and at least :data:`SEGMENT_MIN_FRAMES` frames each by
   default, lengths a multiple of the color keyframe interval). Each segment is one task that
   opens the source, seeks to its first frame and writes a recording with a new color encoder,
-  so it starts with a keyframe, where a single writer would have put one too. Folders seek by
+  so it starts with a keyframe and holds whole keyframe intervals. Folders seek by
   frame number; bags through a frame index the probe builds from the message headers
   (:meth:`pcdcodec.sources.Source.frame_index`), so a segment reads only its own messages.
   When all of an input's segments are written, a join task copies their messages into one
@@ -596,8 +596,9 @@ def segment_plan(
     A segment holds at most ``segment_frames`` frames; by default (``None``) as many as make
     about :data:`SEGMENT_BYTES` of source, and at least :data:`SEGMENT_MIN_FRAMES`. Segments
     are then made about equal, and where a segment is at least ``keyframes`` frames (the color
-    codec's keyframe interval) their lengths are multiples of it, so every segment starts where
-    a single writer puts a keyframe anyway and cutting costs no compression.
+    codec's keyframe interval) their lengths are multiples of it: each segment starts with a
+    keyframe (a new encoder) and holds whole keyframe intervals, so the joined stream has
+    keyframes about as often as one writer's and cutting costs almost no compression.
     """
     if frames is None or frames < 2:
         return [(0, None)]
