@@ -6,9 +6,19 @@ Generates an archive of ``--inputs`` inputs (default 20) from the real RGB-D seq
 through :func:`pcdcodec.export_bag`) or as TUM-layout folders (``--format folders``, images
 linked, not copied). Then archives it with each worker count on a fresh local cluster and
 prints input MB/s, frames/s, the compression ratio and each worker's peak memory (RSS).
-``--memory`` adds the memory bound: one worker encoding one input of N frames and one of 4N.
+``--memory`` adds the memory bound: one worker encoding one input of N frames and one of 4N
+(whole, and the long one cut into segments). ``--segment-frames`` takes several values (a
+value of at least ``--frames`` encodes each bag whole) and ``--repeat`` runs every
+configuration that many times, interleaved, so that a change of load hits all of them.
+Each run also reports, from Dask's task stream, the tasks of each kind (probe, segment, join)
+and the seconds they computed, against the run's wall time on the workers: what is left is
+scheduler and transfer overhead. ``--seek`` measures reading segment k of one long bag:
+the time to its first frame must not grow with k.
 
     python benchmarks/archive_scaling.py --work /tmp/archive-bench --workers 1 2 --memory
+    python benchmarks/archive_scaling.py --work /tmp/archive-bench --frames 30 \
+        --segment-frames 15 1000 --repeat 2 --memory
+    python benchmarks/archive_scaling.py --work /tmp/archive-bench --seek-only
 
 Results are printed as a markdown table and written to ``WORK/results.json``.
 """
@@ -123,10 +133,25 @@ def _usage() -> tuple[int, float]:
     return u.ru_maxrss * 1024, u.ru_utime + u.ru_stime
 
 
+def _task_kinds(stream: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
+    """Tasks of each kind (the key's prefix) and the seconds they computed, from Dask's task
+    stream."""
+    kinds: dict[str, dict[str, float]] = {}
+    for task in stream:
+        kind = str(task["key"]).split("-", 1)[0]
+        spent = sum(
+            s["stop"] - s["start"] for s in task.get("startstops", ()) if s["action"] == "compute"
+        )
+        entry = kinds.setdefault(kind, {"tasks": 0, "compute_s": 0.0})
+        entry["tasks"] += 1
+        entry["compute_s"] += spent
+    return kinds
+
+
 def run(inputs: list[Path], out: Path, workers: int, segment_frames: int) -> dict[str, Any]:
     import logging
 
-    from distributed import Client, LocalCluster
+    from distributed import Client, LocalCluster, get_task_stream
 
     from pcdcodec.archive import archive
 
@@ -141,23 +166,30 @@ def run(inputs: list[Path], out: Path, workers: int, segment_frames: int) -> dic
         ) as cluster,
         Client(cluster) as client,
     ):
+        load_before = os.getloadavg()[0]
         start = time.perf_counter()
-        summary = archive(
-            inputs,
-            out,
-            scheduler=cluster.scheduler_address,
-            segment_frames=segment_frames,
-            progress=False,
-        )
+        with get_task_stream(client) as stream:
+            summary = archive(
+                inputs,
+                out,
+                scheduler=cluster.scheduler_address,
+                segment_frames=segment_frames,
+                progress=False,
+            )
         wall = time.perf_counter() - start
+        kinds = _task_kinds(stream.data)
         usage = list(client.run(_usage).values())
         peaks = sorted(p for p, _ in usage)
         cpu = sum(c for _, c in usage)
         load = os.getloadavg()[0]
     if not summary.ok:
         raise SystemExit(summary.to_text())
+    tasks = sum(int(k["tasks"]) for k in kinds.values())
+    computed = sum(k["compute_s"] for k in kinds.values())
     return {
         "workers": workers,
+        "segment_frames": segment_frames,
+        "segments": sum(i.segments for i in summary.items),
         "inputs": len(inputs),
         "frames": summary.frames,
         "bytes_in": summary.bytes_in,
@@ -172,6 +204,13 @@ def run(inputs: list[Path], out: Path, workers: int, segment_frames: int) -> dic
         "mb_per_cpu_s": summary.bytes_in / 1e6 / cpu,
         "frames_per_cpu_s": summary.frames / cpu,
         "load_average_1min": load,
+        "load_average_1min_before": load_before,
+        "task_kinds": kinds,
+        # Worker time not spent computing a task, per task: scheduling, transfers, idling.
+        "overhead_ms_per_task": 1000 * max(workers * wall - computed, 0.0) / max(tasks, 1),
+        "join_ms_per_segment": 1000
+        * kinds.get("join", {}).get("compute_s", 0.0)
+        / max(sum(i.segments for i in summary.items), 1),
     }
 
 
@@ -242,6 +281,81 @@ def join_rate(work: Path) -> dict[str, Any]:
     }
 
 
+def make_long_folder(dst: Path, seq: dict[str, Any], count: int) -> Path:
+    """A TUM-layout folder of ``count`` frames at 30 Hz, going through ``seq`` again and again
+    (images linked under new names)."""
+    rows = seq["rows"]
+    (dst / "rgb").mkdir(parents=True)
+    (dst / "depth").mkdir()
+    lines = []
+    for i in range(count):
+        _, color, depth = rows[i % len(rows)]
+        t = f"{1000 + i / 30:.6f}"
+        c, d = f"rgb/{i:06d}{Path(color).suffix}", f"depth/{i:06d}{Path(depth).suffix}"
+        (dst / c).symlink_to(seq["root"] / color)
+        (dst / d).symlink_to(seq["root"] / depth)
+        lines.append(f"{t} {c} {t} {d}")
+    (dst / "associations.txt").write_text("\n".join(lines) + "\n")
+    (dst / "rgb.txt").write_text("")
+    (dst / "depth.txt").write_text("")
+    (dst / "camera.json").write_text(json.dumps(seq["camera"]))
+    return dst
+
+
+def seek(work: Path, frames: int = 1200, segment: int = 30, cloud: bool = False) -> dict[str, Any]:
+    """Seconds to open a long image (or PointCloud2) bag and read the first frame of segment k,
+    for k spread
+    over the bag, given the segment's frame index slice (as an archive worker is); and the
+    same from the top without an index (the generic ``Source.frames``), for contrast."""
+    import itertools
+
+    import pcdcodec
+    from pcdcodec.sources.rosbag import RosbagSource
+
+    seq = _sequences().get("7scenes_redkitchen") or next(iter(_sequences().values()))
+    bag = work / f"long-{frames}{'-cloud' if cloud else ''}.bag"
+    if not bag.exists():
+        folder = work / f"long-{frames}"
+        if not folder.exists():
+            make_long_folder(folder, seq, frames)
+        pcdcodec.export_bag(folder, bag, images=not cloud, cloud=cloud, camera_info=True)
+    size = bag.stat().st_size
+    with RosbagSource(bag) as source:
+        start = time.perf_counter()
+        index = source.frame_index()
+        index_s = time.perf_counter() - start
+    with RosbagSource(bag) as source:
+        start = time.perf_counter()
+        n = sum(1 for _ in source)
+        decode_s = time.perf_counter() - start
+    segments = len(index) // segment
+    picks = sorted({0, segments // 4, segments // 2, 3 * segments // 4, segments - 1})
+    rows = []
+    for k in picks:
+        part = index.slice(k * segment, (k + 1) * segment)
+        start = time.perf_counter()
+        with RosbagSource(bag) as source:
+            next(iter(source.frames_at(part)))
+            first = time.perf_counter() - start
+        start = time.perf_counter()
+        with RosbagSource(bag) as source:
+            next(itertools.islice(iter(source), k * segment, None))
+            top = time.perf_counter() - start
+        rows.append({"segment": k, "first_frame_s": first, "from_top_s": top})
+    ratio = rows[-1]["first_frame_s"] / rows[0]["first_frame_s"]
+    return {
+        "bag": "PointCloud2" if cloud else "Image",
+        "bag_mb": size / 1e6,
+        "frames": n,
+        "segment_frames": segment,
+        "index_s": index_s,
+        "decode_all_s": decode_s,
+        "segments": rows,
+        "last_over_first": ratio,
+        "load_average_1min": os.getloadavg()[0],
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", type=Path, required=True, help="folder for inputs and outputs")
@@ -249,23 +363,36 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=12, help="frames per input")
     parser.add_argument("--format", choices=["bags", "folders"], default="bags")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
-    parser.add_argument("--segment-frames", type=int, default=300)
+    parser.add_argument("--segment-frames", type=int, nargs="+", default=[300])
+    parser.add_argument("--repeat", type=int, default=1, help="runs of each configuration")
     parser.add_argument("--memory", action="store_true", help="also measure the memory bound")
+    parser.add_argument("--seek", action="store_true", help="also time segment k of a long bag")
+    parser.add_argument("--seek-only", action="store_true", help="only time segment k")
+    parser.add_argument("--seek-frames", type=int, default=1200, help="frames of the long bag")
+    parser.add_argument("--seek-cloud", action="store_true", help="a PointCloud2 long bag")
     args = parser.parse_args()
 
     os.environ.setdefault("PYTHONPATH", str(REPO))
-    inputs = generate(args.work / "gen", args.inputs, args.frames, args.format)
     results: dict[str, Any] = {"format": args.format, "runs": []}
-    for w in args.workers:
-        r = run(inputs, args.work / f"out-{w}", w, args.segment_frames)
-        results["runs"].append(r)
-        print(json.dumps(r), flush=True)
+    if args.seek or args.seek_only:
+        results["seek"] = seek(args.work, args.seek_frames, cloud=args.seek_cloud)
+        print(json.dumps(results["seek"]), flush=True)
+        if args.seek_only:
+            (args.work / "results-seek.json").write_text(json.dumps(results, indent=2))
+            return
+    inputs = generate(args.work / "gen", args.inputs, args.frames, args.format)
+    for _ in range(args.repeat):
+        for seg in args.segment_frames:
+            for w in args.workers:
+                r = run(inputs, args.work / f"out-{w}", w, seg)
+                results["runs"].append(r)
+                print(json.dumps(r), flush=True)
     if args.memory:
         results["memory"] = []
-        for factor in (1, 4):
+        for factor, seg in ((1, 10**6), (4, 10**6), (4, args.frames)):
             gen = args.work / f"gen-mem-{factor}"
             one = generate(gen, 1, args.frames * 2, args.format, long_factor=factor)
-            r = run(one, args.work / f"out-mem-{factor}", 1, 10**6)
+            r = run(one, args.work / f"out-mem-{factor}", 1, seg)
             r["input_frames"] = args.frames * 2 * factor
             results["memory"].append(r)
             print(json.dumps(r), flush=True)
@@ -278,20 +405,26 @@ def main() -> None:
     print()
     print(f"{args.format}: {len(inputs)} inputs, {args.frames} frames each")
     print(
-        "| workers | MB/s in | frames/s | ratio | seconds | MB per CPU-s | frames per CPU-s "
-        "| peak RSS per worker (MB) | load |"
+        "| workers | segments | MB/s in | frames/s | ratio | seconds | MB per CPU-s "
+        "| frames per CPU-s | overhead ms/task | join ms/segment | peak RSS per worker (MB) "
+        "| load before, after |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in results["runs"]:
         rss = ", ".join(f"{p:.0f}" for p in r["peak_rss_per_worker_mb"])
         print(
-            f"| {r['workers']} | {r['mb_per_s']:.2f} | {r['frames_per_s']:.2f} | "
-            f"{r['ratio']:.1f} | {r['seconds']:.1f} | {r['mb_per_cpu_s']:.2f} | "
-            f"{r['frames_per_cpu_s']:.2f} | {rss} | {r['load_average_1min']:.1f} |"
+            f"| {r['workers']} | {r['segments']} | {r['mb_per_s']:.2f} | "
+            f"{r['frames_per_s']:.2f} | {r['ratio']:.1f} | {r['seconds']:.1f} | "
+            f"{r['mb_per_cpu_s']:.2f} | {r['frames_per_cpu_s']:.2f} | "
+            f"{r['overhead_ms_per_task']:.0f} | {r['join_ms_per_segment']:.0f} | {rss} | "
+            f"{r['load_average_1min_before']:.1f}, {r['load_average_1min']:.1f} |"
         )
     for r in results.get("memory", []):
         rss = r["peak_rss_per_worker_mb"][0]
-        print(f"memory: one input of {r['input_frames']} frames -> peak worker RSS {rss:.0f} MB")
+        print(
+            f"memory: one input of {r['input_frames']} frames in {r['segments']} segment(s) "
+            f"-> peak worker RSS {rss:.0f} MB"
+        )
 
 
 if __name__ == "__main__":

@@ -333,13 +333,13 @@ def _probe(
                 f"{src!r} does not say its camera intrinsics; pass them as a source option"
             )
         frames = source.frame_count
-        if frames is None:
-            # Index only inputs that may need more than one segment: a bag's message count
-            # bounds its frame count from above.
-            most = operator.length_hint(source, -1)
-            if most < 0 or len(segment_plan(most, size, segment_frames, keyframes)) > 1:
-                index = source.frame_index()
-                frames = len(index) if index is not None else None
+        # Index only inputs that may need more than one segment: a bag's message count bounds
+        # its frame count from above.
+        most = frames if frames is not None else operator.length_hint(source, -1)
+        if most < 0 or len(segment_plan(most, size, segment_frames, keyframes)) > 1:
+            index = source.frame_index()
+            if index is not None:
+                frames = len(index)
     return {"size": size, "mtime_ns": mtime, "hash": digest, "frames": frames, "index": index}
 
 
@@ -377,6 +377,9 @@ def _encode_segment(
                 intrinsics=source.intrinsics,
                 depth_scale=source.depth_scale,
                 metadata=meta,
+                # Sensors whose color camera is apart from the depth camera (RealSense bags).
+                color_intrinsics=source.color_intrinsics,
+                depth_to_color=source.depth_to_color,
                 **opts,
             ) as writer:
                 count = writer.write_frames(frames)

@@ -51,6 +51,7 @@ def assert_every_stretch_reads_alone(path: Path, **options: Any) -> int:
             assert part.first == a
             assert_same_frames(list(fresh.frames_at(part)), full[a:b])
         assert_same_frames(list(fresh.frames(n // 2, n - 1)), full[n // 2 : n - 1])
+        assert_same_frames(list(fresh.frames_at(index)), full)
     return n
 
 
@@ -228,3 +229,74 @@ def test_a_short_bag_stays_one_task_without_an_index(
     assert summary.ok, summary.to_text()
     assert summary.items[0].segments == 1
     assert summary.items[0].frames == 4
+
+
+RS_BAG = SPOT.parent / "realsense" / "single_depth_color_640x480.bag"
+
+
+def long_realsense_bag(dst: Path, frames: int) -> Path:
+    """The real RealSense recording with its depth and color images repeated ``frames`` times
+    at 30 Hz (their header stamps rewritten), color 3 ms late in stamp and logged up to a frame
+    late, and one color frame missing: every other message is copied as recorded."""
+    import struct
+
+    from rosbags.rosbag1 import Reader, Writer
+
+    with Reader(RS_BAG) as reader, Writer(dst) as writer:
+        conns, images, messages = {}, {}, []
+        for c in reader.connections:
+            conns[c.id] = writer.add_connection(
+                c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest
+            )
+        for c, t, raw in reader.messages():
+            if c.topic.endswith("image/data"):
+                images.setdefault("Depth" if "Depth" in c.topic else "Color", (c.id, raw))
+            else:
+                messages.append((t, c.id, raw))
+        base, period = 1_700_000_000 * NS, 33_333_333
+        for k in range(frames):
+            for kind, stamp, log in (
+                ("Depth", base + k * period, 1_000_000 + k * period),
+                (
+                    "Color",
+                    base + k * period + 3_000_000,
+                    1_000_000 + k * period + (k % 3) * 15_000_000,
+                ),
+            ):
+                if kind == "Color" and k == frames // 2:
+                    continue
+                cid, raw = images[kind]
+                buf = bytearray(raw)
+                struct.pack_into("<III", buf, 0, k, stamp // NS, stamp % NS)
+                messages.append((log, cid, bytes(buf)))
+        for t, cid, raw in sorted(messages, key=lambda m: m[0]):
+            writer.write(conns[cid], t, raw)
+    return dst
+
+
+@pytest.mark.skipif(not RS_BAG.is_file(), reason=f"{RS_BAG} is not present")
+def test_realsense_bag_segments(tmp_path: Path) -> None:
+    from pcdcodec.archive import archive
+    from pcdcodec.sources.realsense import RealSenseBagSource
+
+    bag = long_realsense_bag(tmp_path / "rs.bag", 7)
+    with pcdcodec.open_source(bag) as source:
+        assert isinstance(source, RealSenseBagSource)
+    assert assert_every_stretch_reads_alone(bag) == 7
+    assert assert_every_stretch_reads_alone(bag, max_dt=0.004) == 6  # the one without color
+
+    reference = tmp_path / "one.pcdc"
+    pcdcodec.encode(bag, reference, color="ffv1")
+    out = tmp_path / "out"
+    summary = archive(
+        [bag], out, workers=1, processes=False, color="ffv1", segment_frames=3, progress=False
+    )
+    assert summary.ok, summary.to_text()
+    assert summary.items[0].segments == 3  # the color frame missing in frame 3's segment
+    with pcdcodec.open(out / "rs.pcdc") as joined, pcdcodec.open(reference) as one:
+        assert joined.verify().ok
+        np.testing.assert_array_equal(joined.timestamps, one.timestamps)
+        assert joined.color_intrinsics == one.color_intrinsics
+        for a, b in zip(joined, one, strict=True):
+            np.testing.assert_array_equal(a.depth, b.depth)
+            np.testing.assert_array_equal(a.color, b.color)  # ffv1 is lossless

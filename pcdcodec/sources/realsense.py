@@ -31,7 +31,7 @@ import numpy.typing as npt
 
 from ..camera import CameraIntrinsics
 from ..errors import DecodeError, InputError
-from .base import Source, read_magic, register_source
+from .base import FrameIndex, Source, read_magic, register_source
 
 __all__ = ["RealSenseBagSource", "open_realsense"]
 
@@ -105,6 +105,7 @@ class RealSenseBagSource(Source):
         self._typestore = get_typestore(Stores.ROS1_NOETIC)
         self.max_dt = None if max_dt is None else round(max_dt * _NS)
         self.max_frames = max_frames
+        self._index: FrameIndex | None = None
         name = str(self.path)
         try:
             reader = Reader(self.path)
@@ -233,10 +234,31 @@ class RealSenseBagSource(Source):
 
         from ..datasets import RGBDFrame
 
-        topics = {self.depth_topic, self.color_topic}
-        pending: deque[tuple[int, npt.NDArray[np.uint16]]] = deque()
-        before: tuple[int, npt.NDArray[np.uint8]] | None = None
+        with Reader(self.path) as reader:
+            conns = [c for c in reader.connections if c.topic in self._image_topics()]
+
+            def images() -> Iterator[tuple[bool, int, Any]]:
+                for conn, _, raw in reader.messages(connections=conns):
+                    msg = self._typestore.deserialize_ros1(raw, conn.msgtype)
+                    stamp = _stamp(msg)
+                    is_depth = conn.topic == self.depth_topic
+                    what = f"{'depth' if is_depth else 'color'} frame at {stamp} ns"
+                    yield is_depth, stamp, _image(msg, what)
+
+            for t, depth, rgb in self._pairs(images()):
+                yield RGBDFrame(rgb, depth, t)
+
+    def _image_topics(self) -> set[str | None]:
+        return {self.depth_topic, self.color_topic}
+
+    def _pairs(self, images: Iterator[tuple[bool, int, Any]]) -> Iterator[tuple[int, Any, Any]]:
+        """``(timestamp, depth, color)`` from ``(is_depth, stamp, item)`` in bag order: each depth
+        frame with the nearer of the color frames read before and after it (the items are
+        images when reading, message positions when indexing)."""
+        pending: deque[tuple[int, Any]] = deque()
+        before: tuple[int, Any] | None = None
         emitted = 0
+        has_color = self.color_topic is not None
 
         def pick(t: int, after: tuple[int, Any] | None) -> Any:
             options = [c for c in (before, after) if c is not None]
@@ -247,38 +269,111 @@ class RealSenseBagSource(Source):
                 return None
             return best[1]
 
-        with Reader(self.path) as reader:
-            conns = [c for c in reader.connections if c.topic in topics]
-            for conn, _, raw in reader.messages(connections=conns):
-                msg = self._typestore.deserialize_ros1(raw, conn.msgtype)
-                stamp = _stamp(msg)
-                if conn.topic == self.depth_topic:
-                    pending.append((stamp, _image(msg, f"depth frame at {stamp} ns")))
-                    if self.color_topic is not None:
-                        continue
-                    after = None
-                else:
-                    after = (stamp, _image(msg, f"color frame at {stamp} ns"))
-                while pending and (after is None or pending[0][0] <= after[0]):
-                    t, depth = pending.popleft()
-                    rgb = pick(t, after) if self.color_topic is not None else None
-                    if rgb is None and self.color_topic is not None:
-                        continue
-                    yield RGBDFrame(rgb, depth, t)
-                    emitted += 1
-                    if self.max_frames is not None and emitted >= self.max_frames:
-                        return
-                if after is not None:
-                    before = after
-            while pending:
-                t, depth = pending.popleft()
-                rgb = pick(t, None)
-                if rgb is None and self.color_topic is not None:
+        after: tuple[int, Any] | None
+        for is_depth, stamp, item in images:
+            if is_depth:
+                pending.append((stamp, item))
+                if has_color:
                     continue
-                yield RGBDFrame(rgb, depth, t)
+                after = None
+            else:
+                after = (stamp, item)
+            while pending and (after is None or pending[0][0] <= after[0]):
+                t, depth = pending.popleft()
+                rgb = pick(t, after) if has_color else None
+                if rgb is None and has_color:
+                    continue
+                yield t, depth, rgb
                 emitted += 1
                 if self.max_frames is not None and emitted >= self.max_frames:
                     return
+            if after is not None:
+                before = after
+        while pending:
+            t, depth = pending.popleft()
+            rgb = pick(t, None)
+            if rgb is None and has_color:
+                continue
+            yield t, depth, rgb
+            emitted += 1
+            if self.max_frames is not None and emitted >= self.max_frames:
+                return
+
+    # -- segments: a frame index, and reading a stretch of frames on its own -------------
+
+    def frame_index(self) -> FrameIndex:
+        """Every frame's timestamp and the depth and color messages it is made of, from one
+        pass that reads each image message's header stamp but decodes no image (see
+        :meth:`pcdcodec.sources.rosbag.RosbagSource.frame_index` for the columns). Kept."""
+        from rosbags.rosbag1 import Reader
+
+        from . import _bagindex
+
+        if self._index is not None:
+            return self._index
+        with Reader(self.path) as reader:
+            conns = [c for c in reader.connections if c.topic in self._image_topics()]
+
+            def positions() -> Iterator[tuple[bool, int, Any]]:
+                for conn, t, raw in reader.messages(connections=conns):
+                    stamp = _bagindex.ros1_stamp(raw)
+                    if stamp is None:
+                        stamp = _stamp(self._typestore.deserialize_ros1(raw, conn.msgtype))
+                    yield conn.topic == self.depth_topic, stamp, (t, stamp)
+
+            rows = [
+                (t, d[0], d[1], *(c if c is not None else (-1, -1)))
+                for t, d, c in self._pairs(positions())
+            ]
+        self._index = FrameIndex(np.array(rows, dtype=np.int64).reshape(-1, 5), 0)
+        return self._index
+
+    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[Any]:
+        """Frames ``start`` to ``stop`` (exclusive): from a later frame than the first, through
+        :meth:`frame_index` and :meth:`frames_at`, so the frames before are not read."""
+        import itertools
+
+        if start < 0 or (stop is not None and stop < 0):
+            raise InputError(f"frames start and stop must be at least 0, got {start}, {stop}")
+        if start == 0:
+            return itertools.islice(iter(self), stop)
+        return self.frames_at(self.frame_index().slice(start, stop))
+
+    def frames_at(self, index: FrameIndex) -> Iterator[Any]:
+        """The frames of a :meth:`frame_index` slice: only the messages logged between its
+        first and last message are read (the bag's chunk index skips to them), and only the
+        listed ones decoded. Raises :class:`~pcdcodec.DecodeError` when a listed message is
+        missing (the index is another bag's)."""
+        from rosbags.rosbag1 import Reader
+
+        from ..datasets import RGBDFrame
+        from . import _bagindex
+
+        rows = _bagindex.check_rows(index.rows)
+        if rows.shape[0] == 0:
+            return
+        color = self.color_topic is not None
+        lo, hi = _bagindex.window(rows, color)
+        with Reader(self.path) as reader:
+            conns = [c for c in reader.connections if c.topic in self._image_topics()]
+
+            def messages() -> Iterator[tuple[bool, int, int, Any]]:
+                for conn, t, raw in reader.messages(connections=conns, start=lo, stop=hi):
+                    stamp = _bagindex.ros1_stamp(raw)
+                    if stamp is None:
+                        stamp = _stamp(self._typestore.deserialize_ros1(raw, conn.msgtype))
+                    yield conn.topic == self.depth_topic, t, stamp, (conn, raw)
+
+            def decode(is_depth: bool, item: tuple[Any, bytes]) -> Any:
+                msg = self._typestore.deserialize_ros1(item[1], item[0].msgtype)
+                stamp = _stamp(msg)
+                return _image(msg, f"{'depth' if is_depth else 'color'} frame at {stamp} ns")
+
+            where = repr(str(self.path))
+            for t, depth, rgb in _bagindex.read_rows(
+                rows, index.first, color, messages(), decode, where
+            ):
+                yield RGBDFrame(rgb, depth, t)
 
 
 def open_realsense(path: str | Path, **options: Any) -> RealSenseBagSource:

@@ -671,20 +671,15 @@ class RosbagSource(Source):
     def _raw_stamp(self, raw: bytes, conn: Any, log_time: int) -> int:
         """The header stamp of a serialised message, read from its first bytes (every message
         read here starts with a std_msgs/Header), or the log time where the stamp is 0."""
-        if self._reader.is2:
-            # CDR: a 4-byte encapsulation header (byte 1 odd: little-endian), then the stamp.
-            if len(raw) < 12 or raw[1] not in (0, 1):
+        from . import _bagindex
+
+        ns = _bagindex.cdr_stamp(raw) if self._reader.is2 else _bagindex.ros1_stamp(raw)
+        if ns is None:
+            try:
                 msg = self._reader.deserialize(raw, conn.msgtype)
-                return self._stamp(msg, log_time)
-            sec, nsec = struct.unpack_from("<iI" if raw[1] == 1 else ">iI", raw, 4)
-        else:
-            if len(raw) < 12:
-                raise DecodeError(
-                    f"cannot read bag {str(self.path)!r}: a {conn.topic!r} message of "
-                    f"{len(raw)} bytes is too short for its header"
-                )
-            _, sec, nsec = struct.unpack_from("<III", raw, 0)  # seq, then the stamp
-        ns = int(sec) * 1_000_000_000 + int(nsec)
+            except Exception as exc:
+                raise _wrap(exc, self.path) from exc
+            return self._stamp(msg, log_time)
         return ns if ns > 0 else int(log_time)
 
     def frame_index(self) -> FrameIndex:
@@ -757,59 +752,40 @@ class RosbagSource(Source):
         whatever k is. Raises :class:`~pcdcodec.DecodeError` when a listed message is not in
         the bag (the index was made from another bag, or the bag changed).
         """
-        rows = np.asarray(index.rows)
-        if rows.ndim != 2 or rows.shape[1] != 5:
-            raise InputError(
-                f"a bag frame index has 5 columns per frame, got an array of shape {rows.shape}"
-            )
+        from . import _bagindex
+
+        rows = _bagindex.check_rows(index.rows)
         self.stats = _Stats()
         return self._emit(self._indexed(rows, index.first), None)
 
     def _indexed(self, rows: Any, first: int) -> Iterator[tuple[Any, Any, int]]:
+        from . import _bagindex
+
         if rows.shape[0] == 0:
             return
         dconn, cconn = self._depth_conn, self._color_conn
         paired = cconn is not None
-        logs = rows[:, [1, 3]] if paired else rows[:, [1]]
-        lo, hi = int(logs.min()), int(logs.max()) + 1
-        wanted: set[tuple[bool, int, int]] = set()
-        for row in rows.tolist():
-            wanted.add((True, row[1], row[2]))
-            if paired:
-                wanted.add((False, row[3], row[4]))
-        got: dict[tuple[bool, int, int], Any] = {}
-        todo = rows.tolist()
-        i = 0
+        lo, hi = _bagindex.window(rows, paired)
         conns = [dconn, cconn] if paired else [dconn]
-        for conn, t, raw in self._raw(conns, lo, hi):
-            is_depth = conn.topic == dconn.topic
-            key = (is_depth, t, self._raw_stamp(raw, conn, t))
-            if key not in wanted:
-                continue
-            wanted.discard(key)
+        messages = (
+            (conn.topic == dconn.topic, t, self._raw_stamp(raw, conn, t), (raw, conn))
+            for conn, t, raw in self._raw(conns, lo, hi)
+        )
+
+        def decode(_: bool, item: tuple[bytes, Any]) -> Any:
             try:
-                got[key] = self._reader.deserialize(raw, conn.msgtype)
+                return self._reader.deserialize(item[0], item[1].msgtype)
             except Exception as exc:
                 raise _wrap(exc, self.path) from exc
-            while i < len(todo):
-                ts, dlog, dts, clog, cts = todo[i]
-                dkey, ckey = (True, dlog, dts), (False, clog, cts)
-                if dkey not in got or (paired and ckey not in got):
-                    break
-                dmsg = got.pop(dkey)
-                if paired:
-                    yield self._pair(got.pop(ckey), dmsg, ts)
-                elif self.mode == "cloud":
-                    yield self._cloud_frame(dmsg, ts)
-                else:
-                    yield None, self._decode(dmsg, dconn, "depth"), ts
-                i += 1
-        if i < len(todo):
-            raise DecodeError(
-                f"bag {str(self.path)!r} has no message for frame {first + i} "
-                f"(at {todo[i][0]} ns) where its index says: the index was made from another "
-                "bag, or the bag changed since"
-            )
+
+        where = f"bag {str(self.path)!r}"
+        for ts, dmsg, cmsg in _bagindex.read_rows(rows, first, paired, messages, decode, where):
+            if paired:
+                yield self._pair(cmsg, dmsg, ts)
+            elif self.mode == "cloud":
+                yield self._cloud_frame(dmsg, ts)
+            else:
+                yield None, self._decode(dmsg, dconn, "depth"), ts
 
     def _as_units(self, z: Any) -> Any:
         """``z`` as uint16 units when they give back every z bit for bit, else ``None``."""
