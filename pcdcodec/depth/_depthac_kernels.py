@@ -278,12 +278,25 @@ def _gap_ctx(pgap: int) -> int:
     return 4 if pgap < 64 else 5
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _clamp_index(v: int) -> int:
+    if v < 1:
+        return 1
+    return v if v < 65535 else 65535
+
+
 # -- encoder ------------------------------------------------------------------------------
 
 
 @njit(cache=True, error_model="numpy")
-def encode_image(image: Any, allow_table: bool) -> Any:
-    """Encode a 2-D uint16 image; returns the body as a uint8 array."""
+def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
+    """Encode a 2-D uint16 image; returns the body as a uint8 array.
+
+    With ``near`` = 0 the coding is lossless. With ``near`` > 0 the image holds level indices
+    (0 = hole, no value table is used) and each residual is quantised with step
+    ``2 * near + 1`` inside the prediction loop: the decoder's value, written to ``recon``,
+    is within ``near`` of the input at every valid pixel (clamped to 1..65535).
+    """
     h, w = image.shape
     npix = h * w
     glut = _G_LUT
@@ -306,7 +319,8 @@ def encode_image(image: Any, allow_table: bool) -> Any:
         if rank[v] != 0:
             rank[v] = ntable + 1
             ntable += 1
-    use_table = allow_table and nvalid > 0 and 2 * ntable <= nvalid
+    use_table = near == 0 and allow_table and nvalid > 0 and 2 * ntable <= nvalid
+    step = 2 * near + 1
 
     # A decision never costs more than 16 bits: at most 33 per pixel and 32 per table entry.
     out = np.empty(80 + 68 * npix + 64 * ntable, dtype=np.uint8)
@@ -370,10 +384,14 @@ def encode_image(image: Any, allow_table: bool) -> Any:
             if vo == 0:
                 continue
             v = rank[np.int64(image[y, o - o0])] - 1
-            idx[o] = v
             p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
             zc, sc = _coding_ctx(ctx, q, err, o, st)
             e = v - p
+            if near > 0:
+                e = (e + near) // step if e >= 0 else -((near - e) // step)
+                v = _clamp_index(p + e * step)
+                recon[y, o - o0] = v
+            idx[o] = v
             err[o] = e
             last = v
             if e == 0:
@@ -408,8 +426,11 @@ def encode_image(image: Any, allow_table: bool) -> Any:
 
 
 @njit(cache=True, error_model="numpy")
-def decode_image(buf: Any, out_img: Any) -> int:
-    """Decode a body into ``out_img`` (uint16, h×w); returns ``OK`` or an ``ERR_*`` status."""
+def decode_image(buf: Any, out_img: Any, near: int) -> int:
+    """Decode a body into ``out_img`` (uint16, h×w); returns ``OK`` or an ``ERR_*`` status.
+
+    ``near`` must be the value the body was encoded with (see :func:`encode_image`).
+    """
     h, w = out_img.shape
     n = buf.size
     glut = _G_LUT
@@ -421,6 +442,9 @@ def decode_image(buf: Any, out_img: Any) -> int:
         return ERR_FLAGS
     use_table = (flags & 1) != 0
     code_mask = (flags & 2) != 0
+    if near < 0 or near > 32767 or (use_table and near > 0):
+        return ERR_FLAGS
+    step = 2 * near + 1
     code = (
         (np.int64(buf[1]) << 24)
         | (np.int64(buf[2]) << 16)
@@ -512,7 +536,7 @@ def decode_image(buf: Any, out_img: Any) -> int:
                     bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, m0 + j)
                     m = (m << 1) | bit
                 e = -m if neg else m
-            v = p + e
+            v = p + e if near == 0 else _clamp_index(p + e * step)
             if v < 0 or v > maxidx or table[v] == 0:
                 return ERR_INDEX
             idx[o] = v

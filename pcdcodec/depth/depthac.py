@@ -33,6 +33,9 @@ __all__ = ["DepthAC"]
 #: of working arrays; larger frames (over 8192×8192) are refused.
 _MAX_PIXELS = 2**26
 
+#: ``recon`` argument of the kernel encoder when coding losslessly (it is not written then).
+_NO_RECON = np.zeros((0, 0), dtype=np.uint16)
+
 _ERRORS = {
     1: "its value table runs past 65535",
     2: "a pixel decodes to an index outside its value table",
@@ -65,7 +68,7 @@ class DepthAC(FrameCodec):
             raise InputError(
                 f"depthac codes at most {_MAX_PIXELS} pixels per frame, got {image.size}"
             )
-        body: npt.NDArray[np.uint8] = _kernels().encode_image(image, True)
+        body: npt.NDArray[np.uint8] = _kernels().encode_image(image, True, 0, _NO_RECON)
         return body.tobytes()
 
     def _decode_body(
@@ -77,7 +80,7 @@ class DepthAC(FrameCodec):
             )
         buf = np.frombuffer(body, dtype=np.uint8)
         image = np.empty(shape, dtype=np.uint16)
-        status = _kernels().decode_image(buf, image)
+        status = _kernels().decode_image(buf, image, 0)
         if status:
             reason = _ERRORS.get(status, f"status {status}")
             raise DecodeError(f"depthac frame {shape[1]}x{shape[0]} is corrupt: {reason}")
