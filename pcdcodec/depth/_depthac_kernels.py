@@ -72,27 +72,25 @@ _STATE_INIT = _PROB_INIT
 def _enc(
     low: int, rng: int, pos: int, out: Any, probs: Any, i: int, bit: int
 ) -> tuple[int, int, int]:
+    # Branch-free on the bit (selects, not jumps): the bits are what the model cannot predict.
     s = probs[i]
     p = s & 0xFFFF
     c = s >> 16
     bound = (rng >> 16) * p
     r = _RATE_LUT[c]
     c = (c + 1 if c < 24 else c) << 16
-    if bit == 0:
-        rng = bound
-        probs[i] = c | (p + ((65536 - p) >> r))
-    else:
-        low += bound
-        rng -= bound
-        probs[i] = c | (p - (p >> r))
-        if low > _MASK32:
-            # Carry into the bytes already written; it cannot pass the first one.
-            low &= _MASK32
-            j = pos - 1
-            while out[j] == 255:
-                out[j] = 0
-                j -= 1
-            out[j] += 1
+    one = bit != 0
+    low += bound if one else 0
+    rng = rng - bound if one else bound
+    probs[i] = c | ((p - (p >> r)) if one else (p + ((65536 - p) >> r)))
+    if low > _MASK32:
+        # Carry into the bytes already written; it cannot pass the first one.
+        low &= _MASK32
+        j = pos - 1
+        while out[j] == 255:
+            out[j] = 0
+            j -= 1
+        out[j] += 1
     while rng < _TOP:
         out[pos] = low >> 24
         pos += 1
