@@ -330,7 +330,10 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
     step = 2 * near + 1
 
     # A decision never costs more than 16 bits: at most 33 per pixel and 32 per table entry.
-    out = np.empty(80 + 68 * npix + 64 * ntable, dtype=np.uint8)
+    # The buffer starts at 2 bytes per pixel (real depth needs under 1) and grows before any
+    # row that could overrun it, so the worst case is reserved one row at a time.
+    row_worst = 68 * w
+    out = np.empty(80 + 64 * ntable + row_worst + 2 * npix, dtype=np.uint8)
     out[_U(0)] = (1 if use_table else 0) | (2 if nvalid < npix else 0)
     low = 0
     rng = _MASK32
@@ -377,6 +380,10 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
     last = 0
     mlut = _MASK_LUT
     for y in range(h):
+        if pos + row_worst + 8 > out.size:
+            grown = np.empty(2 * out.size + row_worst, dtype=np.uint8)
+            grown[:pos] = out[:pos]
+            out = grown
         o0 = (y + _PAD) * st + _PAD
         r1, r2 = _mask_row_start(valid, o0, st)
         wb = 0
