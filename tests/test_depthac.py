@@ -146,3 +146,11 @@ def test_encoder_memory_is_a_few_frames_not_the_worst_case() -> None:
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     assert peak < 8 * depth.nbytes
+
+
+def test_compiled_loops_release_the_gil() -> None:
+    # Recordings encode and decode depth on worker threads beside the video codec.
+    from pcdcodec.depth import _depthac_kernels as kernels
+
+    for kernel in (kernels.encode_image, kernels.decode_image):
+        assert kernel.targetoptions.get("nogil") is True

@@ -295,7 +295,7 @@ def _clamp_index(v: int) -> int:
 # -- encoder ------------------------------------------------------------------------------
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
     """Encode a 2-D uint16 image; returns the body as a uint8 array.
 
@@ -439,7 +439,7 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
 # -- decoder ------------------------------------------------------------------------------
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def decode_image(buf: Any, out_img: Any, near: int) -> int:
     """Decode a body into ``out_img`` (uint16, h×w); returns ``OK`` or an ``ERR_*`` status.
 
