@@ -52,6 +52,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from ._version import __version__
+from .depth import DEFAULT_DEPTH_CODEC
 from .errors import (
     ArchiveLockedError,
     CodecUnavailableError,
@@ -698,7 +699,7 @@ def archive(
     scheduler: str | None = None,
     workers: int | None = None,
     color: Any = "h264",
-    depth: Any = "jpegxl",
+    depth: Any = DEFAULT_DEPTH_CODEC,
     fps: float = 30.0,
     segment_frames: int | None = None,
     verify: bool = False,

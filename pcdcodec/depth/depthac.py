@@ -29,9 +29,13 @@ from .base import FrameCodec
 
 __all__ = ["DepthAC"]
 
-#: The encoder reserves its worst case, 68 bytes per pixel, and the decoder 11 bytes per pixel
-#: of working arrays; larger frames (over 8192×8192) are refused.
+#: The encoder needs about 11 bytes per pixel of working arrays and output (its output buffer
+#: grows a row at a time when a frame does not compress), the decoder 11 bytes per pixel;
+#: larger frames (over 8192×8192) are refused.
 _MAX_PIXELS = 2**26
+
+#: ``recon`` argument of the kernel encoder when coding losslessly (it is not written then).
+_NO_RECON = np.zeros((0, 0), dtype=np.uint16)
 
 _ERRORS = {
     1: "its value table runs past 65535",
@@ -65,7 +69,7 @@ class DepthAC(FrameCodec):
             raise InputError(
                 f"depthac codes at most {_MAX_PIXELS} pixels per frame, got {image.size}"
             )
-        body: npt.NDArray[np.uint8] = _kernels().encode_image(image, True)
+        body: npt.NDArray[np.uint8] = _kernels().encode_image(image, True, 0, _NO_RECON)
         return body.tobytes()
 
     def _decode_body(
@@ -77,7 +81,7 @@ class DepthAC(FrameCodec):
             )
         buf = np.frombuffer(body, dtype=np.uint8)
         image = np.empty(shape, dtype=np.uint16)
-        status = _kernels().decode_image(buf, image)
+        status = _kernels().decode_image(buf, image, 0)
         if status:
             reason = _ERRORS.get(status, f"status {status}")
             raise DecodeError(f"depthac frame {shape[1]}x{shape[0]} is corrupt: {reason}")
