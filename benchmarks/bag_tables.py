@@ -4,9 +4,10 @@ Run: ``python benchmarks/bag_tables.py [--frames N] [--keep DIR]``. For every re
 in ``../shared/data`` it writes a ROS 1 bag of organized PointCloud2 XYZRGB clouds (640×480, 32
 bytes per point, plus CameraInfo, uncompressed as ``rosbag record`` writes), then records that bag
 into ``.pcdc`` with the defaults (h264 + depthac), with lossless color (ffv1 + depthac) and with
-jpegxl depth, and prints for each: the bag's size, the recordings' sizes and ratios, the ingest speed (frames per
-second from the bag, reading and decoding the clouds included), and the largest xyz error and
-color difference of the clouds rebuilt from the recording against the bag's clouds.
+jpegxl depth, and prints for each: the bag's size, the recordings' sizes and ratios, the ingest
+speed (frames per second from the bag, reading and decoding the clouds included), and the
+largest xyz error and color difference of the clouds rebuilt from the recording against the
+bag's clouds.
 """
 
 from __future__ import annotations
