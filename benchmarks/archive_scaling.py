@@ -111,7 +111,9 @@ def generate(work: Path, n: int, frames: int, fmt: str, long_factor: int = 1) ->
         first = (i // len(seqs)) * frames % span
         name = f"{names[i % len(seqs)]}_{i:03d}"
         folder = folders / name
-        if not folder.exists():
+        if not folder.exists() and count > len(seq["rows"]):
+            make_long_folder(folder, seq, count)  # the sequence again and again
+        elif not folder.exists():
             make_folder(folder, seq, first, count)
         if fmt == "folders":
             made.append(folder)
@@ -253,7 +255,7 @@ def join_rate(work: Path) -> dict[str, Any]:
     from pcdcodec.recording import open as open_recording
 
     with open_recording(src) as rec:
-        span = int(rec.timestamps[-1]) + 1_000_000
+        span = int(rec.timestamps[-1]) - int(rec.timestamps[0]) + 1_000_000
         frames = [(f.color, f.depth, f.timestamp_ns) for f in rec]
         camera, scale, codecs = rec.intrinsics, rec.depth_scale, rec.codecs
     parts = [work / f"join-part-{i}.pcdc" for i in range(8)]
@@ -275,9 +277,11 @@ def join_rate(work: Path) -> dict[str, Any]:
     seconds = time.perf_counter() - start
     return {
         "parts": len(parts),
+        "frames_per_part": len(frames),
         "bytes": total,
         "seconds": seconds,
         "mb_per_s": total / 1e6 / seconds,
+        "ms_per_part": 1000 * seconds / len(parts),
     }
 
 
@@ -393,7 +397,7 @@ def main() -> None:
             gen = args.work / f"gen-mem-{factor}"
             one = generate(gen, 1, args.frames * 2, args.format, long_factor=factor)
             r = run(one, args.work / f"out-mem-{factor}", 1, seg)
-            r["input_frames"] = args.frames * 2 * factor
+            r["input_frames"] = r["frames"]
             results["memory"].append(r)
             print(json.dumps(r), flush=True)
     results["scheduler"] = scheduler_overhead()

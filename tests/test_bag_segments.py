@@ -94,12 +94,41 @@ def test_awkward_image_bag_stretches_read_alone(tmp_path: Path, ros2: bool) -> N
     assert assert_every_stretch_reads_alone(bag, max_frames=10) == 10
 
 
+def test_ros1_index_from_first_bytes_equals_one_from_whole_messages(tmp_path: Path) -> None:
+    """Uncompressed ROS 1 bags are indexed from each message's first bytes; compressed ones
+    (and ROS 2 bags) from the messages read whole. Both give the same index."""
+    from rosbags.rosbag1 import Reader, Writer
+
+    from pcdcodec.sources import _bagindex
+
+    bag = awkward_bag(tmp_path / "plain.bag", False)
+    packed = tmp_path / "lz4.bag"
+    writer = Writer(packed)
+    writer.set_compression(Writer.CompressionFormat.LZ4)
+    with Reader(bag) as reader, writer:
+        conns = {
+            c.id: writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
+            for c in reader.connections
+        }
+        for c, t, raw in reader.messages():
+            writer.write(conns[c.id], t, raw)
+        images = [c for c in reader.connections if "image" in c.topic]
+        fast = _bagindex.ros1_index_stamps(reader, images)
+        whole = [(c, t, _bagindex.ros1_stamp(raw)) for c, t, raw in reader.messages(images)]
+    assert fast == whole
+    with Reader(packed) as reader:
+        assert _bagindex.ros1_index_stamps(reader, reader.connections) is None
+    with RosbagSource(bag) as a, RosbagSource(packed) as b:
+        np.testing.assert_array_equal(a.frame_index().rows, b.frame_index().rows)
+    assert assert_every_stretch_reads_alone(packed) == 22
+
+
 @pytest.mark.parametrize(("to", "storage"), [("rosbag1", "mcap"), ("rosbag2", "sqlite3")])
 def test_pointcloud2_bag_stretches_read_alone(tmp_path: Path, to: str, storage: str) -> None:
-    seq = make_input(tmp_path / "seq", 0, 9)
+    seq = make_input(tmp_path / "seq", 0, 5)
     bag = tmp_path / ("c.bag" if to == "rosbag1" else "c2")
     pcdcodec.export_bag(seq, bag, to=to, storage=storage, images=False, cloud=True)
-    assert assert_every_stretch_reads_alone(bag) == 9
+    assert assert_every_stretch_reads_alone(bag) == 5
 
 
 @needs_bags
@@ -164,9 +193,9 @@ def test_archive_segments_of_a_bag_equal_one_writer(
 
     bag = tmp_path / "lab" / "long.bag"
     bag.parent.mkdir()
-    seq = make_input(tmp_path / "seq", 0, 15)
+    seq = make_input(tmp_path / "seq", 0, 9)
     pcdcodec.export_bag(seq, bag, images=True, camera_info=True)
-    color = parse_codec_spec("h264:gop=5", "color")
+    color = parse_codec_spec("h264:gop=3", "color")
     reference = tmp_path / "one.pcdc"
     pcdcodec.encode(bag, reference, color=color)
 
@@ -185,7 +214,7 @@ def test_archive_segments_of_a_bag_equal_one_writer(
         workers=1,
         processes=False,
         color=color,
-        segment_frames=5,
+        segment_frames=3,
         verify=True,
         progress=False,
     )
@@ -193,18 +222,18 @@ def test_archive_segments_of_a_bag_equal_one_writer(
     (item,) = summary.items
     assert item.state == "verified"
     assert item.segments == 3
-    assert item.frames == 15
-    assert sorted(read_alone) == [0, 5, 10]  # every segment read through the index
+    assert item.frames == 9
+    assert sorted(read_alone) == [0, 3, 6]  # every segment read through the index
     with pcdcodec.open(out / "lab" / "long.pcdc") as joined, pcdcodec.open(reference) as one:
         assert joined.verify().ok
-        assert len(joined) == len(one) == 15
+        assert len(joined) == len(one) == 9
         np.testing.assert_array_equal(joined.timestamps, one.timestamps)
         # Every segment starts on a keyframe, and keyframes stay at most a keyframe interval
-        # (5 frames) apart, as from the one writer.
-        assert {0, 5, 10} <= set(joined.keyframes)
+        # (3 frames) apart, as from the one writer.
+        assert {0, 3, 6} <= set(joined.keyframes)
         for keys in (joined.keyframes, one.keyframes):
             assert keys[0] == 0
-            assert max(np.diff([*keys, 15])) <= 5
+            assert max(np.diff([*keys, 9])) <= 3
         for a, b in zip(joined, one, strict=True):
             assert a.depth.dtype == b.depth.dtype
             np.testing.assert_array_equal(a.depth, b.depth)
@@ -242,7 +271,9 @@ def long_realsense_bag(dst: Path, frames: int) -> Path:
 
     from rosbags.rosbag1 import Reader, Writer
 
-    with Reader(RS_BAG) as reader, Writer(dst) as writer:
+    writer = Writer(dst)
+    writer.set_compression(Writer.CompressionFormat.LZ4)  # as the recording is
+    with Reader(RS_BAG) as reader, writer:
         conns, images, messages = {}, {}, []
         for c in reader.connections:
             conns[c.id] = writer.add_connection(

@@ -11,6 +11,7 @@ messages logged at the same time.
 
 from __future__ import annotations
 
+import heapq
 import struct
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
@@ -27,6 +28,64 @@ def ros1_stamp(raw: bytes) -> int | None:
         return None
     _, sec, nsec = struct.unpack_from("<III", raw, 0)
     return int(sec) * 1_000_000_000 + int(nsec)
+
+
+def _ros1_op(header: bytes) -> int | None:
+    """The ``op`` field of a ROS 1 record header (``len name=value`` fields)."""
+    pos = 0
+    while pos + 4 <= len(header):
+        (size,) = struct.unpack_from("<I", header, pos)
+        field = header[pos + 4 : pos + 4 + size]
+        if field.startswith(b"op=") and len(field) == 4:
+            return field[3]
+        pos += 4 + size
+    return None
+
+
+def ros1_index_stamps(reader: Any, conns: list[Any]) -> list[tuple[Any, int, int]] | None:
+    """``(connection, log time, header stamp)`` of every message of ``conns`` in a ROS 1 bag,
+    in the order ``reader.messages(connections=conns)`` yields them, reading only the first
+    bytes of each message through the bag's own index (chunk position and offset of every
+    message): a few kilobytes per message instead of the message, so indexing a bag of
+    PointCloud2 frames reads a tiny part of it.
+
+    ``reader`` is an open :class:`rosbags.rosbag1.Reader`. Returns ``None`` (the caller then
+    reads the messages) when a chunk is compressed, when the reader does not expose its index
+    as expected, or when a record is not where the index says.
+    """
+    try:
+        from rosbags.rosbag1.reader import decompressors
+
+        plain = decompressors["none"]
+        chunks = reader.chunks
+        lists = [(conn, reader.indexes[conn.id]) for conn in conns]
+        path = reader.path
+    except (ImportError, AttributeError, KeyError):
+        return None
+    if any(chunk.decompressor is not plain for chunk in chunks.values()):
+        return None
+    owner = {(e.chunk_pos, e.offset): conn for conn, entries in lists for e in entries}
+    out: list[tuple[Any, int, int]] = []
+    try:
+        with open(path, "rb") as f:
+            for entry in heapq.merge(*(entries for _, entries in lists)):
+                f.seek(chunks[entry.chunk_pos].datapos + entry.offset)
+                while True:  # connection records may come first, as the reader skips them
+                    (size,) = struct.unpack("<I", f.read(4))
+                    op = _ros1_op(f.read(size))
+                    (length,) = struct.unpack("<I", f.read(4))
+                    if op != 0x07:
+                        break
+                    f.seek(length, 1)
+                if op != 0x02 or length < 12:
+                    return None
+                stamp = ros1_stamp(f.read(12))
+                if stamp is None:
+                    return None
+                out.append((owner[(entry.chunk_pos, entry.offset)], int(entry.time), stamp))
+    except (OSError, struct.error, KeyError):
+        return None
+    return out
 
 
 def cdr_stamp(raw: bytes) -> int | None:

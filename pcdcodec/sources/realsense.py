@@ -315,6 +315,11 @@ class RealSenseBagSource(Source):
             conns = [c for c in reader.connections if c.topic in self._image_topics()]
 
             def positions() -> Iterator[tuple[bool, int, Any]]:
+                fast = _bagindex.ros1_index_stamps(reader, conns)
+                if fast is not None:
+                    for conn, t, ns in fast:
+                        yield conn.topic == self.depth_topic, ns, (t, ns)
+                    return
                 for conn, t, raw in reader.messages(connections=conns):
                     stamp = _bagindex.ros1_stamp(raw)
                     if stamp is None:

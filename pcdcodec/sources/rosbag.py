@@ -684,7 +684,9 @@ class RosbagSource(Source):
 
     def frame_index(self) -> FrameIndex:
         """Every frame's timestamp and the messages it is made of, from one pass over the bag
-        that reads each depth and color message's header stamp but decodes no image.
+        that reads each depth and color message's header stamp but decodes no image (in an
+        uncompressed ROS 1 bag, only the first bytes of each message are read, through the
+        bag's index).
 
         Rows are ``(timestamp, depth log time, depth stamp, color log time, color stamp)`` (the
         color columns -1 without color), in the order iteration yields the frames: color and
@@ -695,6 +697,22 @@ class RosbagSource(Source):
             self._index = self._build_index()
         return self._index
 
+    def _stamps(self, conns: list[Any]) -> Iterator[tuple[Any, int, int]]:
+        """``(connection, log time, stamp)`` of each message of ``conns``, in bag order: from
+        the first bytes of each message (uncompressed ROS 1 bags: read through the bag's index,
+        a few kilobytes per message), else from the messages read whole."""
+        from . import _bagindex
+
+        readers = getattr(self._reader, "readers", [])
+        if not self._reader.is2 and len(readers) == 1:
+            fast = _bagindex.ros1_index_stamps(readers[0], conns)
+            if fast is not None:
+                for conn, t, ns in fast:
+                    yield conn, t, ns if ns > 0 else t
+                return
+        for conn, t, raw in self._raw(conns):
+            yield conn, t, self._raw_stamp(raw, conn, t)
+
     def _build_index(self) -> FrameIndex:
         from ..sync import Synchronizer
 
@@ -703,8 +721,7 @@ class RosbagSource(Source):
         dconn, cconn = self._depth_conn, self._color_conn
         if cconn is None:
             last = -1
-            for conn, t, raw in self._raw([dconn]):
-                ts = self._raw_stamp(raw, conn, t)
+            for _, t, ts in self._stamps([dconn]):
                 if ts <= last:
                     continue
                 last = ts
@@ -714,9 +731,8 @@ class RosbagSource(Source):
         else:
             sync: Synchronizer[int, int] = Synchronizer(max_difference=self.max_difference)
             latest = {"depth": -1, "color": -1}
-            for conn, t, raw in self._raw([dconn, cconn]):
+            for conn, t, ts in self._stamps([dconn, cconn]):
                 role = "depth" if conn.topic == dconn.topic else "color"
-                ts = self._raw_stamp(raw, conn, t)
                 if ts <= latest[role]:
                     continue
                 latest[role] = ts
