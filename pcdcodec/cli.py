@@ -170,12 +170,16 @@ def _cmd_codecs(args: argparse.Namespace) -> int:
         for name in list_codecs(kind):
             cls = codec_class(name)
             reason = cls.unavailable_reason()
-            lossless = "lossless" if getattr(cls, "lossless", False) else "lossy"
+            codec = cls()
+            lossless = "lossless" if getattr(codec, "lossless", False) else "lossy"
             if reason is not None:
                 state = f"unavailable: {reason}"
             else:
-                config = cls().get_config()
+                config = codec.get_config()
                 state = ", ".join(f"{k}={v!r}" for k, v in config.items() if k != "id")
+            if "max_rel_error" in cls.param_names():
+                bounded = "or lossy within max_error=, max_rel_error="
+                state = f"{state}; {bounded}" if state else bounded
             print(f"  {name:14} {lossless:9} {state or '(no parameters)'}")
     return 0
 
