@@ -16,7 +16,7 @@ import pcdcodec
 from benchmarks.data import DEPTH_SETS, SEQUENCES, load_frames
 from pcdcodec.depth import FrameCodec, read_header
 from pcdcodec.depth.base import LAYOUT_BOUNDED
-from pcdcodec.depth.bounded import ErrorBound, uint16_lattice
+from pcdcodec.depth.bounded import KIND_U16_FRAME, ErrorBound, frame_levels, uint16_lattice
 from pcdcodec.depth.depthac import DepthAC
 from pcdcodec.registry import parse_codec_spec
 
@@ -75,7 +75,9 @@ def test_uint16_within_bound_on_real_depth(name: str, bound: tuple[Any, Any]) ->
     codec = DepthAC(max_error=bound[0], max_rel_error=bound[1])
     for depth in load_frames(name, 2):
         data = codec.encode(depth)
-        assert read_header(data).layout == LAYOUT_BOUNDED
+        header = read_header(data)
+        assert header.layout == LAYOUT_BOUNDED
+        assert data[header.header_size + 1] == KIND_U16_FRAME  # levels fitted to the frame
         assert_within_bound(depth, codec.decode(data), *bound)
         assert len(data) < len(DepthAC().encode(depth))
 
@@ -265,6 +267,8 @@ def test_golden_bounded_set_is_complete() -> None:
         "depthac-abs-rel",
         "depthac-rel1-near2",
         "zstd-rel05",
+        "depthac-rel05-fitted",
+        "jpegxl-abs-fitted",
     }
 
 
@@ -334,3 +338,19 @@ def test_recording_and_cli_take_the_bound(tmp_path: Path) -> None:
     )
     assert bad.returncode != 0
     assert "max_rel_error" in bad.stderr
+
+
+def test_fitted_levels_are_few_and_land_on_sensor_values() -> None:
+    # Values 1000, 1004, 1100 at 0.5 %: 1000 and 1004 share a level (within 5), 1100 alone
+    # keeps its own value; 10 is below one unit of bound and stays exact.
+    image = np.array([[1000, 1004, 1100, 0, 10]], dtype=np.uint16)
+    fitted = frame_levels(image, ErrorBound(0.0, 0.005))
+    assert fitted is not None
+    levels, count = fitted
+    assert count == 3
+    assert levels[0, 0] == levels[0, 1]
+    assert abs(int(levels[0, 0]) - 1000) <= 5
+    assert abs(int(levels[0, 1]) - 1004) <= 5
+    assert levels[0, 2] == 1100
+    assert levels[0, 3] == 0
+    assert levels[0, 4] == 10

@@ -308,7 +308,15 @@ class FrameCodec(Codec):
     def _encode_bounded(self, image: npt.NDArray[Any], bound: Any) -> bytes | None:
         """The bounded-error frame of ``image``, or ``None`` where no lattice of at most 65,535
         levels keeps the bound (then the frame is coded losslessly, which keeps it too)."""
-        from .bounded import LatticeParams, quantise_float, uint16_lattice
+        from .bounded import (
+            KIND_F32_LATTICE,
+            KIND_U16_FRAME,
+            KIND_U16_LATTICE,
+            LatticeParams,
+            frame_levels,
+            quantise_float,
+            uint16_lattice,
+        )
 
         is_float = image.dtype.kind == "f"
         hole_bits = 0
@@ -320,7 +328,16 @@ class FrameCodec(Codec):
             hole_bits = int(holes[0]) if holes.size else 0x7FC00000
         table: npt.NDArray[Any]
         for near in range(self.bounded_near, -1, -1):
-            if is_float:
+            kind = KIND_F32_LATTICE if is_float else KIND_U16_LATTICE
+            if not is_float and near == 0:
+                # Coded exactly, levels fitted to the frame's own values beat any fixed table.
+                fitted = frame_levels(image, bound)
+                if fitted is None:
+                    continue
+                index, nlevels = fitted
+                kind, si, lo, hi = KIND_U16_FRAME, 0, 1.0, 65535.0
+                table = np.zeros(nlevels + 1, dtype=np.uint16)
+            elif is_float:
                 mapped = quantise_float(image, valid, bound, near)
                 if mapped is None:
                     continue
@@ -340,7 +357,7 @@ class FrameCodec(Codec):
                 if not np.all(np.abs(got - want) <= bound.of(want)):
                     continue
             params = LatticeParams(
-                is_float,
+                kind,
                 near,
                 si,
                 bound.abs_error,

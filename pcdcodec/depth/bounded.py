@@ -37,9 +37,11 @@ from ..errors import DecodeError, InputError, InputTypeError
 
 __all__ = [
     "ErrorBound",
+    "LatticeParams",
     "check_bound",
     "decode_levels",
     "float_lattice",
+    "frame_levels",
     "quantise_float",
     "uint16_lattice",
 ]
@@ -50,7 +52,7 @@ _SAFETY = (1.0, 0.995, 0.98, 0.95, 0.9, 0.8, 0.6)
 #: The most level indices an index image can hold (0 is the hole).
 MAX_LEVELS = 65535
 
-# lattice version, kind (1 uint16, 2 float32), near, safety index,
+# lattice version, kind (KIND_*), near, safety index,
 # max_error, max_rel_error, lo, hi (float64), hole bits, level count (uint32)
 _PARAMS = struct.Struct("<BBBBddddII")
 PARAMS_SIZE = _PARAMS.size
@@ -286,14 +288,64 @@ def quantise_float(
     return None
 
 
+def frame_levels(
+    image: npt.NDArray[np.uint16], bound: ErrorBound
+) -> tuple[npt.NDArray[np.uint16], int] | None:
+    """Levels fitted to a uint16 frame's own values: the image with every valid value replaced
+    by its level, and the number of levels; ``None`` if the check below fails (it cannot).
+
+    The fewest levels that cover the frame's distinct values are found greedily: from the
+    smallest value s not yet covered, the level may be as high as s + ⌊B(s)⌋ and then also
+    covers larger values v with v − ⌊B(v)⌋ at or below it. Where the highest level would cover
+    nothing more than a lower one, the middle value of those it covers is used instead (the
+    same count, smaller errors). Levels fall on the sensor's own values where it quantises more
+    coarsely than the bound, and every valid value is checked against its bound.
+    """
+    import bisect
+
+    hist = np.bincount(image.ravel(), minlength=65536)
+    u = np.flatnonzero(hist[1:]) + 1  # distinct valid values, ascending
+    if u.size == 0:
+        return image.copy(), 0
+    uf = u.astype(np.float64)
+    slack = np.floor(np.maximum(bound.abs_error, bound.rel_error * uf)).astype(np.int64)
+    reach = (u - slack).tolist()  # nondecreasing: v - floor(B(v)) grows with v
+    ul = u.tolist()
+    sl = slack.tolist()
+    n = len(ul)
+    starts: list[int] = []
+    levels: list[int] = []
+    i = 0
+    while i < n:
+        top = min(ul[i] + sl[i], 65535)
+        j = bisect.bisect_right(ul, top, i) - 1
+        k = max(j, bisect.bisect_right(reach, top, i) - 1)
+        starts.append(i)
+        levels.append(top if k > j else ul[(i + j) // 2])
+        i = k + 1
+    counts = np.diff(np.asarray([*starts, n]))
+    mapped = np.repeat(np.asarray(levels, dtype=np.int64), counts)
+    if not np.all(np.abs(mapped - u) <= slack):
+        return None
+    lut = np.zeros(65536, dtype=np.uint16)
+    lut[u] = mapped
+    return lut[image], len(levels)
+
+
 # -- the parameter block ---------------------------------------------------------------------
+
+
+#: Kinds of level table a bounded-error frame names.
+KIND_U16_LATTICE = 1  # uint16: the fixed lattice of (bound, near); the image holds indices
+KIND_F32_LATTICE = 2  # float32: the lattice over the frame's range; the image holds indices
+KIND_U16_FRAME = 3  # uint16: levels fitted to the frame; the image holds the levels themselves
 
 
 @dataclass(frozen=True)
 class LatticeParams:
     """What a bounded-error frame states so its decoder rebuilds the level table."""
 
-    is_float: bool
+    kind: int
     near: int
     safety_index: int
     abs_error: float
@@ -303,10 +355,14 @@ class LatticeParams:
     hole_bits: int
     levels: int
 
+    @property
+    def is_float(self) -> bool:
+        return self.kind == KIND_F32_LATTICE
+
     def pack(self) -> bytes:
         return _PARAMS.pack(
             _LATTICE_VERSION,
-            2 if self.is_float else 1,
+            self.kind,
             self.near,
             self.safety_index,
             self.abs_error,
@@ -324,11 +380,12 @@ class LatticeParams:
         ver, kind, near, si, a, r, lo, hi, hole, n = _PARAMS.unpack_from(data, 0)
         if ver != _LATTICE_VERSION:
             raise DecodeError(f"bounded-error frame has unknown lattice version {ver}")
-        if kind not in (1, 2):
+        if kind not in (KIND_U16_LATTICE, KIND_F32_LATTICE, KIND_U16_FRAME):
             raise DecodeError(f"bounded-error frame has unknown lattice kind {kind}")
-        if si >= len(_SAFETY) or near > 16:
+        if si >= len(_SAFETY) or near > 16 or (kind == KIND_U16_FRAME and near):
             raise DecodeError(
-                f"bounded-error frame has invalid lattice parameters (near {near}, step {si})"
+                f"bounded-error frame has invalid lattice parameters (kind {kind}, near {near}, "
+                f"step {si})"
             )
         finite = all(math.isfinite(x) for x in (a, r, lo, hi))
         if not finite or a < 0 or not 0 <= r < 1 or (a == 0 and r == 0) or lo > hi:
@@ -336,7 +393,7 @@ class LatticeParams:
                 f"bounded-error frame has invalid bounds (max_error {a}, max_rel_error {r}, "
                 f"range {lo}..{hi})"
             )
-        return cls(kind == 2, near, si, a, r, lo, hi, hole, n)
+        return cls(kind, near, si, a, r, lo, hi, hole, n)
 
     def table(self) -> npt.NDArray[Any]:
         """The level table these parameters describe; raises DecodeError if it cannot be built."""
@@ -366,6 +423,8 @@ def decode_levels(
 ) -> npt.NDArray[Any]:
     """Turn a decoded index image back into depth of ``dtype``; raises DecodeError on an index
     outside the table."""
+    if params.kind == KIND_U16_FRAME:
+        return index  # the levels themselves, checked by the frame's CRC
     table = params.table()
     if index.size and int(index.max()) > params.levels:
         raise DecodeError(

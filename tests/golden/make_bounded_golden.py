@@ -25,6 +25,9 @@ CONFIGS: list[tuple[str, dict[str, Any], int]] = [
     ("depthac-abs-rel", {"id": "depthac", "max_error": 0.004, "max_rel_error": 0.005}, 0),
     ("depthac-rel1-near2", {"id": "depthac", "max_rel_error": 0.01}, 2),
     ("zstd-rel05", {"id": "zstd", "max_rel_error": 0.005}, 0),
+    # uint16 frames since levels are fitted to each frame (kind 3); float32 as above.
+    ("depthac-rel05-fitted", {"id": "depthac", "max_rel_error": 0.005}, 0),
+    ("jpegxl-abs-fitted", {"id": "jpegxl", "max_error": 0.006}, 0),
 ]
 
 
