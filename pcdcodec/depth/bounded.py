@@ -289,17 +289,18 @@ def quantise_float(
 
 
 def frame_levels(
-    image: npt.NDArray[np.uint16], bound: ErrorBound
+    image: npt.NDArray[np.uint16], bound: ErrorBound, *, centre: bool = True
 ) -> tuple[npt.NDArray[np.uint16], int] | None:
     """Levels fitted to a uint16 frame's own values: the image with every valid value replaced
     by its level, and the number of levels; ``None`` if the check below fails (it cannot).
 
     The fewest levels that cover the frame's distinct values are found greedily: from the
     smallest value s not yet covered, the level may be as high as s + ⌊B(s)⌋ and then also
-    covers larger values v with v − ⌊B(v)⌋ at or below it. Where the highest level would cover
-    nothing more than a lower one, the middle value of those it covers is used instead (the
-    same count, smaller errors). Levels fall on the sensor's own values where it quantises more
-    coarsely than the bound, and every valid value is checked against its bound.
+    covers larger values v with v − ⌊B(v)⌋ at or below it. With ``centre`` each group's level
+    then moves, within what keeps every member's bound, to the one nearest the mean of the
+    group's pixels (the same count, smaller errors). Levels fall on the sensor's own values
+    where it quantises more coarsely than the bound, and every valid value is checked against
+    its bound.
     """
     import bisect
 
@@ -323,8 +324,19 @@ def frame_levels(
         starts.append(i)
         levels.append(top if k > j else ul[(i + j) // 2])
         i = k + 1
+    first = np.asarray(starts)
     counts = np.diff(np.asarray([*starts, n]))
-    mapped = np.repeat(np.asarray(levels, dtype=np.int64), counts)
+    if centre:
+        # Any level between the group's highest v - floor(B(v)) and its lowest
+        # v + floor(B(v)) keeps the bound: take the one nearest the group's mean pixel.
+        weight = hist[u].astype(np.float64)
+        mean = np.add.reduceat(weight * uf, first) / np.add.reduceat(weight, first)
+        low = np.asarray(reach)[first + counts - 1]
+        high = np.minimum(u[first] + slack[first], 65535)
+        chosen = np.clip(np.rint(mean).astype(np.int64), low, high)
+    else:
+        chosen = np.asarray(levels, dtype=np.int64)
+    mapped = np.repeat(chosen, counts)
     if not np.all(np.abs(mapped - u) <= slack):
         return None
     lut = np.zeros(65536, dtype=np.uint16)
