@@ -3,10 +3,11 @@
 Run: ``python benchmarks/bag_tables.py [--frames N] [--keep DIR]``. For every real sequence present
 in ``../shared/data`` it writes a ROS 1 bag of organized PointCloud2 XYZRGB clouds (640×480, 32
 bytes per point, plus CameraInfo, uncompressed as ``rosbag record`` writes), then records that bag
-into ``.pcdc`` with the defaults (h264 + jpegxl) and with lossless color (ffv1 + jpegxl), and
-prints for each: the bag's size, the recordings' sizes and ratios, the ingest speed (frames per
-second from the bag, reading and decoding the clouds included), and the largest xyz error and
-color difference of the clouds rebuilt from the recording against the bag's clouds.
+into ``.pcdc`` with the defaults (h264 + depthac), with lossless color (ffv1 + depthac) and with
+jpegxl depth, and prints for each: the bag's size, the recordings' sizes and ratios, the ingest
+speed (frames per second from the bag, reading and decoding the clouds included), and the
+largest xyz error and color difference of the clouds rebuilt from the recording against the
+bag's clouds.
 """
 
 from __future__ import annotations
@@ -32,7 +33,11 @@ CAMERAS = {
     "realsense_d435": pcdcodec.CameraIntrinsics(640, 480, 615.0, 615.0, 320.0, 240.0),
     "7scenes_redkitchen": pcdcodec.CameraIntrinsics(640, 480, 585.0, 585.0, 320.0, 240.0),
 }
-CONFIGS = {"defaults (h264 + jpegxl)": {}, "lossless color (ffv1 + jpegxl)": {"color": "ffv1"}}
+CONFIGS = {
+    "defaults (h264 + depthac)": {},
+    "lossless color (ffv1 + depthac)": {"color": "ffv1"},
+    "h264 + jpegxl": {"depth": "jpegxl"},
+}
 
 
 def bag_clouds(bag: Path) -> Any:

@@ -25,7 +25,7 @@ CAMERAS = {
 }
 PAPER_COLOR = ["ffv1", "huffyuv", "mjpeg", "mpeg4", "h264"]
 OURS_COLOR = ["h265", "av1"]
-DEPTH = ["lz4", "zstd", "jpegxl"]
+DEPTH = ["lz4", "zstd", "jpegxl", "depthac"]
 
 
 def main() -> int:
@@ -93,17 +93,20 @@ def main() -> int:
             ),
             ("h264 + lz4 (uint16)", color["h264"].bytes_per_frame + depth["lz4"].bytes_per_frame),
             ("ffv1 + lz4 (uint16)", color["ffv1"].bytes_per_frame + depth["lz4"].bytes_per_frame),
+            ("ffv1 + jpegxl", color["ffv1"].bytes_per_frame + depth["jpegxl"].bytes_per_frame),
+            ("h264 + jpegxl", color["h264"].bytes_per_frame + depth["jpegxl"].bytes_per_frame),
+            ("av1 + jpegxl", color["av1"].bytes_per_frame + depth["jpegxl"].bytes_per_frame),
             (
-                "ffv1 + jpegxl (recommended lossless)",
-                color["ffv1"].bytes_per_frame + depth["jpegxl"].bytes_per_frame,
+                "ffv1 + depthac (recommended lossless)",
+                color["ffv1"].bytes_per_frame + depth["depthac"].bytes_per_frame,
             ),
             (
-                "h264 + jpegxl (recommended visually lossless, the default)",
-                color["h264"].bytes_per_frame + depth["jpegxl"].bytes_per_frame,
+                "h264 + depthac (recommended visually lossless, the default)",
+                color["h264"].bytes_per_frame + depth["depthac"].bytes_per_frame,
             ),
             (
-                "av1 + jpegxl (recommended smallest)",
-                color["av1"].bytes_per_frame + depth["jpegxl"].bytes_per_frame,
+                "av1 + depthac (recommended smallest)",
+                color["av1"].bytes_per_frame + depth["depthac"].bytes_per_frame,
             ),
         ]
         for label, size in rows:

@@ -52,7 +52,7 @@ def test_ingest_pointcloud2_bag(
     out = tmp_path / "ingest.pcdc"
     with pcdcodec.open_source(bag) as src:
         frames = sum(1 for _ in src)
-    benchmark.group = "ingest: PointCloud2 bag -> .pcdc, defaults (h264 + jpegxl)"
+    benchmark.group = "ingest: PointCloud2 bag -> .pcdc, defaults (h264 + depthac)"
     benchmark.extra_info.update(kind="ingest", sequence=name, frames=frames)
 
     def run() -> Any:

@@ -47,7 +47,7 @@ def cached(name: str) -> RGBDSequence:
     return _cache[name]
 
 
-def write(seq: RGBDSequence, path: Path, depth: str = "jpegxl") -> Path:
+def write(seq: RGBDSequence, path: Path, depth: str = pcdcodec.DEFAULT_DEPTH_CODEC) -> Path:
     with pcdcodec.open(
         path,
         "w",
@@ -79,7 +79,7 @@ def one_core() -> Iterator[None]:
 def test_record(benchmark: Any, tmp_path: Path, name: str) -> None:
     seq = cached(name)
     path = tmp_path / "bench.pcdc"
-    benchmark.group = "recording: write with the default codecs (h264 + jpegxl), two threads"
+    benchmark.group = "recording: write with the default codecs (h264 + depthac), two threads"
     benchmark.extra_info.update(kind="recording", op="write", sequence=name, frames=len(seq))
     benchmark.pedantic(write, args=(seq, path), rounds=3, iterations=1, warmup_rounds=1)
     with pcdcodec.open(path) as rec:

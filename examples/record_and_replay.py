@@ -29,7 +29,7 @@ def main() -> int:
         intrinsics=seq.intrinsics,
         depth_scale=seq.depth_scale,
         color="h264",  # lossy video, visually lossless at the default crf 18
-        depth="jpegxl",  # lossless, checksummed
+        depth="depthac",  # lossless, checksummed (the default)
         metadata={"sensor": "Kinect v1", "sequence": "TUM fr1_rpy"},
         overwrite=True,
     ) as rec:

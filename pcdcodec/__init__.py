@@ -6,7 +6,7 @@ live in one registry that keeps the two kinds apart::
 
     import pcdcodec
 
-    codec = pcdcodec.get_codec("jpegxl")          # the default depth codec
+    codec = pcdcodec.get_codec("depthac")         # the default depth codec
     data = codec.encode(depth)                     # uint16 H×W -> bytes
     assert (codec.decode(data) == depth).all()     # bit-exact
 

@@ -47,6 +47,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from ._version import __version__
+from .depth import DEFAULT_DEPTH_CODEC
 from .errors import (
     ArchiveLockedError,
     CodecUnavailableError,
@@ -648,7 +649,7 @@ def archive(
     scheduler: str | None = None,
     workers: int | None = None,
     color: Any = "h264",
-    depth: Any = "jpegxl",
+    depth: Any = DEFAULT_DEPTH_CODEC,
     fps: float = 30.0,
     segment_frames: int = 300,
     verify: bool = False,

@@ -651,7 +651,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--color", default=DEFAULT_COLOR_CODEC, help="color codec, e.g. h264 or h264:crf=20"
     )
     p.add_argument(
-        "--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec, e.g. jpegxl or zstd:level=9"
+        "--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec, e.g. depthac or zstd:level=9"
     )
     p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
     p.add_argument("--max-frames", type=int, default=None, help="encode only the first N")
@@ -739,7 +739,9 @@ def build_parser() -> argparse.ArgumentParser:
     where.add_argument("--workers", type=int, help="local workers (default: one per core)")
     p.add_argument("--threads", action="store_true", help="local workers as threads")
     p.add_argument("--color", default="h264", help="color codec, or none for depth only")
-    p.add_argument("--depth", default="jpegxl", help="depth codec, e.g. jpegxl or zstd:level=9")
+    p.add_argument(
+        "--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec, e.g. depthac or zstd:level=9"
+    )
     p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
     p.add_argument(
         "--segment-frames",

@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pcdcodec
 from pcdcodec.depth import FrameCodec
-from tests.conftest import DEPTH_SETS, load_frames
+from benchmarks.data import DEPTH_SETS, load_frames
 from tests.fuzzing import fuzz_frames, fuzz_images
 
 

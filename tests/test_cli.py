@@ -72,7 +72,7 @@ def test_encode_info_verify(encoded: Path) -> None:
     assert info.returncode == 0, info.stderr
     data = json.loads(info.stdout)
     assert data["frames"] == 6
-    assert data["codecs"]["depth"]["id"] == "jpegxl"
+    assert data["codecs"]["depth"]["id"] == pcdcodec.DEFAULT_DEPTH_CODEC
     assert data["intrinsics"]["fx"] == 525.0
     assert data["depth_scale"] == 5000.0
     text = run("info", str(encoded))

@@ -125,3 +125,32 @@ def test_kernel_near_mode_keeps_every_pixel_within_the_tolerance(name: str, near
     wrong = np.empty_like(depth)
     status = kernels.decode_image(body, wrong, near + 1)
     assert status != kernels.OK or not np.array_equal(wrong, recon)
+
+
+@pytest.mark.parametrize("shape", [(480, 640), (3, 4000), (4000, 3)])
+def test_incompressible_frames_grow_the_output_buffer(shape: tuple[int, int]) -> None:
+    # White noise over every value costs more than the 2 bytes per pixel reserved up front.
+    noise = np.random.default_rng(5).integers(0, 65536, shape, dtype=np.uint16)
+    data = round_trip(noise)
+    assert len(data) > 2 * noise.size
+
+
+def test_encoder_memory_is_a_few_frames_not_the_worst_case() -> None:
+    import tracemalloc
+
+    depth = load_frames("sample", 1)[0]
+    codec = DepthAC()
+    codec.encode(depth)  # compiled and loaded before measuring
+    tracemalloc.start()
+    codec.encode(depth)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 8 * depth.nbytes
+
+
+def test_compiled_loops_release_the_gil() -> None:
+    # Recordings encode and decode depth on worker threads beside the video codec.
+    from pcdcodec.depth import _depthac_kernels as kernels
+
+    for kernel in (kernels.encode_image, kernels.decode_image):
+        assert kernel.targetoptions.get("nogil") is True

@@ -197,7 +197,7 @@ def test_import_does_not_reencode_color(imported: tuple[Path, Path]) -> None:
     assert _packets(back) == _packets(original)
     with pcdcodec.open(original) as a, pcdcodec.open(back) as b:
         assert b.codecs["color"] == a.codecs["color"]
-        assert b.codecs["depth"]["id"] == "jpegxl"
+        assert b.codecs["depth"]["id"] == pcdcodec.DEFAULT_DEPTH_CODEC
         assert b.intrinsics == a.intrinsics
         assert b.depth_scale == a.depth_scale
         assert b.fps == a.fps

@@ -33,7 +33,7 @@ __all__ = [
 ]
 
 #: The depth codec used when none is named.
-DEFAULT_DEPTH_CODEC = "jpegxl"
+DEFAULT_DEPTH_CODEC = "depthac"
 
 for _cls in (LZ4, Zstd, PNG16, RVL, JPEGXL, DepthAC):
     register_codec(_cls)

@@ -67,32 +67,37 @@ _E_LUT = np.array([0, 1, 2, 3, 3, 4, 4, 4, 4], dtype=np.int64)  # < 9
 _RATE_LUT = np.array([1] + [2] * 2 + [3] * 5 + [4] * 16 + [5], dtype=np.int64)
 _STATE_INIT = _PROB_INIT
 
+# Array indices in the loops are cast to unsigned: numba then skips its negative-index
+# wraparound, a third of the loops' time. Every index is non-negative by construction (padded
+# arrays, checked stream values), which the casts do not change.
+_U = np.uint64
+
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _enc(
     low: int, rng: int, pos: int, out: Any, probs: Any, i: int, bit: int
 ) -> tuple[int, int, int]:
     # Branch-free on the bit (selects, not jumps): the bits are what the model cannot predict.
-    s = probs[i]
+    s = probs[_U(i)]
     p = s & 0xFFFF
     c = s >> 16
     bound = (rng >> 16) * p
-    r = _RATE_LUT[c]
+    r = _RATE_LUT[_U(c)]
     c = (c + 1 if c < 24 else c) << 16
     one = bit != 0
     low += bound if one else 0
     rng = rng - bound if one else bound
-    probs[i] = c | ((p - (p >> r)) if one else (p + ((65536 - p) >> r)))
+    probs[_U(i)] = c | ((p - (p >> r)) if one else (p + ((65536 - p) >> r)))
     if low > _MASK32:
         # Carry into the bytes already written; it cannot pass the first one.
         low &= _MASK32
         j = pos - 1
-        while out[j] == 255:
-            out[j] = 0
+        while out[_U(j)] == 255:
+            out[_U(j)] = 0
             j -= 1
-        out[j] += 1
+        out[_U(j)] += 1
     while rng < _TOP:
-        out[pos] = low >> 24
+        out[_U(pos)] = low >> 24
         pos += 1
         low = (low << 8) & _MASK32
         rng <<= 8
@@ -103,23 +108,23 @@ def _enc(
 def _dec(
     code: int, rng: int, pos: int, buf: Any, n: int, probs: Any, i: int
 ) -> tuple[int, int, int, int]:
-    s = probs[i]
+    s = probs[_U(i)]
     p = s & 0xFFFF
     c = s >> 16
     bound = (rng >> 16) * p
-    r = _RATE_LUT[c]
+    r = _RATE_LUT[_U(c)]
     c = (c + 1 if c < 24 else c) << 16
     if code < bound:
         rng = bound
-        probs[i] = c | (p + ((65536 - p) >> r))
+        probs[_U(i)] = c | (p + ((65536 - p) >> r))
         bit = 0
     else:
         code -= bound
         rng -= bound
-        probs[i] = c | (p - (p >> r))
+        probs[_U(i)] = c | (p - (p >> r))
         bit = 1
     while rng < _TOP:
-        byte = np.int64(buf[pos]) if pos < n else np.int64(0)
+        byte = np.int64(buf[_U(pos)]) if pos < n else np.int64(0)
         pos += 1
         code = ((code << 8) | byte) & _MASK32
         rng <<= 8
@@ -142,7 +147,7 @@ def _q9(d: int) -> Any:
         return 8
     if d < -11:
         return 0
-    return _Q9_LUT[d + 11]
+    return _Q9_LUT[_U(d + 11)]
 
 
 def _mask_lut() -> Any:
@@ -184,13 +189,17 @@ def _mask_row_start(valid: Any, o: int, s: int) -> tuple[int, int]:
     n = o - s
     nn = n - s
     r1 = (
-        (np.int64(valid[n - 2]) << 4)
-        | (np.int64(valid[n - 1]) << 3)
-        | (np.int64(valid[n]) << 2)
-        | (np.int64(valid[n + 1]) << 1)
-        | np.int64(valid[n + 2])
+        (np.int64(valid[_U(n - 2)]) << 4)
+        | (np.int64(valid[_U(n - 1)]) << 3)
+        | (np.int64(valid[_U(n)]) << 2)
+        | (np.int64(valid[_U(n + 1)]) << 1)
+        | np.int64(valid[_U(n + 2)])
     )
-    r2 = (np.int64(valid[nn - 1]) << 2) | (np.int64(valid[nn]) << 1) | np.int64(valid[nn + 1])
+    r2 = (
+        (np.int64(valid[_U(nn - 1)]) << 2)
+        | (np.int64(valid[_U(nn)]) << 1)
+        | np.int64(valid[_U(nn + 1)])
+    )
     return r1, r2
 
 
@@ -201,8 +210,8 @@ def _absdiff(a: int, b: int) -> int:
 
 @njit(cache=True, error_model="numpy")
 def _ctx(g: int, e: int, cls: int, glut: Any, elut: Any) -> int:
-    gb = glut[g] if g < 33 else 7
-    eb = elut[e] if e < 9 else 5
+    gb = glut[_U(g)] if g < 33 else 7
+    eb = elut[_U(e)] if e < 9 else 5
     return (cls * _NGBIN + gb) * _NEBIN + eb
 
 
@@ -215,15 +224,15 @@ def _predict(
     The arrays are padded with invalid pixels, so no neighbour lookup leaves them.
     """
     n = o - s
-    va = valid[o - 1] != 0
-    vb = valid[n] != 0
-    a = np.int64(idx[o - 1])
-    b = np.int64(idx[n])
-    ea = np.int64(err[o - 1])
-    eb = np.int64(err[n])
+    va = valid[_U(o - 1)] != 0
+    vb = valid[_U(n)] != 0
+    a = np.int64(idx[_U(o - 1)])
+    b = np.int64(idx[_U(n)])
+    ea = np.int64(err[_U(o - 1)])
+    eb = np.int64(err[_U(n)])
     e = (ea if ea > 0 else -ea) + (eb if eb > 0 else -eb)
-    if va and vb and valid[n - 1] != 0:
-        c = np.int64(idx[n - 1])
+    if va and vb and valid[_U(n - 1)] != 0:
+        c = np.int64(idx[_U(n - 1)])
         mx = a if a > b else b
         mn = a if a < b else b
         if c >= mx:
@@ -233,8 +242,8 @@ def _predict(
         else:
             p = a + b - c
         g = _absdiff(a, c) + _absdiff(b, c)
-        if valid[n + 1] != 0:
-            d = np.int64(idx[n + 1])
+        if valid[_U(n + 1)] != 0:
+            d = np.int64(idx[_U(n + 1)])
             g += _absdiff(b, d)
             q = (_q9(d - b) * 9 + _q9(b - c)) * 9 + _q9(c - a)
             return p, _ctx(g, e, 0, glut, elut), q
@@ -243,13 +252,13 @@ def _predict(
     if va and vb:
         return (a + b) >> 1, _ctx(2 * _absdiff(a, b), e, 2, glut, elut), _NOBIAS
     if va:
-        g = 2 * _absdiff(a, np.int64(idx[o - 2])) if valid[o - 2] != 0 else 0
+        g = 2 * _absdiff(a, np.int64(idx[_U(o - 2)])) if valid[_U(o - 2)] != 0 else 0
         return a, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS
     if vb:
-        g = 2 * _absdiff(b, np.int64(idx[n - s])) if valid[n - s] != 0 else 0
+        g = 2 * _absdiff(b, np.int64(idx[_U(n - s)])) if valid[_U(n - s)] != 0 else 0
         return b, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS
-    if valid[n + 1] != 0:
-        return np.int64(idx[n + 1]), _ctx(0, 1, 4, glut, elut), _NOBIAS
+    if valid[_U(n + 1)] != 0:
+        return np.int64(idx[_U(n + 1)]), _ctx(0, 1, 4, glut, elut), _NOBIAS
     return last, _ctx(0, 0, 4, glut, elut), _NOBIAS
 
 
@@ -259,8 +268,8 @@ def _coding_ctx(ctx: int, q: int, err: Any, o: int, s: int) -> tuple[int, int]:
     if q == _NOBIAS:
         return _M_ZERO + ctx, _M_SIGN + ctx
     eb = ctx % _NEBIN
-    ew = err[o - 1]
-    en = err[o - s]
+    ew = err[_U(o - 1)]
+    en = err[_U(o - s)]
     sg = (0 if ew == 0 else (1 if ew > 0 else 2)) * 3 + (0 if en == 0 else (1 if en > 0 else 2))
     return _M_QZERO + q * _NQE + (eb if eb < _NQE else _NQE - 1), _M_QSIGN + q * 9 + sg
 
@@ -286,7 +295,7 @@ def _clamp_index(v: int) -> int:
 # -- encoder ------------------------------------------------------------------------------
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
     """Encode a 2-D uint16 image; returns the body as a uint8 array.
 
@@ -306,23 +315,26 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
     for y in range(h):
         o = (y + _PAD) * st + _PAD
         for x in range(w):
-            v = image[y, x]
-            rank[v] = 1
+            v = image[_U(y), _U(x)]
+            rank[_U(v)] = 1
             if v != 0:
-                valid[o + x] = 1
+                valid[_U(o + x)] = 1
                 nvalid += 1
-    rank[0] = 0
+    rank[_U(0)] = 0
     ntable = 0
     for v in range(1, 65536):
-        if rank[v] != 0:
-            rank[v] = ntable + 1
+        if rank[_U(v)] != 0:
+            rank[_U(v)] = ntable + 1
             ntable += 1
     use_table = near == 0 and allow_table and nvalid > 0 and 2 * ntable <= nvalid
     step = 2 * near + 1
 
     # A decision never costs more than 16 bits: at most 33 per pixel and 32 per table entry.
-    out = np.empty(80 + 68 * npix + 64 * ntable, dtype=np.uint8)
-    out[0] = (1 if use_table else 0) | (2 if nvalid < npix else 0)
+    # The buffer starts at 2 bytes per pixel (real depth needs under 1) and grows before any
+    # row that could overrun it, so the worst case is reserved one row at a time.
+    row_worst = 68 * w
+    out = np.empty(80 + 64 * ntable + row_worst + 2 * npix, dtype=np.uint8)
+    out[_U(0)] = (1 if use_table else 0) | (2 if nvalid < npix else 0)
     low = 0
     rng = _MASK32
     pos = 1
@@ -336,7 +348,7 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
         prev = 0
         pgap = 0
         for v in range(1, 65536):
-            if rank[v] == 0:
+            if rank[_U(v)] == 0:
                 continue
             gap = v - prev - 1
             g = _gap_ctx(pgap)
@@ -360,7 +372,7 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
 
     if not use_table:
         for v in range(65536):
-            rank[v] = v + 1
+            rank[_U(v)] = v + 1
     # Indices are filled in as the pixels are coded: the model reads only valid causal ones.
     idx = np.zeros(valid.size, dtype=np.int32)
     err = np.zeros(valid.size, dtype=np.int32)
@@ -368,20 +380,24 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
     last = 0
     mlut = _MASK_LUT
     for y in range(h):
+        if pos + row_worst + 8 > out.size:
+            grown = np.empty(2 * out.size + row_worst, dtype=np.uint8)
+            grown[:pos] = out[:pos]
+            out = grown
         o0 = (y + _PAD) * st + _PAD
         r1, r2 = _mask_row_start(valid, o0, st)
         wb = 0
         for o in range(o0, o0 + w):
-            vo = np.int64(valid[o])
+            vo = np.int64(valid[_U(o)])
             if code_mask:
-                mc = mlut[(r2 << 7) | (r1 << 2) | wb]
+                mc = mlut[_U((r2 << 7) | (r1 << 2) | wb)]
                 low, rng, pos = _enc(low, rng, pos, out, probs, _M_MASK + mc, vo)
-                r1 = ((r1 << 1) & 31) | np.int64(valid[o - st + 3])
-                r2 = ((r2 << 1) & 7) | np.int64(valid[o - 2 * st + 2])
+                r1 = ((r1 << 1) & 31) | np.int64(valid[_U(o - st + 3)])
+                r2 = ((r2 << 1) & 7) | np.int64(valid[_U(o - 2 * st + 2)])
                 wb = ((wb << 1) | vo) & 3
             if vo == 0:
                 continue
-            v = rank[np.int64(image[y, o - o0])] - 1
+            v = rank[np.int64(image[_U(y), _U(o - o0)])] - 1
             p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
             zc, sc = _coding_ctx(ctx, q, err, o, st)
             e = v - p
@@ -389,8 +405,8 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
                 e = (e + near) // step if e >= 0 else -((near - e) // step)
                 v = _clamp_index(p + e * step)
                 recon[y, o - o0] = v
-            idx[o] = v
-            err[o] = e
+            idx[_U(o)] = v
+            err[_U(o)] = e
             last = v
             if e == 0:
                 low, rng, pos = _enc(low, rng, pos, out, probs, zc, 0)
@@ -414,7 +430,7 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
             for j in range(k - 1, -1, -1):
                 low, rng, pos = _enc(low, rng, pos, out, probs, m0 + j, (m >> j) & 1)
     for _ in range(4):
-        out[pos] = low >> 24
+        out[_U(pos)] = low >> 24
         pos += 1
         low = (low << 8) & _MASK32
     return out[:pos]
@@ -423,7 +439,7 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
 # -- decoder ------------------------------------------------------------------------------
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def decode_image(buf: Any, out_img: Any, near: int) -> int:
     """Decode a body into ``out_img`` (uint16, h×w); returns ``OK`` or an ``ERR_*`` status.
 
@@ -435,7 +451,7 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
     elut = _E_LUT
     if n < 5:
         return ERR_LENGTH
-    flags = buf[0]
+    flags = buf[_U(0)]
     if flags > 3:
         return ERR_FLAGS
     use_table = (flags & 1) != 0
@@ -444,10 +460,10 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
         return ERR_FLAGS
     step = 2 * near + 1
     code = (
-        (np.int64(buf[1]) << 24)
-        | (np.int64(buf[2]) << 16)
-        | (np.int64(buf[3]) << 8)
-        | np.int64(buf[4])
+        (np.int64(buf[_U(1)]) << 24)
+        | (np.int64(buf[_U(2)]) << 16)
+        | (np.int64(buf[_U(3)]) << 8)
+        | np.int64(buf[_U(4)])
     )
     rng = _MASK32
     pos = 5
@@ -481,7 +497,7 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
             v = prev + gap + 1
             if v > 65535:
                 return ERR_TABLE
-            table[i] = v
+            table[_U(i)] = v
             prev = v
             pgap = gap
         if pos > n:
@@ -489,7 +505,7 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
         maxidx = ntable - 1
     else:
         for i in range(65536):
-            table[i] = i
+            table[_U(i)] = i
 
     st = w + 2 * _PAD
     valid = np.zeros((h + _PAD) * st + _PAD, dtype=np.uint8)
@@ -506,15 +522,15 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
         for x in range(w):
             o = o0 + x
             if code_mask:
-                mc = mlut[(r2 << 7) | (r1 << 2) | wb]
+                mc = mlut[_U((r2 << 7) | (r1 << 2) | wb)]
                 bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_MASK + mc)
-                r1 = ((r1 << 1) & 31) | np.int64(valid[o - st + 3])
-                r2 = ((r2 << 1) & 7) | np.int64(valid[o - 2 * st + 2])
+                r1 = ((r1 << 1) & 31) | np.int64(valid[_U(o - st + 3)])
+                r2 = ((r2 << 1) & 7) | np.int64(valid[_U(o - 2 * st + 2)])
                 wb = ((wb << 1) | bit) & 3
                 if bit == 0:
-                    out_img[y, x] = 0
+                    out_img[_U(y), _U(x)] = 0
                     continue
-            valid[o] = 1
+            valid[_U(o)] = 1
             p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
             zc, sc = _coding_ctx(ctx, q, err, o, st)
             nz, code, rng, pos = _dec(code, rng, pos, buf, n, probs, zc)
@@ -535,11 +551,11 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
                     m = (m << 1) | bit
                 e = -m if neg else m
             v = p + e if near == 0 else _clamp_index(p + e * step)
-            if v < 0 or v > maxidx or table[v] == 0:
+            if v < 0 or v > maxidx or table[_U(v)] == 0:
                 return ERR_INDEX
-            idx[o] = v
-            err[o] = e
-            out_img[y, x] = table[v]
+            idx[_U(o)] = v
+            err[_U(o)] = e
+            out_img[_U(y), _U(x)] = table[_U(v)]
             last = v
     if pos != n:
         return ERR_LENGTH

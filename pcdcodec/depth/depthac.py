@@ -29,8 +29,9 @@ from .base import FrameCodec
 
 __all__ = ["DepthAC"]
 
-#: The encoder reserves its worst case, 68 bytes per pixel, and the decoder 11 bytes per pixel
-#: of working arrays; larger frames (over 8192×8192) are refused.
+#: The encoder needs about 11 bytes per pixel of working arrays and output (its output buffer
+#: grows a row at a time when a frame does not compress), the decoder 11 bytes per pixel;
+#: larger frames (over 8192×8192) are refused.
 _MAX_PIXELS = 2**26
 
 #: ``recon`` argument of the kernel encoder when coding losslessly (it is not written then).

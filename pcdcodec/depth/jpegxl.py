@@ -1,4 +1,4 @@
-"""``jpegxl``: lossless JPEG XL (libjxl through imagecodecs), the default depth codec."""
+"""``jpegxl``: lossless JPEG XL (libjxl through imagecodecs), the fastest strong depth codec."""
 
 from __future__ import annotations
 

@@ -57,7 +57,7 @@ def open(path: str | os.PathLike[str], mode: str = "r", **options: Any) -> Any:
     Writing::
 
         with pcdcodec.open("run.pcdc", "w", intrinsics=cam, depth_scale=1000.0,
-                           color="h264", depth="jpegxl") as rec:
+                           color="h264", depth="depthac") as rec:
             rec.write(rgb, depth, timestamp_ns)
 
     Options for ``"w"``: ``intrinsics`` (required), ``depth_scale`` (depth units per metre),

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import InputError
 
 __all__ = ["EncodeSummary", "encode"]
@@ -57,7 +58,7 @@ def encode(
     out: str | os.PathLike[str],
     *,
     color: Any = "h264",
-    depth: Any = "jpegxl",
+    depth: Any = DEFAULT_DEPTH_CODEC,
     intrinsics: Any = None,
     depth_scale: float | None = None,
     fps: float = 30.0,
