@@ -74,6 +74,31 @@ def ratio_table(count: int) -> None:
         print(f"| {name} ({len(frames)} frames) | {' | '.join(cells)} | {' / '.join(worst)} |")
 
 
+def near_table(count: int) -> None:
+    """depthac's ratio when bounded frames use near-lossless coding with tolerance N (the
+    lattice table, error bounded inside the prediction loop) against N = 0 (levels fitted to
+    the frame, coded exactly): what chose N = 0."""
+    print("| set | bound | N = 0 (fitted levels) | N = 1 | N = 2 | N = 3 |")
+    print("|---|---|---|---|---|---|")
+    saved = DepthAC.bounded_near
+    try:
+        for name in DEPTH_SETS:
+            try:
+                frames = load_frames(name, count)
+            except BaseException:  # absent
+                continue
+            raw = sum(f.nbytes for f in frames)
+            for rel in (0.005, 0.01):
+                cells = []
+                for near in range(4):
+                    DepthAC.bounded_near = near
+                    codec = DepthAC(max_rel_error=rel)
+                    cells.append(f"{raw / sum(len(codec.encode(f)) for f in frames):.1f}×")
+                print(f"| {name} | {100 * rel:g} % | {' | '.join(cells)} |")
+    finally:
+        DepthAC.bounded_near = saved
+
+
 def rd_tables(count: int, out: Path | None) -> None:
     sets: dict[str, tuple[list[Any], float]] = {}
     for name, seq in SEQUENCES.items():
@@ -101,8 +126,12 @@ def main() -> int:
     parser.add_argument("--ratio-frames", type=int, default=10, help="frames for the ratios")
     parser.add_argument("--out", type=Path, default=None, help="folder for the PNG plots")
     parser.add_argument("--no-rd", action="store_true", help="only the ratio table")
+    parser.add_argument("--near", action="store_true", help="add the near-lossless sweep")
     args = parser.parse_args()
     ratio_table(args.ratio_frames)
+    if args.near:
+        print()
+        near_table(args.ratio_frames)
     if not args.no_rd:
         rd_tables(args.frames, args.out)
     return 0
