@@ -119,6 +119,14 @@ def _choose_index(
     n = levels.size - 1
     top = n - near
     pos = np.searchsorted(levels[1:], values) + 1  # first level >= value (n + 1 if none)
+    if near == 0:
+        # The window is the level itself: the nearer of the two levels around the value.
+        below = np.maximum(pos - 1, 1)
+        above = np.minimum(pos, n)
+        d_below = np.abs(values - levels[below])
+        d_above = np.abs(levels[above] - values)
+        nearer = d_above < d_below
+        return np.where(nearer, above, below), np.where(nearer, d_above, d_below)
     best_k = np.ones(values.shape, dtype=np.int64)
     best_cost = np.full(values.shape, np.inf)
     for shift in range(-near - 1, near + 1):
