@@ -16,7 +16,14 @@ import pcdcodec
 from benchmarks.data import DEPTH_SETS, SEQUENCES, load_frames
 from pcdcodec.depth import FrameCodec, read_header
 from pcdcodec.depth.base import LAYOUT_BOUNDED
-from pcdcodec.depth.bounded import KIND_U16_FRAME, ErrorBound, frame_levels, uint16_lattice
+from pcdcodec.depth.bounded import (
+    KIND_F32_FRAME,
+    KIND_F32_LATTICE,
+    KIND_U16_FRAME,
+    ErrorBound,
+    frame_levels,
+    uint16_lattice,
+)
 from pcdcodec.depth.depthac import DepthAC
 from pcdcodec.registry import parse_codec_spec
 
@@ -152,12 +159,30 @@ def test_uint16_lattice_keeps_the_bound_for_every_value(a: float, r: float, near
         assert np.array_equal(table[k[:199]], v[:199])  # small depths stay exact
 
 
-def test_bound_too_fine_for_float_falls_back_to_lossless(sample_depths: list[Any]) -> None:
+def test_bound_finer_than_float32_keeps_values_exactly(sample_depths: list[Any]) -> None:
     metres = _metres(sample_depths[0], 5000.0)
+    codec = DepthAC(max_error=1e-9)
+    data = codec.encode(metres)
+    header = read_header(data)
+    assert header.layout == LAYOUT_BOUNDED
+    assert data[header.header_size + 1] == KIND_F32_FRAME
+    np.testing.assert_array_equal(codec.decode(data).view(np.uint32), metres.view(np.uint32))
+
+
+def test_bound_too_fine_for_any_table_falls_back_to_lossless() -> None:
+    # 90,000 distinct values: too many to fit levels to, and a lattice at 1 nm steps over
+    # 1..4 m would need billions of levels; the frame is stored exactly instead.
+    rng = np.random.default_rng(5)
+    metres = rng.uniform(1.0, 4.0, (300, 300)).astype(np.float32)
     codec = DepthAC(max_error=1e-9)
     data = codec.encode(metres)
     assert read_header(data).layout != LAYOUT_BOUNDED
     np.testing.assert_array_equal(codec.decode(data).view(np.uint32), metres.view(np.uint32))
+    coarse = DepthAC(max_rel_error=0.01)  # the lattice takes over from fitted levels
+    data = coarse.encode(metres)
+    header = read_header(data)
+    assert data[header.header_size + 1] == KIND_F32_LATTICE
+    assert_within_bound(metres, coarse.decode(data), None, 0.01)
 
 
 def test_float_frames_with_mixed_holes_are_kept_exactly() -> None:
@@ -269,6 +294,7 @@ def test_golden_bounded_set_is_complete() -> None:
         "zstd-rel05",
         "depthac-rel05-fitted",
         "jpegxl-abs-fitted",
+        "depthac-rel1-fitted",
     }
 
 

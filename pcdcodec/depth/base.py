@@ -309,10 +309,12 @@ class FrameCodec(Codec):
         """The bounded-error frame of ``image``, or ``None`` where no lattice of at most 65,535
         levels keeps the bound (then the frame is coded losslessly, which keeps it too)."""
         from .bounded import (
+            KIND_F32_FRAME,
             KIND_F32_LATTICE,
             KIND_U16_FRAME,
             KIND_U16_LATTICE,
             LatticeParams,
+            float_frame_levels,
             frame_levels,
             quantise_float,
             uint16_lattice,
@@ -327,9 +329,20 @@ class FrameCodec(Codec):
                 return None  # nothing to quantise, or mixed kinds of holes: keep them exact
             hole_bits = int(holes[0]) if holes.size else 0x7FC00000
         table: npt.NDArray[Any]
+        stored = b""
         for near in range(self.bounded_near, -1, -1):
             kind = KIND_F32_LATTICE if is_float else KIND_U16_LATTICE
-            if not is_float and near == 0:
+            fitted_float = (
+                float_frame_levels(image, valid, bound) if is_float and near == 0 else None
+            )
+            if fitted_float is not None:
+                levels32, index = fitted_float
+                kind, si = KIND_F32_FRAME, 0
+                lo, hi = float(levels32[0]), float(levels32[-1])
+                table = np.concatenate([np.zeros(1, dtype=np.float32), levels32])
+                packed = _pack_table(levels32.view("<u4"))
+                stored = struct.pack("<I", len(packed)) + packed
+            elif not is_float and near == 0:
                 # Coded exactly, levels fitted to the frame's own values beat any fixed table.
                 fitted = frame_levels(image, bound)
                 if fitted is None:
@@ -367,6 +380,7 @@ class FrameCodec(Codec):
                 hole_bits,
                 table.size - 1,
             ).pack()
+            params += stored
             header = _pack_header(
                 self.name, image.dtype, LAYOUT_BOUNDED, image.shape, len(params) + len(body)
             )
@@ -423,7 +437,7 @@ class FrameCodec(Codec):
     def _decode_bounded(
         self, header: FrameHeader, head: bytes, body: memoryview
     ) -> npt.NDArray[Any]:
-        from .bounded import PARAMS_SIZE, LatticeParams, decode_levels
+        from .bounded import KIND_F32_FRAME, PARAMS_SIZE, LatticeParams, decode_levels
 
         params = LatticeParams.unpack(body)
         if params.is_float != (header.dtype.kind == "f"):
@@ -431,8 +445,23 @@ class FrameCodec(Codec):
                 f"bounded-error frame of {header.dtype.name} depth holds a "
                 f"{'float32' if params.is_float else 'uint16'} lattice"
             )
+        start = PARAMS_SIZE
+        stored = None
+        if params.kind == KIND_F32_FRAME:
+            if len(body) < start + 4:
+                raise DecodeError("bounded-error frame is truncated inside its level table")
+            (tlen,) = struct.unpack_from("<I", body, start)
+            if start + 4 + tlen > len(body):
+                raise DecodeError(f"level table length {tlen} runs past the end of the frame")
+            try:
+                stored = _unpack_table(body[start + 4 : start + 4 + tlen]).view("<f4")
+            except DecodeError:
+                raise
+            except Exception as exc:  # zstandard's errors
+                raise DecodeError(f"bounded-error frame has a corrupt level table: {exc}") from exc
+            start += 4 + tlen
         try:
-            index = self._decode_levels(body[PARAMS_SIZE:], header.shape, params.near)
+            index = self._decode_levels(body[start:], header.shape, params.near)
         except DecodeError:
             raise
         except Exception as exc:  # backend libraries raise all sorts of things
@@ -440,14 +469,14 @@ class FrameCodec(Codec):
                 f"codec {self.name!r} could not decode a {header.width}x{header.height} "
                 f"bounded-error frame: {type(exc).__name__}: {exc}"
             ) from exc
-        crc = zlib.crc32(index.data, zlib.crc32(body[:PARAMS_SIZE], zlib.crc32(head)))
+        crc = zlib.crc32(index.data, zlib.crc32(body[:start], zlib.crc32(head)))
         if crc != header.checksum:
             raise DecodeError(
                 f"checksum mismatch in a {header.width}x{header.height} {self.name!r} "
                 f"bounded-error depth frame (stored {header.checksum:#010x}, decoded "
                 f"{crc:#010x}): the data is corrupt"
             )
-        return decode_levels(params, index, header.dtype)
+        return decode_levels(params, index, header.dtype, stored)
 
     def _decode_layout(self, header: FrameHeader, body: memoryview) -> npt.NDArray[Any]:
         shape = header.shape

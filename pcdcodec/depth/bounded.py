@@ -40,6 +40,7 @@ __all__ = [
     "LatticeParams",
     "check_bound",
     "decode_levels",
+    "float_frame_levels",
     "float_lattice",
     "frame_levels",
     "quantise_float",
@@ -352,6 +353,51 @@ def frame_levels(
     return lut[image], len(levels)
 
 
+def float_frame_levels(
+    image: npt.NDArray[np.float32], valid: npt.NDArray[np.bool_], bound: ErrorBound
+) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.uint16]] | None:
+    """Levels fitted to a float32 frame's own values, as :func:`frame_levels` does for uint16:
+    (the float32 levels, ascending, and the index image: 0 for holes, 1..K into the levels),
+    or ``None`` when the frame has more than 65,535 distinct valid values or a level rounded to
+    float32 would leave a value's bound (then the fixed lattice is used)."""
+    import bisect
+
+    values = image[valid]
+    u32, inverse, hist = np.unique(values, return_inverse=True, return_counts=True)
+    if u32.size > MAX_LEVELS:
+        return None
+    u = u32.astype(np.float64)
+    slack = bound.of(u)
+    reach = (u - slack).tolist()  # nondecreasing since the relative bound is below 1
+    ul = u.tolist()
+    top_of = (u + slack).tolist()
+    n = len(ul)
+    starts: list[int] = []
+    i = 0
+    while i < n:
+        top = top_of[i]
+        j = bisect.bisect_right(ul, top, i) - 1
+        starts.append(i)
+        i = max(j, bisect.bisect_right(reach, top, i) - 1) + 1
+    first = np.asarray(starts)
+    counts = np.diff(np.asarray([*starts, n]))
+    weight = hist.astype(np.float64)
+    mean = np.add.reduceat(weight * u, first) / np.add.reduceat(weight, first)
+    low = np.asarray(reach)[first + counts - 1]
+    high = u[first] + slack[first]
+    # Keep a few float32 steps inside the interval, so rounding to float32 stays in it.
+    margin = np.minimum((high - low) / 2, np.abs(high) * 2.5e-7)
+    levels = np.clip(mean, low + margin, high - margin).astype(np.float32)
+    group = np.repeat(np.arange(first.size), counts)
+    if not np.all(np.abs(levels[group].astype(np.float64) - u) <= slack):
+        return None
+    if not np.all(levels > 0) or np.any(np.diff(levels) <= 0):
+        return None
+    index = np.zeros(image.shape, dtype=np.uint16)
+    index[valid] = (group[inverse.ravel()] + 1).astype(np.uint16)
+    return levels, index
+
+
 # -- the parameter block ---------------------------------------------------------------------
 
 
@@ -359,6 +405,7 @@ def frame_levels(
 KIND_U16_LATTICE = 1  # uint16: the fixed lattice of (bound, near); the image holds indices
 KIND_F32_LATTICE = 2  # float32: the lattice over the frame's range; the image holds indices
 KIND_U16_FRAME = 3  # uint16: levels fitted to the frame; the image holds the levels themselves
+KIND_F32_FRAME = 4  # float32: levels fitted to the frame, stored after the parameters
 
 
 @dataclass(frozen=True)
@@ -377,7 +424,7 @@ class LatticeParams:
 
     @property
     def is_float(self) -> bool:
-        return self.kind == KIND_F32_LATTICE
+        return self.kind in (KIND_F32_LATTICE, KIND_F32_FRAME)
 
     def pack(self) -> bytes:
         return _PARAMS.pack(
@@ -400,9 +447,10 @@ class LatticeParams:
         ver, kind, near, si, a, r, lo, hi, hole, n = _PARAMS.unpack_from(data, 0)
         if ver != _LATTICE_VERSION:
             raise DecodeError(f"bounded-error frame has unknown lattice version {ver}")
-        if kind not in (KIND_U16_LATTICE, KIND_F32_LATTICE, KIND_U16_FRAME):
+        if kind not in (KIND_U16_LATTICE, KIND_F32_LATTICE, KIND_U16_FRAME, KIND_F32_FRAME):
             raise DecodeError(f"bounded-error frame has unknown lattice kind {kind}")
-        if si >= len(_SAFETY) or near > 16 or (kind == KIND_U16_FRAME and near):
+        fitted = kind in (KIND_U16_FRAME, KIND_F32_FRAME)
+        if si >= len(_SAFETY) or near > 16 or (fitted and near) or n > MAX_LEVELS:
             raise DecodeError(
                 f"bounded-error frame has invalid lattice parameters (kind {kind}, near {near}, "
                 f"step {si})"
@@ -439,13 +487,24 @@ class LatticeParams:
 
 
 def decode_levels(
-    params: LatticeParams, index: npt.NDArray[np.uint16], dtype: np.dtype[Any]
+    params: LatticeParams,
+    index: npt.NDArray[np.uint16],
+    dtype: np.dtype[Any],
+    stored: npt.NDArray[np.float32] | None = None,
 ) -> npt.NDArray[Any]:
-    """Turn a decoded index image back into depth of ``dtype``; raises DecodeError on an index
-    outside the table."""
+    """Turn a decoded index image back into depth of ``dtype`` (``stored``: the levels a kind 4
+    frame carries); raises DecodeError on an index outside the table."""
     if params.kind == KIND_U16_FRAME:
         return index  # the levels themselves, checked by the frame's CRC
-    table = params.table()
+    if params.kind == KIND_F32_FRAME:
+        if stored is None or stored.size != params.levels:
+            raise DecodeError(
+                f"bounded-error frame states {params.levels} levels but stores "
+                f"{0 if stored is None else stored.size}"
+            )
+        table = np.concatenate([np.zeros(1, dtype=np.float32), stored])
+    else:
+        table = params.table()
     if index.size and int(index.max()) > params.levels:
         raise DecodeError(
             f"bounded-error frame holds level index {int(index.max())}, "

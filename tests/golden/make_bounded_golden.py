@@ -28,6 +28,8 @@ CONFIGS: list[tuple[str, dict[str, Any], int]] = [
     # uint16 frames since levels are fitted to each frame (kind 3); float32 as above.
     ("depthac-rel05-fitted", {"id": "depthac", "max_rel_error": 0.005}, 0),
     ("jpegxl-abs-fitted", {"id": "jpegxl", "max_error": 0.006}, 0),
+    # float32 too since its levels are fitted to each frame (kind 4).
+    ("depthac-rel1-fitted", {"id": "depthac", "max_rel_error": 0.01}, 0),
 ]
 
 
