@@ -264,3 +264,44 @@ def test_random_uint16_round_trip(name: str, depth: np.ndarray[Any, Any]) -> Non
 def test_random_float32_round_trip(name: str, depth: np.ndarray[Any, Any]) -> None:
     codec = make(name)
     assert_bit_exact(codec.decode(codec.encode(depth)), depth)
+
+
+@pytest.mark.parametrize("distinct", [1, 300, 65536, 65537])
+def test_float_value_table_matches_a_sort(distinct: int) -> None:
+    from pcdcodec.depth import base
+
+    rng = np.random.default_rng(distinct)
+    values = rng.integers(0, 2**32, distinct, dtype=np.uint32)
+    bits = values[rng.integers(0, distinct, 640 * 480)]
+    bits[: min(distinct, bits.size)] = values[: bits.size]  # every value present
+    image = bits.reshape(480, 640).view(np.float32)
+    mapped = base._float_to_table(image)
+    table = np.unique(bits)
+    if distinct > 65536:
+        assert mapped is None
+        return
+    assert mapped is not None
+    got_table, got_index = mapped
+    nan = np.isnan(table.view(np.float32))
+    # NaN patterns first, then the rest in bit order; each pixel indexes its own bits.
+    np.testing.assert_array_equal(got_table, np.concatenate([table[nan], table[~nan]]))
+    np.testing.assert_array_equal(got_table[got_index].ravel(), bits)
+
+
+def test_float_value_table_falls_back_to_sorting(monkeypatch: pytest.MonkeyPatch) -> None:
+    from benchmarks.data import load_frames
+    from pcdcodec.depth import _table_kernels, base
+
+    raw = load_frames("sample", 1)[0]
+    image = np.where(raw > 0, raw / 5000.0, np.nan).astype(np.float32)
+    expected = base._float_to_table(image)
+    assert expected is not None
+
+    def colliding(bits: Any, limit: int) -> tuple[Any, Any, int]:
+        return bits[:0], np.zeros(0, np.int32), 2  # as when the probe budget runs out
+
+    monkeypatch.setattr(_table_kernels, "distinct_values", colliding)
+    got = base._float_to_table(image)
+    assert got is not None
+    np.testing.assert_array_equal(got[0], expected[0])
+    np.testing.assert_array_equal(got[1], expected[1])

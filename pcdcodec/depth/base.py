@@ -152,9 +152,21 @@ def _float_to_table(
     Returns ``None`` when there are more than 65536 distinct values.
     """
     bits = image.view(np.uint32).ravel()
-    table, inverse = np.unique(bits, return_inverse=True)
-    if table.size > 65536:
+    from ._table_kernels import distinct_values
+
+    found, first, status = distinct_values(bits, 65536)
+    if status == 1:
         return None
+    if status == 0:
+        # Sort the few distinct values, then carry each pixel's position through the sort.
+        order = np.argsort(found)
+        position = np.empty(order.size, dtype=np.int64)
+        position[order] = np.arange(order.size)
+        table, inverse = found[order], position[first]
+    else:
+        table, inverse = np.unique(bits, return_inverse=True)
+        if table.size > 65536:
+            return None
     is_nan = (table & 0x7F800000 == 0x7F800000) & (table & 0x007FFFFF != 0)
     if is_nan.any():
         order = np.argsort(~is_nan, kind="stable")
