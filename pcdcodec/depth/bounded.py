@@ -362,10 +362,24 @@ def float_frame_levels(
     float32 would leave a value's bound (then the fixed lattice is used)."""
     import bisect
 
+    from ._table_kernels import distinct_values
+
     values = image[valid]
-    u32, inverse, hist = np.unique(values, return_inverse=True, return_counts=True)
-    if u32.size > MAX_LEVELS:
+    # Positive floats sort as their bit patterns do.
+    found, first_seen, status = distinct_values(values.view(np.uint32), MAX_LEVELS)
+    if status == 1:
         return None
+    if status == 0:
+        order = np.argsort(found)
+        rank = np.empty(order.size, dtype=np.int64)
+        rank[order] = np.arange(order.size)
+        u32 = found[order].view(np.float32)
+        inverse = rank[first_seen]
+        hist = np.bincount(inverse, minlength=order.size)
+    else:  # keys built to collide: sort instead
+        u32, inverse, hist = np.unique(values, return_inverse=True, return_counts=True)
+        if u32.size > MAX_LEVELS:
+            return None
     u = u32.astype(np.float64)
     slack = bound.of(u)
     reach = (u - slack).tolist()  # nondecreasing since the relative bound is below 1
