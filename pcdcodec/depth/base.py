@@ -318,8 +318,12 @@ class FrameCodec(Codec):
         return header + struct.pack("<I", crc) + body
 
     def _encode_bounded(self, image: npt.NDArray[Any], bound: Any) -> bytes | None:
-        """The bounded-error frame of ``image``, or ``None`` where no lattice of at most 65,535
-        levels keeps the bound (then the frame is coded losslessly, which keeps it too)."""
+        """The bounded-error frame of ``image``, or ``None`` where no level table of at most
+        65,535 levels keeps the bound (then the frame is coded losslessly, which keeps it too).
+
+        Tolerances from :attr:`bounded_near` down to 0 are tried in turn; at 0 the levels are
+        fitted to the frame (uint16 always, float32 when it has at most 65,535 distinct values).
+        """
         from .bounded import (
             KIND_F32_FRAME,
             KIND_F32_LATTICE,
@@ -340,17 +344,17 @@ class FrameCodec(Codec):
             if not valid.any() or (holes.size and np.any(holes != holes[0])):
                 return None  # nothing to quantise, or mixed kinds of holes: keep them exact
             hole_bits = int(holes[0]) if holes.size else 0x7FC00000
-        table: npt.NDArray[Any]
-        stored = b""
+        table: npt.NDArray[Any] | None
         for near in range(self.bounded_near, -1, -1):
             kind = KIND_F32_LATTICE if is_float else KIND_U16_LATTICE
+            stored = b""  # the levels, for a float32 frame that carries its own
             fitted_float = (
                 float_frame_levels(image, valid, bound) if is_float and near == 0 else None
             )
             if fitted_float is not None:
                 levels32, index = fitted_float
                 kind, si = KIND_F32_FRAME, 0
-                lo, hi = float(levels32[0]), float(levels32[-1])
+                lo, hi, nlevels = float(levels32[0]), float(levels32[-1]), levels32.size
                 table = np.concatenate([np.zeros(1, dtype=np.float32), levels32])
                 packed = _pack_table(levels32.view("<u4"))
                 stored = struct.pack("<I", len(packed)) + packed
@@ -361,21 +365,22 @@ class FrameCodec(Codec):
                     continue
                 index, nlevels = fitted
                 kind, si, lo, hi = KIND_U16_FRAME, 0, 1.0, 65535.0
-                table = np.zeros(nlevels + 1, dtype=np.uint16)
+                table = None  # the index image holds the levels themselves
             elif is_float:
                 mapped = quantise_float(image, valid, bound, near)
                 if mapped is None:
                     continue
                 si, lo, hi, table, index = mapped
+                nlevels = table.size - 1
             else:
                 lattice = uint16_lattice(bound, near)
                 if lattice is None:
                     continue
                 si, table, lut = lattice
-                lo, hi = 1.0, 65535.0
+                lo, hi, nlevels = 1.0, 65535.0, table.size - 1
                 index = lut[image]
             body, recon = self._encode_levels(index, near)
-            if is_float:
+            if is_float and table is not None:
                 # The coder may pick any level of the window: check the decoded values.
                 got = table[recon[valid]].astype(np.float64)
                 want = image[valid].astype(np.float64)
@@ -390,7 +395,7 @@ class FrameCodec(Codec):
                 lo,
                 hi,
                 hole_bits,
-                table.size - 1,
+                nlevels,
             ).pack()
             params += stored
             header = _pack_header(
