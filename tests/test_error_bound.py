@@ -11,6 +11,9 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 import pcdcodec
 from benchmarks.data import DEPTH_SETS, SEQUENCES, load_frames
@@ -25,6 +28,7 @@ from pcdcodec.depth.bounded import (
     uint16_lattice,
 )
 from pcdcodec.depth.depthac import DepthAC
+from pcdcodec.depth.zstd import Zstd
 from pcdcodec.registry import parse_codec_spec
 
 from .golden.make_golden import golden_source
@@ -380,3 +384,47 @@ def test_fitted_levels_are_few_and_land_on_sensor_values() -> None:
     assert levels[0, 2] == 1100
     assert levels[0, 3] == 0
     assert levels[0, 4] == 10
+
+
+_SETTINGS = {"max_examples": 60, "deadline": None}
+
+
+@given(
+    image=hnp.arrays(np.uint16, st.tuples(st.integers(1, 24), st.integers(1, 24))),
+    max_error=st.sampled_from([None, 0.0, 0.4, 1.0, 3.0, 250.0]),
+    max_rel_error=st.sampled_from([None, 0.0, 0.001, 0.005, 0.01, 0.2, 0.9]),
+    near=st.integers(0, 3),
+)
+@settings(**_SETTINGS)
+def test_any_uint16_image_keeps_any_bound(
+    image: np.ndarray[Any, Any], max_error: Any, max_rel_error: Any, near: int
+) -> None:
+    saved = DepthAC.bounded_near
+    DepthAC.bounded_near = near
+    try:
+        codec = DepthAC(max_error=max_error, max_rel_error=max_rel_error)
+        assert_within_bound(image, codec.decode(codec.encode(image)), max_error, max_rel_error)
+    finally:
+        DepthAC.bounded_near = saved
+
+
+@given(
+    image=hnp.arrays(
+        np.float32,
+        st.tuples(st.integers(1, 16), st.integers(1, 16)),
+        elements=st.one_of(
+            st.just(np.nan),
+            st.floats(0.0625, 80.0, width=32),
+            st.floats(2.0**-100, 2.0**100, width=32),
+        ),
+    ),
+    max_error=st.sampled_from([None, 0.0, 1e-6, 0.003, 0.5]),
+    max_rel_error=st.sampled_from([None, 0.001, 0.01, 0.3]),
+)
+@settings(**_SETTINGS)
+def test_any_float32_image_keeps_any_bound(
+    image: np.ndarray[Any, Any], max_error: Any, max_rel_error: Any
+) -> None:
+    codec = Zstd(max_error=max_error, max_rel_error=max_rel_error)
+    back = codec.decode(codec.encode(image))
+    assert_within_bound(image, back, max_error, max_rel_error)
