@@ -170,12 +170,16 @@ def _cmd_codecs(args: argparse.Namespace) -> int:
         for name in list_codecs(kind):
             cls = codec_class(name)
             reason = cls.unavailable_reason()
-            lossless = "lossless" if getattr(cls, "lossless", False) else "lossy"
+            codec = cls()
+            lossless = "lossless" if getattr(codec, "lossless", False) else "lossy"
             if reason is not None:
                 state = f"unavailable: {reason}"
             else:
-                config = cls().get_config()
+                config = codec.get_config()
                 state = ", ".join(f"{k}={v!r}" for k, v in config.items() if k != "id")
+            if "max_rel_error" in cls.param_names():
+                bounded = "or lossy within max_error=, max_rel_error="
+                state = f"{state}; {bounded}" if state else bounded
             print(f"  {name:14} {lossless:9} {state or '(no parameters)'}")
     return 0
 
@@ -502,6 +506,33 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _depth_rd(
+    args: argparse.Namespace,
+    source: Any,
+    frames: int,
+    intrinsics: Any,
+    depth_scale: float | None,
+    say: Any,
+) -> int:
+    from .bench.depth_rd import depth_rd, plot_depth_rd, rd_markdown, write_rd_csv
+    from .evaluation import _frames_of
+
+    name, items, _, scale = _frames_of(source, frames, intrinsics, depth_scale)
+    depths = [f.depth for f in items]
+    if not depths or str(depths[0].dtype) != "uint16":
+        raise InputError(f"{source!r} holds no uint16 depth frames for the depth RD comparison")
+    points = depth_rd(depths, scale, sequence=name, progress=say)
+    print(rd_markdown(points))
+    if args.output:
+        out = Path(args.output)
+        out.mkdir(parents=True, exist_ok=True)
+        written = [write_rd_csv(points, out / "depth_rd.csv")]
+        if not args.no_plots:
+            written.append(plot_depth_rd(points, out / "depth_rd.png", title=name))
+        print(f"wrote {', '.join(p.name for p in written)} to {args.output}")
+    return 0
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from .evaluation import evaluate
 
@@ -516,6 +547,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         if not quiet:
             print(f"  {step}", file=sys.stderr, flush=True)
 
+    if args.depth_rd:
+        return _depth_rd(args, source, frames, intrinsics, depth_scale, say)
     result = evaluate(
         source,
         depth=parse_codec_specs(args.depth, "depth") if args.depth else None,
@@ -688,6 +721,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-rd", action="store_true", help="skip the color quality sweep")
     p.add_argument("--no-plots", action="store_true", help="write no PNG plots")
     p.add_argument("--peers", action="store_true", help="add peer rows (pcdcodec[peers])")
+    p.add_argument(
+        "--depth-rd",
+        action="store_true",
+        help="instead: lossy depth rate-distortion, bounded depthac against HEVC 12-bit, "
+        "JPEG XL lossy, LERC and log quantisation",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     _add_camera_options(p)
     p.set_defaults(func=_cmd_bench)

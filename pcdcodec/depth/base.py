@@ -19,7 +19,7 @@ import numpy.typing as npt
 
 from .._validate import check_depth
 from ..codec import Codec
-from ..errors import DecodeError, InputTypeError
+from ..errors import DecodeError, InputError, InputTypeError
 
 __all__ = [
     "DEFAULT_MAX_PIXELS",
@@ -41,6 +41,7 @@ _CODE_OF_DTYPE = {v.str: k for k, v in _DTYPE_CODES.items()}
 LAYOUT_DIRECT = 0  # the image itself
 LAYOUT_TABLE = 1  # float32: a table of distinct values + a uint16 index image
 LAYOUT_PLANES = 2  # float32: high and low 16-bit halves stacked as a (2H, W) uint16 image
+LAYOUT_BOUNDED = 3  # lossy within a stated error: lattice parameters + a level index image
 
 #: The most pixels :meth:`FrameCodec.decode` accepts unless told otherwise: 8192 × 8192, a
 #: 128 MiB uint16 or 256 MiB float32 image, well above any depth camera. A frame header is only
@@ -99,7 +100,7 @@ def read_header(data: bytes | bytearray | memoryview) -> FrameHeader:
         )
     if dcode not in _DTYPE_CODES:
         raise DecodeError(f"depth frame has unknown dtype code {dcode}")
-    if layout not in (LAYOUT_DIRECT, LAYOUT_TABLE, LAYOUT_PLANES):
+    if layout not in (LAYOUT_DIRECT, LAYOUT_TABLE, LAYOUT_PLANES, LAYOUT_BOUNDED):
         raise DecodeError(f"depth frame has unknown layout code {layout}")
     header_size = _FIXED.size + nlen + _TAIL.size
     if mv.nbytes < header_size:
@@ -193,17 +194,78 @@ def _unpack_table(data: memoryview, count_limit: int = 65536) -> npt.NDArray[np.
     return np.cumsum(np.frombuffer(raw, "<u4"), dtype=np.uint32)
 
 
+_BOUND_PARAMS = ("max_error", "max_rel_error")
+
+
 class FrameCodec(Codec):
     """Base of depth codecs: one depth image to self-describing bytes, and back.
 
     Subclasses implement :meth:`_encode_body` and :meth:`_decode_body` for the dtypes in
     :attr:`native_dtypes`. When ``"float32"`` is in :attr:`dtypes` but not native, float32
     depth is carried losslessly through a table of its distinct values (``docs/format.md``).
+
+    Codecs that take ``max_error`` / ``max_rel_error`` (and pass them to :meth:`_set_bound`)
+    store depth lossily within that bound when one is given (:mod:`pcdcodec.depth.bounded`):
+    every valid pixel decodes within ``max(max_error, max_rel_error · depth)``, in depth units
+    for uint16 and metres for float32; holes stay holes. Without a bound they are lossless.
     """
 
     kind: ClassVar[str] = "depth"
-    #: Whether decoding gives back exactly what was encoded.
-    lossless: ClassVar[bool] = True
+    #: Tolerance, in level indices, of the codec's own near-lossless coding of bounded-error
+    #: index images (0: the index image is coded losslessly).
+    bounded_near: ClassVar[int] = 0
+    max_error: float | None = None
+    max_rel_error: float | None = None
+
+    @property
+    def lossless(self) -> bool:
+        """Whether decoding gives back exactly what was encoded (no error bound is set)."""
+        return self._bound() is None
+
+    def _set_bound(self, max_error: Any, max_rel_error: Any) -> None:
+        """Validate and store the error bound options (``None``: lossless)."""
+        from .bounded import check_bound
+
+        self.max_error, self.max_rel_error = check_bound(
+            max_error, max_rel_error, codec=f"codec {self.name!r}"
+        )
+
+    def _bound(self) -> Any:
+        """The :class:`~pcdcodec.depth.bounded.ErrorBound` in force, or ``None`` (lossless)."""
+        a = self.max_error or 0.0
+        r = self.max_rel_error or 0.0
+        if a == 0 and r == 0:
+            return None
+        from .bounded import ErrorBound
+
+        return ErrorBound(a, r)
+
+    def get_config(self) -> dict[str, Any]:
+        """As :meth:`Codec.get_config`, leaving out error bounds that are not set, so lossless
+        configs stay as they always were."""
+        config = super().get_config()
+        for pname in _BOUND_PARAMS:
+            if config.get(pname, 0) is None:
+                del config[pname]
+        return config
+
+    def _encode_levels(
+        self, index: npt.NDArray[np.uint16], near: int
+    ) -> tuple[bytes, npt.NDArray[np.uint16]]:
+        """Code a level index image (0 = hole) with tolerance ``near``; returns the body and
+        the index image the decoder will see. Codecs with near-lossless coding override it."""
+        if near:
+            raise InputError(f"codec {self.name!r} has no near-lossless coding")
+        return self._encode_body(index), index
+
+    def _decode_levels(
+        self, body: memoryview, shape: tuple[int, int], near: int
+    ) -> npt.NDArray[np.uint16]:
+        if near:
+            raise DecodeError(f"codec {self.name!r} has no near-lossless coding (near {near})")
+        u16 = np.dtype("<u2")
+        return self._check_image(self._decode_body(body, shape, u16), shape, u16)
+
     #: Depth dtypes :meth:`encode` accepts.
     dtypes: ClassVar[tuple[str, ...]] = ("uint16",)
     #: Dtypes the body codec handles itself; others in :attr:`dtypes` go through a mapping.
@@ -230,6 +292,11 @@ class FrameCodec(Codec):
         """
         self._require_available()
         image = check_depth(depth, allowed=self.dtypes, name=f"depth for codec {self.name!r}")
+        bound = self._bound()
+        if bound is not None:
+            bounded = self._encode_bounded(image, bound)
+            if bounded is not None:
+                return bounded
         layout = LAYOUT_DIRECT
         prefix = b""
         work = image
@@ -249,6 +316,94 @@ class FrameCodec(Codec):
         header = _pack_header(self.name, image.dtype, layout, image.shape, len(body))
         crc = zlib.crc32(image.data, zlib.crc32(header))
         return header + struct.pack("<I", crc) + body
+
+    def _encode_bounded(self, image: npt.NDArray[Any], bound: Any) -> bytes | None:
+        """The bounded-error frame of ``image``, or ``None`` where no level table of at most
+        65,535 levels keeps the bound (then the frame is coded losslessly, which keeps it too).
+
+        Tolerances from :attr:`bounded_near` down to 0 are tried in turn; at 0 the levels are
+        fitted to the frame (uint16 always, float32 when it has at most 65,535 distinct values).
+        """
+        from .bounded import (
+            KIND_F32_FRAME,
+            KIND_F32_LATTICE,
+            KIND_U16_FRAME,
+            KIND_U16_LATTICE,
+            LatticeParams,
+            float_frame_levels,
+            frame_levels,
+            quantise_float,
+            uint16_lattice,
+        )
+
+        is_float = image.dtype.kind == "f"
+        hole_bits = 0
+        if is_float:
+            valid = np.isfinite(image) & (image > 0)
+            holes = image.view("<u4")[~valid]
+            if not valid.any() or (holes.size and np.any(holes != holes[0])):
+                return None  # nothing to quantise, or mixed kinds of holes: keep them exact
+            hole_bits = int(holes[0]) if holes.size else 0x7FC00000
+        table: npt.NDArray[Any] | None
+        for near in range(self.bounded_near, -1, -1):
+            kind = KIND_F32_LATTICE if is_float else KIND_U16_LATTICE
+            stored = b""  # the levels, for a float32 frame that carries its own
+            fitted_float = (
+                float_frame_levels(image, valid, bound) if is_float and near == 0 else None
+            )
+            if fitted_float is not None:
+                levels32, index = fitted_float
+                kind, si = KIND_F32_FRAME, 0
+                lo, hi, nlevels = float(levels32[0]), float(levels32[-1]), levels32.size
+                table = np.concatenate([np.zeros(1, dtype=np.float32), levels32])
+                packed = _pack_table(levels32.view("<u4"))
+                stored = struct.pack("<I", len(packed)) + packed
+            elif not is_float and near == 0:
+                # Coded exactly, levels fitted to the frame's own values beat any fixed table.
+                fitted = frame_levels(image, bound)
+                if fitted is None:
+                    continue
+                index, nlevels = fitted
+                kind, si, lo, hi = KIND_U16_FRAME, 0, 1.0, 65535.0
+                table = None  # the index image holds the levels themselves
+            elif is_float:
+                mapped = quantise_float(image, valid, bound, near)
+                if mapped is None:
+                    continue
+                si, lo, hi, table, index = mapped
+                nlevels = table.size - 1
+            else:
+                lattice = uint16_lattice(bound, near)
+                if lattice is None:
+                    continue
+                si, table, lut = lattice
+                lo, hi, nlevels = 1.0, 65535.0, table.size - 1
+                index = lut[image]
+            body, recon = self._encode_levels(index, near)
+            if is_float and table is not None:
+                # The coder may pick any level of the window: check the decoded values.
+                got = table[recon[valid]].astype(np.float64)
+                want = image[valid].astype(np.float64)
+                if not np.all(np.abs(got - want) <= bound.of(want)):
+                    continue
+            params = LatticeParams(
+                kind,
+                near,
+                si,
+                bound.abs_error,
+                bound.rel_error,
+                lo,
+                hi,
+                hole_bits,
+                nlevels,
+            ).pack()
+            params += stored
+            header = _pack_header(
+                self.name, image.dtype, LAYOUT_BOUNDED, image.shape, len(params) + len(body)
+            )
+            crc = zlib.crc32(recon.data, zlib.crc32(params, zlib.crc32(header)))
+            return header + struct.pack("<I", crc) + params + body
+        return None
 
     def decode(
         self,
@@ -276,6 +431,9 @@ class FrameCodec(Codec):
             )
         check_frame_size(header, shape=shape, max_pixels=max_pixels)
         body = memoryview(data)[header.header_size :]
+        head = bytes(memoryview(data)[: header.header_size - 4])
+        if header.layout == LAYOUT_BOUNDED:
+            return self._decode_bounded(header, head, body)
         try:
             image = self._decode_layout(header, body)
         except DecodeError:
@@ -285,13 +443,57 @@ class FrameCodec(Codec):
                 f"codec {self.name!r} could not decode a {header.width}x{header.height} "
                 f"{header.dtype.name} frame: {type(exc).__name__}: {exc}"
             ) from exc
-        crc = zlib.crc32(image.data, zlib.crc32(bytes(memoryview(data)[: header.header_size - 4])))
+        crc = zlib.crc32(image.data, zlib.crc32(head))
         if crc != header.checksum:
             raise DecodeError(
                 f"checksum mismatch in a {header.width}x{header.height} {self.name!r} depth frame "
                 f"(stored {header.checksum:#010x}, decoded {crc:#010x}): the data is corrupt"
             )
         return image
+
+    def _decode_bounded(
+        self, header: FrameHeader, head: bytes, body: memoryview
+    ) -> npt.NDArray[Any]:
+        from .bounded import KIND_F32_FRAME, PARAMS_SIZE, LatticeParams, decode_levels
+
+        params = LatticeParams.unpack(body)
+        if params.is_float != (header.dtype.kind == "f"):
+            raise DecodeError(
+                f"bounded-error frame of {header.dtype.name} depth holds a "
+                f"{'float32' if params.is_float else 'uint16'} lattice"
+            )
+        start = PARAMS_SIZE
+        stored = None
+        if params.kind == KIND_F32_FRAME:
+            if len(body) < start + 4:
+                raise DecodeError("bounded-error frame is truncated inside its level table")
+            (tlen,) = struct.unpack_from("<I", body, start)
+            if start + 4 + tlen > len(body):
+                raise DecodeError(f"level table length {tlen} runs past the end of the frame")
+            try:
+                stored = _unpack_table(body[start + 4 : start + 4 + tlen]).view("<f4")
+            except DecodeError:
+                raise
+            except Exception as exc:  # zstandard's errors
+                raise DecodeError(f"bounded-error frame has a corrupt level table: {exc}") from exc
+            start += 4 + tlen
+        try:
+            index = self._decode_levels(body[start:], header.shape, params.near)
+        except DecodeError:
+            raise
+        except Exception as exc:  # backend libraries raise all sorts of things
+            raise DecodeError(
+                f"codec {self.name!r} could not decode a {header.width}x{header.height} "
+                f"bounded-error frame: {type(exc).__name__}: {exc}"
+            ) from exc
+        crc = zlib.crc32(index.data, zlib.crc32(body[:start], zlib.crc32(head)))
+        if crc != header.checksum:
+            raise DecodeError(
+                f"checksum mismatch in a {header.width}x{header.height} {self.name!r} "
+                f"bounded-error depth frame (stored {header.checksum:#010x}, decoded "
+                f"{crc:#010x}): the data is corrupt"
+            )
+        return decode_levels(params, index, header.dtype, stored)
 
     def _decode_layout(self, header: FrameHeader, body: memoryview) -> npt.NDArray[Any]:
         shape = header.shape

@@ -63,6 +63,12 @@ class DepthAC(FrameCodec):
 
     name: ClassVar[str] = "depthac"
     dtypes: ClassVar[tuple[str, ...]] = ("uint16", "float32")
+    bounded_near: ClassVar[int] = 0
+
+    def __init__(
+        self, *, max_error: float | None = None, max_rel_error: float | None = None
+    ) -> None:
+        self._set_bound(max_error, max_rel_error)
 
     def _encode_body(self, image: npt.NDArray[Any]) -> bytes:
         if image.size > _MAX_PIXELS:
@@ -72,16 +78,37 @@ class DepthAC(FrameCodec):
         body: npt.NDArray[np.uint8] = _kernels().encode_image(image, True, 0, _NO_RECON)
         return body.tobytes()
 
+    def _encode_levels(
+        self, index: npt.NDArray[np.uint16], near: int
+    ) -> tuple[bytes, npt.NDArray[np.uint16]]:
+        if index.size > _MAX_PIXELS:
+            raise InputError(
+                f"depthac codes at most {_MAX_PIXELS} pixels per frame, got {index.size}"
+            )
+        recon = np.zeros(index.shape, dtype=np.uint16) if near else _NO_RECON
+        body: npt.NDArray[np.uint8] = _kernels().encode_image(index, near == 0, near, recon)
+        return body.tobytes(), (recon if near else index)
+
+    def _decode_levels(
+        self, body: memoryview, shape: tuple[int, int], near: int
+    ) -> npt.NDArray[np.uint16]:
+        return self._decode_near(body, shape, near)
+
     def _decode_body(
         self, body: memoryview, shape: tuple[int, int], dtype: np.dtype[Any]
     ) -> npt.NDArray[Any]:
+        return self._decode_near(body, shape, 0)
+
+    def _decode_near(
+        self, body: memoryview, shape: tuple[int, int], near: int
+    ) -> npt.NDArray[np.uint16]:
         if shape[0] * shape[1] > _MAX_PIXELS:
             raise DecodeError(
                 f"depthac frame claims {shape[0]}x{shape[1]} pixels, more than {_MAX_PIXELS}"
             )
         buf = np.frombuffer(body, dtype=np.uint8)
         image = np.empty(shape, dtype=np.uint16)
-        status = _kernels().decode_image(buf, image, 0)
+        status = _kernels().decode_image(buf, image, near)
         if status:
             reason = _ERRORS.get(status, f"status {status}")
             raise DecodeError(f"depthac frame {shape[1]}x{shape[0]} is corrupt: {reason}")

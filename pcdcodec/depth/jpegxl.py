@@ -102,11 +102,19 @@ class JPEGXL(FrameCodec):
         "install imagecodecs with JPEG XL support (pip install -U imagecodecs)"
     )
 
-    def __init__(self, *, effort: int = 2, threads: int = 1) -> None:
+    def __init__(
+        self,
+        *,
+        effort: int = 2,
+        threads: int = 1,
+        max_error: float | None = None,
+        max_rel_error: float | None = None,
+    ) -> None:
         check_int(self.name, "effort", effort, 1, 9)
         check_int(self.name, "threads", threads, 1, 256)
         self.effort = effort
         self.threads = threads
+        self._set_bound(max_error, max_rel_error)
 
     @classmethod
     def unavailable_reason(cls) -> str | None:

@@ -57,9 +57,16 @@ class LZ4(FrameCodec):
     dtypes: ClassVar[tuple[str, ...]] = ("uint16", "float32")
     native_dtypes: ClassVar[tuple[str, ...]] = ("uint16", "float32")
 
-    def __init__(self, *, level: int = 0) -> None:
+    def __init__(
+        self,
+        *,
+        level: int = 0,
+        max_error: float | None = None,
+        max_rel_error: float | None = None,
+    ) -> None:
         check_int(self.name, "level", level, 0, 16)
         self.level = level
+        self._set_bound(max_error, max_rel_error)
 
     def _encode_body(self, image: npt.NDArray[Any]) -> bytes:
         import lz4.frame

@@ -37,9 +37,16 @@ class PNG16(FrameCodec):
     name: ClassVar[str] = "png16"
     install_hint: ClassVar[str] = "install imagecodecs (pip install imagecodecs)"
 
-    def __init__(self, *, level: int = 1) -> None:
+    def __init__(
+        self,
+        *,
+        level: int = 1,
+        max_error: float | None = None,
+        max_rel_error: float | None = None,
+    ) -> None:
         check_int(self.name, "level", level, 0, 9)
         self.level = level
+        self._set_bound(max_error, max_rel_error)
 
     @classmethod
     def unavailable_reason(cls) -> str | None:

@@ -309,6 +309,11 @@ class RVL(FrameCodec):
 
     name: ClassVar[str] = "rvl"
 
+    def __init__(
+        self, *, max_error: float | None = None, max_rel_error: float | None = None
+    ) -> None:
+        self._set_bound(max_error, max_rel_error)
+
     def _encode_body(self, image: npt.NDArray[Any]) -> bytes:
         if image.size > _MAX_PIXELS:
             raise InputError(

@@ -54,9 +54,16 @@ class Zstd(FrameCodec):
     dtypes: ClassVar[tuple[str, ...]] = ("uint16", "float32")
     native_dtypes: ClassVar[tuple[str, ...]] = ("uint16", "float32")
 
-    def __init__(self, *, level: int = 3) -> None:
+    def __init__(
+        self,
+        *,
+        level: int = 3,
+        max_error: float | None = None,
+        max_rel_error: float | None = None,
+    ) -> None:
         check_int(self.name, "level", level, -7, 22)
         self.level = level
+        self._set_bound(max_error, max_rel_error)
 
     def _encode_body(self, image: npt.NDArray[Any]) -> bytes:
         import zstandard

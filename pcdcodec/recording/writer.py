@@ -76,6 +76,10 @@ def _codec(spec: Any, kind: str) -> Codec:
         if spec.kind != kind:
             raise InputError(f"{spec.name!r} is a {spec.kind} codec, expected a {kind} codec")
         return spec
+    if isinstance(spec, str) and ":" in spec:
+        from ..registry import parse_codec_spec
+
+        return parse_codec_spec(spec, kind)  # "depthac:max_rel_error=0.005"
     if isinstance(spec, (str, dict)):
         return get_codec(spec, kind=kind)
     raise InputTypeError(

@@ -1,0 +1,95 @@
+"""The lossy depth rate-distortion comparison (``pcdcodec bench --depth-rd``)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from pcdcodec.bench.depth_rd import (
+    METHODS,
+    available_methods,
+    depth_rd,
+    plot_depth_rd,
+    rd_markdown,
+    write_rd_csv,
+)
+from pcdcodec.errors import InputError
+
+
+def _crops(sample_depths: list[Any]) -> list[Any]:
+    return [np.ascontiguousarray(d[160:256, 240:368]) for d in sample_depths[:3]]
+
+
+def test_every_method_runs_and_ours_keeps_its_bound(
+    sample_depths: list[Any], tmp_path: Path
+) -> None:
+    frames = _crops(sample_depths)
+    methods = available_methods()
+    assert "depthac bounded (ours)" in methods
+    points = depth_rd(frames, 5000.0, sequence="crop", methods=methods)
+    assert len(points) == sum(len(METHODS[m][2]) for m in methods)
+    for p in points:
+        assert p.frames == 3
+        assert p.ratio > 1
+        assert p.bytes_per_frame > 0
+    ours = [p for p in points if p.method == "depthac bounded (ours)"]
+    for p in ours:
+        rel = float(p.setting.split("=")[1])
+        assert p.max_rel_error <= rel
+        assert p.holes_created == 0
+        assert p.holes_filled == 0
+    assert ours[-1].ratio > ours[0].ratio  # a looser bound compresses more
+    if "LERC" in methods:
+        for p in (p for p in points if p.method == "LERC"):
+            assert p.max_error_m <= float(p.setting.split("=")[1]) + 1e-9
+    table = rd_markdown(points)
+    assert table.count("\n") == len(points) + 1
+    csv = write_rd_csv(points, tmp_path / "rd.csv").read_text().splitlines()
+    assert len(csv) == len(points) + 1
+    png = plot_depth_rd(points, tmp_path / "rd.png", title="crop")
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_bad_input_is_refused(sample_depths: list[Any]) -> None:
+    frames = _crops(sample_depths)
+    with pytest.raises(InputError, match="at least one frame"):
+        depth_rd([], 5000.0)
+    with pytest.raises(InputError, match="uint16"):
+        depth_rd([f.astype(np.float32) for f in frames], 5000.0)
+    with pytest.raises(InputError, match="unknown depth RD method"):
+        depth_rd(frames, 5000.0, methods=["gzip"])
+    with pytest.raises(InputError, match="depth_scale"):
+        depth_rd(frames, 0.0)
+
+
+def test_cli_depth_rd(tmp_path: Path) -> None:
+    from pcdcodec.datasets import sample_dir
+
+    out = tmp_path / "rd"
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pcdcodec",
+            "bench",
+            str(sample_dir()),
+            "--depth-rd",
+            "--frames",
+            "1",
+            "-q",
+            "-o",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "depthac bounded (ours)" in result.stdout
+    assert (out / "depth_rd.csv").is_file()
+    assert (out / "depth_rd.png").is_file()
