@@ -50,7 +50,9 @@ def test_default_round_trip(default_file: Path, sample: RGBDSequence) -> None:
         assert rec.indexed
         assert rec.intrinsics == sample.intrinsics
         assert rec.depth_scale == sample.depth_scale
-        assert rec.codecs["depth"] == pcdcodec.get_codec(pcdcodec.DEFAULT_DEPTH_CODEC).stored_config()
+        assert (
+            rec.codecs["depth"] == pcdcodec.get_codec(pcdcodec.DEFAULT_DEPTH_CODEC).stored_config()
+        )
         assert rec.codecs["color"] == pcdcodec.get_codec("h264").stored_config()
         assert rec.metadata == {"site": "lab"}
         np.testing.assert_array_equal(rec.timestamps, [f.timestamp_ns for f in sample])
