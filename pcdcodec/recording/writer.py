@@ -795,8 +795,10 @@ class RecordingWriter:
     def abort(self) -> None:
         """Stop without finishing: what was written stays readable, as after a crash."""
         self._closed = True
-        self._color_pool.shutdown(wait=False, cancel_futures=True)
-        self._depth_pool.shutdown(wait=False, cancel_futures=True)
+        # Queued frames are dropped; a frame being coded finishes first (milliseconds), so no
+        # codec keeps running on a worker thread once abort() returns.
+        self._color_pool.shutdown(wait=True, cancel_futures=True)
+        self._depth_pool.shutdown(wait=True, cancel_futures=True)
         self._file.close()
 
     def __enter__(self) -> RecordingWriter:
