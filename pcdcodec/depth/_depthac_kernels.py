@@ -233,14 +233,10 @@ def _predict(
     e = (ea if ea > 0 else -ea) + (eb if eb > 0 else -eb)
     if va and vb and valid[_U(n - 1)] != 0:
         c = np.int64(idx[_U(n - 1)])
-        mx = a if a > b else b
-        mn = a if a < b else b
-        if c >= mx:
-            p = mn
-        elif c <= mn:
-            p = mx
-        else:
-            p = a + b - c
+        # The median edge detector as a clamp (no jumps): a + b - c kept within [min, max].
+        mx = max(a, b)
+        mn = min(a, b)
+        p = min(max(a + b - c, mn), mx)
         g = _absdiff(a, c) + _absdiff(b, c)
         if valid[_U(n + 1)] != 0:
             d = np.int64(idx[_U(n + 1)])
@@ -412,12 +408,8 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
                 low, rng, pos = _enc(low, rng, pos, out, probs, zc, 0)
                 continue
             low, rng, pos = _enc(low, rng, pos, out, probs, zc, 1)
-            m = e
-            if e < 0:
-                low, rng, pos = _enc(low, rng, pos, out, probs, sc, 1)
-                m = -e
-            else:
-                low, rng, pos = _enc(low, rng, pos, out, probs, sc, 0)
+            low, rng, pos = _enc(low, rng, pos, out, probs, sc, 1 if e < 0 else 0)
+            m = -e if e < 0 else e
             k = 0
             while (m >> (k + 1)) != 0:
                 k += 1
