@@ -449,7 +449,12 @@ def evaluate(
             total = c.bytes_per_frame + d.bytes_per_frame
             result.streams.append(
                 StreamRow(
-                    c.codec, d.codec, total, raw_rgbd / total, pc2 / total, c.lossless and d.exact
+                    _label(c.config),  # settings that differ from the defaults show, such as
+                    _label(d.config),  # a depth error bound beside the lossless row
+                    total,
+                    raw_rgbd / total,
+                    pc2 / total,
+                    c.lossless and d.exact,
                 )
             )
     if peers:

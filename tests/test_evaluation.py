@@ -224,3 +224,18 @@ def test_recommendation_and_columns_constant_by_construction() -> None:
     assert "RMSE" in table
     assert "| png16 | 1.0 | 30.00 | 2.00 | 2.00 | no | 2.000" in table
     assert ev.recommend()["depth"]["by ratio"].startswith("jpegxl")  # inexact is not a pick
+
+
+def test_stream_rows_tell_a_bounded_depth_codec_from_the_lossless_one(tiny: RGBDSequence) -> None:
+    ev = pcdcodec.evaluate(
+        tiny,
+        depth=["depthac", {"id": "depthac", "max_rel_error": 0.01}],
+        color=["ffv1"],
+        frames=3,
+        rd=False,
+    )
+    rows = {row.depth: row for row in ev.streams}
+    assert set(rows) == {"depthac", "depthac (max_rel_error=0.01)"}
+    assert rows["depthac"].lossless
+    assert not rows["depthac (max_rel_error=0.01)"].lossless
+    assert rows["depthac (max_rel_error=0.01)"].bytes_per_frame < rows["depthac"].bytes_per_frame
