@@ -442,7 +442,6 @@ def _verify(
     src: str, options: dict[str, Any], output: str, colors: list[str] | None
 ) -> dict[str, Any]:
     """Decode ``output`` and compare it with ``src`` read again; raise on any difference."""
-    import numpy as np
 
     from .recording import Recording
     from .sources import open_source
@@ -456,6 +455,7 @@ def _verify(
             raise VerificationError(
                 f"{name}: {len(rec)} frames, but its segments decoded {len(colors)}"
             )
+        bound = _depth_bound(rec.codecs.get("depth") or {})
         decoded: Iterator[Any] = iter(rec)
         for original in source:
             frame = next(decoded, None)
@@ -466,12 +466,9 @@ def _verify(
                     f"{name}: frame {n} is at {frame.timestamp_ns} ns, the source's at "
                     f"{original.timestamp_ns} ns"
                 )
-            # Float depth (metres) marks no measurement with NaN, which equals itself here.
-            floats = frame.depth.dtype.kind == "f"
-            if frame.depth.dtype != original.depth.dtype or not np.array_equal(
-                frame.depth, original.depth, equal_nan=floats
-            ):
-                raise VerificationError(f"{name}: frame {n} depth differs from the source")
+            problem = _depth_mismatch(frame.depth, original.depth, bound)
+            if problem:
+                raise VerificationError(f"{name}: frame {n} depth {problem}")
             if colors is not None and _digest(frame.color) != colors[n]:
                 raise VerificationError(
                     f"{name}: frame {n} color differs from the codec's decode of its segment"
@@ -480,6 +477,45 @@ def _verify(
         if next(decoded, None) is not None:
             raise VerificationError(f"{name}: more frames than the source ({n})")
     return {"frames": n}
+
+
+def _depth_bound(config: dict[str, Any]) -> Any:
+    """The error bound a depth codec config states, or ``None`` for lossless coding."""
+    if config.get("max_error") is None and config.get("max_rel_error") is None:
+        return None
+    from .depth.bounded import ErrorBound
+
+    return ErrorBound(float(config.get("max_error") or 0), float(config.get("max_rel_error") or 0))
+
+
+def _depth_mismatch(decoded: Any, original: Any, bound: Any) -> str:
+    """Why decoded depth does not stand for the source's ('' when it does).
+
+    Lossless codecs must give the same bits (NaN, float32 "no measurement", equals itself);
+    a codec with an error bound must keep every hole, and every valid pixel within its bound.
+    """
+    if decoded.dtype != original.dtype or decoded.shape != original.shape:
+        return f"is {decoded.dtype} {decoded.shape}, the source's {original.dtype} {original.shape}"
+    import numpy as np
+
+    floats = decoded.dtype.kind == "f"
+    if bound is None:
+        same = np.array_equal(decoded, original, equal_nan=floats)
+        return "" if same else "differs from the source"
+    holes = ~np.isfinite(original) if floats else original == 0
+    kept = ~np.isfinite(decoded) if floats else decoded == 0
+    if not np.array_equal(holes, kept):
+        return "has holes where the source has none, or the other way round"
+    ref = original[~holes].astype(np.float64)
+    err = np.abs(decoded[~holes].astype(np.float64) - ref)
+    over = err > bound.of(ref)
+    if over.any():
+        i = int(np.argmax(over))
+        return (
+            f"is off by {err[i]:g} at a value of {ref[i]:g}, more than the codec's bound "
+            f"(max_error={bound.abs_error:g}, max_rel_error={bound.rel_error:g})"
+        )
+    return ""
 
 
 # -- the run (on the client) ---------------------------------------------------------------------

@@ -559,3 +559,28 @@ def test_a_pointcloud2_bag_is_archived_and_verified(tmp_path: Path) -> None:
         # The recording keeps the reader's depth scale and dtype (checked bit-exact above).
         assert rec.depth_scale == source.depth_scale
         assert rec.intrinsics == source.intrinsics
+
+
+def test_verify_holds_a_bounded_depth_codec_to_its_bound(tmp_path: Path) -> None:
+    src = make_input(tmp_path / "a", 0, 4)
+    out = tmp_path / "out"
+    bounded = {"id": "depthac", "max_rel_error": 0.01}
+    summary = archive(
+        [src], out, workers=1, processes=False, progress=False, verify=True, depth=bounded
+    )
+    assert summary.ok, [i.error for i in summary.items]
+    with pcdcodec.open(out / "a.pcdc") as rec:
+        assert rec.codecs["depth"]["max_rel_error"] == 0.01
+    bound = archive_module._depth_bound(bounded)
+    depth = load_sample(max_frames=1)[0].depth
+    valid = depth > 0
+    near = depth.copy()
+    near[valid] = depth[valid] + (depth[valid] // 100)  # 1 %: within the bound
+    assert archive_module._depth_mismatch(near, depth, bound) == ""
+    far = near.copy()
+    far[valid] += 2
+    assert "more than the codec's bound" in archive_module._depth_mismatch(far, depth, bound)
+    holed = near.copy()
+    holed[np.argwhere(valid)[0][0], np.argwhere(valid)[0][1]] = 0
+    assert "holes" in archive_module._depth_mismatch(holed, depth, bound)
+    assert archive_module._depth_mismatch(near, depth, None) == "differs from the source"

@@ -63,8 +63,15 @@ _LATTICE_VERSION = 1
 def _real(value: Any, name: str) -> float | None:
     if value is None:
         return None
+    if isinstance(value, str):  # from a codec spec such as "depthac:max_rel_error=abc"
+        try:
+            value = float(value)
+        except ValueError:
+            raise InputTypeError(f"{name} must be a number such as 0.005, got {value!r}") from None
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InputTypeError(f"{name} must be a number or None, got {type(value).__name__}")
+        raise InputTypeError(
+            f"{name} must be a number such as 0.005 (or None for no bound), got {value!r}"
+        )
     out = float(value)
     if not math.isfinite(out) or out < 0:
         raise InputError(f"{name} must be a finite number >= 0, got {value!r}")
