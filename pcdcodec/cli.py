@@ -396,12 +396,13 @@ def _cmd_info_source(args: argparse.Namespace) -> int:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    from .recording import _index
     from .recording import open as open_recording
-    from .sources.base import detect_kind, read_magic
+    from .sources.base import detect_kind
 
     path = Path(args.input)
-    if read_magic(path, 8) != _index.MAGIC and detect_kind(path) is not None:
+    # A ROS 2 bag stored as MCAP starts with the same magic as a recording: the readers'
+    # probes tell them apart by the MCAP profile.
+    if detect_kind(path) is not None:
         return _cmd_info_source(args)
     with open_recording(args.input) as rec:
         info = _info(rec)

@@ -233,3 +233,15 @@ def test_export_and_import_the_paper_layout(encoded: Path, tmp_path: Path) -> No
     unknown = run("export", str(encoded), str(tmp_path / "p2"), "--layout", "ros1")
     assert unknown.returncode == 1
     assert "unknown layout 'ros1'" in unknown.stderr
+
+
+def test_info_tells_a_ros2_mcap_bag_from_a_recording() -> None:
+    from tests.conftest import SHARED_DATA
+
+    bag = SHARED_DATA / "bags" / "ros2-converted" / "spot_ros2_mcap" / "spot_ros2_mcap.mcap"
+    if not bag.is_file():
+        pytest.skip("the ROS 2 MCAP bag of ../shared/data is not present")
+    out = run("info", str(bag))
+    assert out.returncode == 0, out.stderr
+    assert "damaged" not in out.stdout + out.stderr
+    assert "RosbagSource" in out.stdout
