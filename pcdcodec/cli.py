@@ -718,7 +718,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--depth", default=None, help="depth codecs, comma-separated (default: all)")
     p.add_argument("--color", default=DEFAULT_COLOR_CODEC, help="color codecs, comma-separated")
     p.add_argument("--frames", type=int, default=30, help="frames to use (default: %(default)s)")
-    p.add_argument("-o", "--output", default=None, help="folder for report, CSV, JSON and plots")
+    p.add_argument(
+        "-o",
+        "--output",
+        default=None,
+        help="folder for report, CSV, JSON and plots (with --depth-rd: its CSV and plot)",
+    )
     p.add_argument("--no-rd", action="store_true", help="skip the color quality sweep")
     p.add_argument("--no-plots", action="store_true", help="write no PNG plots")
     p.add_argument("--peers", action="store_true", help="add peer rows (pcdcodec[peers])")
