@@ -245,3 +245,10 @@ def test_info_tells_a_ros2_mcap_bag_from_a_recording() -> None:
     assert out.returncode == 0, out.stderr
     assert "damaged" not in out.stdout + out.stderr
     assert "RosbagSource" in out.stdout
+
+
+def test_encode_into_a_missing_folder_names_the_folder(tmp_path: Path) -> None:
+    out = run("encode", str(sample_dir()), "-o", str(tmp_path / "nope" / "x.pcdc"))
+    assert out.returncode != 0
+    assert f"create {str(tmp_path / 'nope')!r} first" in out.stderr
+    assert "partial" not in out.stderr

@@ -109,7 +109,8 @@ def encode(
             source.depth_scale = float(depth_scale)
         if source.intrinsics is None:
             raise InputError(
-                f"no intrinsics for {str(source.path)!r}: pass intrinsics (--fx --fy --cx --cy), "
+                f"no intrinsics for {str(source.path)!r}: pass intrinsics= (a CameraIntrinsics; "
+                "on the command line --camera NAME, --intrinsics FILE or --fx --fy --cx --cy), "
                 "or give the input a camera (camera.json, a CameraInfo topic)"
             )
         meta = {**source.metadata, **(metadata or {})}
@@ -118,6 +119,11 @@ def encode(
             raise InputError(f"{str(target)!r} already exists; pass overwrite=True to replace it")
         if target.is_dir():
             raise InputError(f"{str(target)!r} is a folder, not a file")
+        if not target.parent.is_dir():
+            raise InputError(
+                f"the folder of the output {str(target)!r} does not exist; create "
+                f"{str(target.parent)!r} first"
+            )
         # Written beside the final name and moved there once complete: a failed conversion
         # leaves nothing under the final name (and an older file there intact).
         partial = target.with_name(f".{target.name}.partial-{os.getpid()}")
@@ -216,7 +222,8 @@ def _why_empty(info: dict[str, Any]) -> str:
         return (
             f": every image was dropped for lack of a partner ({dropped.get('color', 0)} color, "
             f"{dropped.get('depth', 0)} depth); the streams' stamps differ by more than the "
-            "pairing tolerance (record depth only, or raise max_difference)"
+            "pairing tolerance: record depth only (--color-topic '' on the command line, "
+            "color_topic='' in Python) or pass a larger max_difference= in nanoseconds"
         )
     return ""
 
