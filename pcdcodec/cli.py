@@ -580,10 +580,19 @@ def _cmd_import(args: argparse.Namespace) -> int:
 
 def _cmd_archive(args: argparse.Namespace) -> int:
     from .archive import archive
+    from .camera import camera_preset
 
+    source_options: dict[str, Any] = {}
+    if args.camera is not None:
+        preset = camera_preset(args.camera)
+        source_options["intrinsics"] = preset.intrinsics
+        source_options["depth_scale"] = preset.depth_scale
+    if args.depth_scale is not None:
+        source_options["depth_scale"] = args.depth_scale
     summary = archive(
         args.src,
         args.output,
+        source_options=source_options or None,
         scheduler=args.scheduler,
         workers=args.workers,
         color=parse_codec(args.color, "color") if args.color != "none" else None,
@@ -737,6 +746,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_camera_options(p)
     p.set_defaults(func=_cmd_bench)
 
+    from .camera import CAMERA_PRESETS
+
     p = sub.add_parser("archive", help="compress many inputs on a Dask cluster, resumably")
     p.add_argument("src", nargs="+", help="inputs, or folders searched for inputs")
     p.add_argument("-o", "--output", required=True, help="output folder (mirrors the sources)")
@@ -749,6 +760,17 @@ def build_parser() -> argparse.ArgumentParser:
         "--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec, e.g. depthac or zstd:level=9"
     )
     p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
+    p.add_argument(
+        "--camera",
+        metavar="NAME",
+        help="camera of inputs that do not carry one (folders without camera.json): "
+        + ", ".join(CAMERA_PRESETS),
+    )
+    p.add_argument(
+        "--depth-scale",
+        type=float,
+        help="depth units per metre of inputs that do not say it (1000 for mm)",
+    )
     p.add_argument(
         "--segment-frames",
         type=int,

@@ -584,3 +584,21 @@ def test_verify_holds_a_bounded_depth_codec_to_its_bound(tmp_path: Path) -> None
     holed[np.argwhere(valid)[0][0], np.argwhere(valid)[0][1]] = 0
     assert "holes" in archive_module._depth_mismatch(holed, depth, bound)
     assert archive_module._depth_mismatch(near, depth, None) == "differs from the source"
+
+
+def test_cli_archive_gives_folders_a_camera(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from pcdcodec.cli import main
+
+    src = make_input(tmp_path / "bare", 0, 3)
+    (src / "camera.json").unlink()  # a folder that does not say its camera or depth scale
+    out = tmp_path / "out"
+    args = ["archive", str(src), "-o", str(out), "--workers", "1", "--threads", "-q", "--json"]
+    assert main(args) == 1
+    capsys.readouterr()
+    assert main([*args, "--camera", "tum-fr1"]) == 0
+    assert json.loads(capsys.readouterr().out)["frames"] == 3
+    with pcdcodec.open(out / "bare.pcdc") as rec:
+        assert rec.depth_scale == 5000.0
+        assert rec.intrinsics.fx == 517.3  # the fr1 camera's published focal length
