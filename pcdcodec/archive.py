@@ -331,7 +331,8 @@ def _probe(
     with open_source(path, **options) as source:
         if source.intrinsics is None:
             raise InputError(
-                f"{src!r} does not say its camera intrinsics; pass them as a source option"
+                f"{src!r} does not say its camera intrinsics; pass them as a source option "
+                "(source_options={'intrinsics': ...}; on the command line --camera NAME)"
             )
         frames = source.frame_count
         # Index only inputs that may need more than one segment: a bag's message count bounds
@@ -721,7 +722,9 @@ def _cluster(scheduler: str | None, workers: int | None, processes: bool) -> Ite
             threads_per_worker=1,
             processes=processes,
             dashboard_address=":0",
-            silence_logs=logging.ERROR,
+            # A failing input is reported in the summary with its error; the workers' own
+            # log lines and tracebacks for it would only repeat it on stderr.
+            silence_logs=logging.CRITICAL,
         ) as cluster,
         dist.Client(cluster) as client,
     ):
