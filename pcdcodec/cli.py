@@ -518,7 +518,7 @@ def _depth_rd(
     from .bench.depth_rd import depth_rd, plot_depth_rd, rd_markdown, write_rd_csv
     from .evaluation import _frames_of
 
-    name, items, _, scale = _frames_of(source, frames, intrinsics, depth_scale)
+    name, items, _, scale = _frames_of(source, frames, intrinsics, depth_scale, need_color=False)
     depths = [f.depth for f in items]
     if not depths or str(depths[0].dtype) != "uint16":
         raise InputError(f"{source!r} holds no uint16 depth frames for the depth RD comparison")
@@ -723,7 +723,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_import)
 
     p = sub.add_parser("bench", help="compare codecs on a recording or an RGB-D folder")
-    p.add_argument("src", help="a .pcdc recording or a folder that `encode` accepts")
+    p.add_argument(
+        "src", help="a .pcdc recording, or what `encode` accepts: a folder, bag or camera file"
+    )
     p.add_argument("--depth", default=None, help="depth codecs, comma-separated (default: all)")
     p.add_argument("--color", default=DEFAULT_COLOR_CODEC, help="color codecs, comma-separated")
     p.add_argument("--frames", type=int, default=30, help="frames to use (default: %(default)s)")

@@ -358,6 +358,8 @@ def _frames_of(
     frames: int | None,
     intrinsics: CameraIntrinsics | None,
     depth_scale: float | None,
+    *,
+    need_color: bool = True,
 ) -> tuple[str, list[RGBDFrame], CameraIntrinsics | None, float]:
     if isinstance(source, RGBDSequence):
         seq = source.frames[:frames] if frames else source.frames
@@ -370,14 +372,32 @@ def _frames_of(
     path = Path(source)
     if path.is_file():
         from .recording import open as open_recording
+        from .sources import open_source
+        from .sources.base import detect_kind
 
+        no_color = f"{str(path)!r} has no color stream to compare codecs on"
+        if detect_kind(path) is not None:  # a bag or a camera recording, read as encode reads it
+            options: dict[str, Any] = {}
+            if intrinsics is not None:
+                options["intrinsics"] = intrinsics
+            if depth_scale is not None:
+                options["depth_scale"] = depth_scale
+            with open_source(path, **options) as src:
+                taken: list[RGBDFrame] = []
+                for f in src:
+                    if need_color and f.color is None:
+                        raise InputError(no_color)
+                    taken.append(f)
+                    if frames and len(taken) >= frames:
+                        break
+                return path.stem, taken, src.intrinsics, src.depth_scale
         with open_recording(path) as rec:
             count = min(len(rec), frames) if frames else len(rec)
             out = []
             for i in range(count):
                 f = rec[i]
-                if f.color is None:
-                    raise InputError(f"{str(path)!r} has no color stream to compare codecs on")
+                if need_color and f.color is None:
+                    raise InputError(no_color)
                 out.append(f)
             return path.stem, out, intrinsics or rec.intrinsics, depth_scale or rec.depth_scale
     folder = open_folder(path, max_frames=frames, intrinsics=intrinsics, depth_scale=depth_scale)

@@ -93,3 +93,42 @@ def test_cli_depth_rd(tmp_path: Path) -> None:
     assert "depthac bounded (ours)" in result.stdout
     assert (out / "depth_rd.csv").is_file()
     assert (out / "depth_rd.png").is_file()
+
+
+def test_cli_depth_rd_takes_a_depth_only_recording(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import pcdcodec
+    from pcdcodec.cli import main
+    from pcdcodec.datasets import load_sample
+
+    seq = load_sample(max_frames=2)
+    path = tmp_path / "depth_only.pcdc"
+    with pcdcodec.open(
+        path, "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale, color=None
+    ) as rec:
+        for frame in seq:
+            rec.write(None, frame.depth, frame.timestamp_ns)
+    assert main(["bench", str(path), "--depth-rd", "--frames", "1", "-q", "--no-plots"]) == 0
+    assert "depthac bounded (ours)" in capsys.readouterr().out
+    # The whole-stream comparison still needs color, and says so.
+    assert main(["bench", str(path), "--frames", "1", "-q"]) == 1
+    assert "no color stream" in capsys.readouterr().err
+
+
+def test_bench_reads_a_bag_as_encode_does() -> None:
+    from pcdcodec.evaluation import _frames_of
+    from tests.conftest import SHARED_DATA
+
+    bag = SHARED_DATA / "bags" / "spot" / "raw.bag"
+    if not bag.is_file():
+        pytest.skip("the Spot bag of ../shared/data is not present")
+    import pcdcodec
+
+    cam = pcdcodec.CameraIntrinsics(424, 240, 300.0, 300.0, 212.0, 120.0)
+    name, frames, intrinsics, scale = _frames_of(bag, 1, cam, None, need_color=False)
+    assert name == "raw"
+    assert len(frames) == 1
+    assert frames[0].depth.shape == (240, 424)
+    assert intrinsics == cam
+    assert scale > 0
