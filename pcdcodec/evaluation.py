@@ -154,8 +154,9 @@ class Evaluation:
 
     def recommend(self) -> dict[str, dict[str, str]]:
         """The best codec of each kind on this data: by ratio and by speed (encode plus decode
-        ms per frame). Depth considers codecs that gave the depth back exactly; color gives
-        the best lossy codec (with its PSNR) and, where measured, the best lossless one."""
+        ms per frame). Depth considers codecs that gave the depth back exactly, and apart from
+        them ("depth with an error bound") codecs given ``max_error`` / ``max_rel_error``; color
+        gives the best lossy codec (with its PSNR) and, where measured, the best lossless one."""
         out: dict[str, dict[str, str]] = {}
         exact = [d for d in self.depth if d.exact]
         if exact:
@@ -166,6 +167,18 @@ class Evaluation:
                 f"{best.encode_ms + best.decode_ms:.1f} ms)",
                 "by speed": f"{_label(fast.config)} ({fast.encode_ms + fast.decode_ms:.1f} ms, "
                 f"{fast.ratio_uint16:.2f}x)",
+            }
+        bounded = [
+            d
+            for d in self.depth
+            if not d.exact
+            and (d.config.get("max_error") is not None or d.config.get("max_rel_error") is not None)
+        ]
+        if bounded:
+            best = max(bounded, key=lambda d: d.ratio_uint16)
+            out["depth with an error bound"] = {
+                "by ratio": f"{_label(best.config)} ({best.ratio_uint16:.2f}x, largest error "
+                f"{best.max_error_m * 1000:.1f} mm)"
             }
         for name, rows in (
             ("color", [c for c in self.color if not c.lossless]),

@@ -224,6 +224,15 @@ def test_recommendation_and_columns_constant_by_construction() -> None:
     assert "RMSE" in table
     assert "| png16 | 1.0 | 30.00 | 2.00 | 2.00 | no | 2.000" in table
     assert ev.recommend()["depth"]["by ratio"].startswith("jpegxl")  # inexact is not a pick
+    assert "depth with an error bound" not in ev.recommend()  # png16 states no bound
+    bounded = _depth_row("depthac", 50.0, 8.0, exact=False)
+    bounded.config["max_rel_error"] = 0.005
+    ev.depth.append(bounded)
+    rec = ev.recommend()
+    assert rec["depth"]["by ratio"].startswith("jpegxl")
+    assert rec["depth with an error bound"]["by ratio"].startswith(
+        "depthac (max_rel_error=0.005) (50.00x, largest error 2.0 mm)"
+    )
 
 
 def test_stream_rows_tell_a_bounded_depth_codec_from_the_lossless_one(tiny: RGBDSequence) -> None:
