@@ -772,3 +772,15 @@ def test_compressed_video_passes_through_without_reencoding(tmp_path: Path) -> N
     direct = pcdcodec.color.base.decode_packets(codec, packets, 160, 120)
     for k in (0, 1, 2, 3, 5):
         assert np.array_equal(decoded[stamps[k]], direct[k].rgb)
+
+
+def test_the_missing_camera_note_goes_once_intrinsics_are_given() -> None:
+    from tests.conftest import SHARED_DATA
+
+    bag = SHARED_DATA / "bags" / "spot" / "raw.bag"
+    if not bag.is_file():
+        pytest.skip("the Spot bag of ../shared/data is not present")
+    with pcdcodec.open_source(bag) as src:
+        assert "no camera info topic: pass intrinsics" in src.describe()["notes"]
+        src.intrinsics = pcdcodec.CameraIntrinsics(424, 240, 300.0, 300.0, 212.0, 120.0)
+        assert "no camera info topic: pass intrinsics" not in src.describe()["notes"]

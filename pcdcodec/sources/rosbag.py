@@ -465,8 +465,7 @@ class RosbagSource(Source):
                 f"{self.fit_residual:.3g} px"
             )
         else:
-            self.intrinsics = None
-            self.notes.append("no camera info topic: pass intrinsics")
+            self.intrinsics = None  # describe() asks for intrinsics while none are set
         self._shape = (height, width)
         if self.intrinsics is not None and self.intrinsics.shape != (height, width):
             raise InputError(
@@ -520,7 +519,8 @@ class RosbagSource(Source):
                 "cloud_topic": self.cloud_topic,
                 "dropped": self.dropped,
                 "out_of_order": self.out_of_order,
-                "notes": list(self.notes),
+                "notes": list(self.notes)
+                + (["no camera info topic: pass intrinsics"] if self.intrinsics is None else []),
             }
         )
         if self.fit_residual is not None:
