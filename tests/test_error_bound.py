@@ -231,8 +231,10 @@ def test_config_states_the_bound() -> None:
         ({"max_rel_error": 5}, "must be < 1"),
         ({"max_rel_error": math.nan}, "max_rel_error must be a finite number >= 0"),
         ({"max_error": math.inf}, "max_error must be a finite number >= 0"),
-        ({"max_error": "5mm"}, "max_error must be a number or None, got str"),
-        ({"max_rel_error": True}, "max_rel_error must be a number or None, got bool"),
+        ({"max_error": "5mm"}, "max_error must be a number such as 0.005, got '5mm'"),
+        ({"max_rel_error": "abc"}, "max_rel_error must be a number such as 0.005, got 'abc'"),
+        ({"max_rel_error": "inf"}, "max_rel_error must be a finite number >= 0, got inf"),
+        ({"max_rel_error": True}, "max_rel_error must be a number such as 0.005 .* got True"),
     ],
 )
 def test_bad_bounds_are_refused(params: dict[str, Any], message: str) -> None:
