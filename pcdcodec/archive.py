@@ -482,11 +482,11 @@ def _verify(
 
 def _depth_bound(config: dict[str, Any]) -> Any:
     """The error bound a depth codec config states, or ``None`` for lossless coding."""
-    if config.get("max_error") is None and config.get("max_rel_error") is None:
-        return None
-    from .depth.bounded import ErrorBound
+    from .depth import FrameCodec
+    from .registry import get_codec
 
-    return ErrorBound(float(config.get("max_error") or 0), float(config.get("max_rel_error") or 0))
+    codec = get_codec(config)
+    return codec._bound() if isinstance(codec, FrameCodec) else None
 
 
 def _depth_mismatch(decoded: Any, original: Any, bound: Any) -> str:
