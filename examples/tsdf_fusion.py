@@ -26,8 +26,18 @@ VOXEL = 0.01  # metres
 DEPTH_MAX = 3.0  # metres
 
 
-def fuse(frames: Any, intrinsics: pcdcodec.CameraIntrinsics, depth_scale: float) -> Any:
-    """A colored triangle mesh from frames that carry a pose (camera-to-world)."""
+def fuse(
+    frames: Any,
+    intrinsics: pcdcodec.CameraIntrinsics,
+    depth_scale: float,
+    *,
+    depth_max: float = DEPTH_MAX,
+    block_count: int = 20_000,
+) -> Any:
+    """A colored triangle mesh from frames that carry a pose (camera-to-world).
+
+    ``depth_max`` (metres) is the range integrated; ``block_count`` bounds the voxel blocks.
+    """
     import open3d as o3d
 
     core: Any = o3d.core
@@ -39,7 +49,7 @@ def fuse(frames: Any, intrinsics: pcdcodec.CameraIntrinsics, depth_scale: float)
         attr_channels=((1), (1), (3)),
         voxel_size=VOXEL,
         block_resolution=16,
-        block_count=20_000,
+        block_count=block_count,
         device=device,
     )
     k = core.Tensor(intrinsics.K, core.float64)
@@ -49,8 +59,8 @@ def fuse(frames: Any, intrinsics: pcdcodec.CameraIntrinsics, depth_scale: float)
         extrinsic = core.Tensor(np.linalg.inv(frame.pose), core.float64)  # world -> camera
         rgbd = frame.to_open3d_rgbd(tensor=True, depth_scale=depth_scale)
         depth, color = rgbd.depth.to(device), rgbd.color.to(device)  # uint16 and uint8
-        blocks = grid.compute_unique_block_coordinates(depth, k, extrinsic, depth_scale, DEPTH_MAX)
-        grid.integrate(blocks, depth, color, k, k, extrinsic, depth_scale, DEPTH_MAX)
+        blocks = grid.compute_unique_block_coordinates(depth, k, extrinsic, depth_scale, depth_max)
+        grid.integrate(blocks, depth, color, k, k, extrinsic, depth_scale, depth_max)
     return grid.extract_triangle_mesh().to_legacy()
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pcdcodec
 from benchmarks.data import SEQUENCES
+from examples.tsdf_fusion import fuse
 from pcdcodec.metrics import point_to_point
 from pcdcodec.registry import parse_codec_spec
 
@@ -39,8 +41,7 @@ DEFAULT_SPECS = [
     "depthac:max_rel_error=0.01",
     "depthac:max_rel_error=0.02",
 ]
-VOXEL = 0.01  # metres
-DEPTH_MAX = 4.0  # metres
+DEPTH_MAX = 4.0  # metres fused (the 1 cm voxels are those of examples/tsdf_fusion.py)
 
 
 def frames_of(name: str, count: int) -> tuple[list[Any], Any, float]:
@@ -59,29 +60,11 @@ def points(projector: Any, depth: Any, valid: Any) -> Any:
     return xyz[valid]
 
 
-def fuse(depths: list[Any], colors: list[Any], poses: list[Any], camera: Any, scale: float) -> Any:
-    import open3d as o3d
-
-    core: Any = o3d.core
-    geometry: Any = o3d.t.geometry
-    device = core.Device("CPU:0")
-    grid = geometry.VoxelBlockGrid(
-        attr_names=("tsdf", "weight", "color"),
-        attr_dtypes=(core.float32, core.float32, core.float32),
-        attr_channels=((1), (1), (3)),
-        voxel_size=VOXEL,
-        block_resolution=16,
-        block_count=40_000,
-        device=device,
-    )
-    k = core.Tensor(camera.K, core.float64)
-    for depth, color, pose in zip(depths, colors, poses, strict=True):
-        extrinsic = core.Tensor(np.linalg.inv(pose), core.float64)
-        d = geometry.Image(np.ascontiguousarray(depth))
-        c = geometry.Image(np.ascontiguousarray(color, dtype=np.uint8))
-        blocks = grid.compute_unique_block_coordinates(d, k, extrinsic, scale, DEPTH_MAX)
-        grid.integrate(blocks, d, c, k, k, extrinsic, scale, DEPTH_MAX)
-    return np.asarray(grid.extract_triangle_mesh().to_legacy().vertices)
+def mesh_vertices(frames: list[Any], depths: list[Any], camera: Any, scale: float) -> Any:
+    """Vertices of the TSDF mesh fused from ``frames`` with their depth replaced by ``depths``."""
+    posed = [replace(f, depth=d) for f, d in zip(frames, depths, strict=True)]
+    mesh = fuse(posed, camera, scale, depth_max=DEPTH_MAX, block_count=40_000)
+    return np.asarray(mesh.vertices)
 
 
 def chamfer(a: Any, b: Any) -> tuple[float, float, float]:
@@ -119,13 +102,9 @@ def main() -> int:
         posed = [f for f in frames if f.pose is not None][: args.tsdf_frames]
         reference_mesh = None
         if posed and not args.no_tsdf:
-            reference_mesh = fuse(
-                [f.depth for f in posed],
-                [f.color for f in posed],
-                [f.pose for f in posed],
-                camera,
-                scale,
-            )
+            reference_mesh = mesh_vertices(posed, [f.depth for f in posed], camera, scale)
+            if len(reference_mesh) == 0:  # too few posed frames to close a surface
+                reference_mesh = None
         for spec in specs:
             codec = parse_codec_spec(spec, "depth")
             raw = packed = 0
@@ -152,15 +131,13 @@ def main() -> int:
             err = np.concatenate(errors) * 1000
             mesh = "—"
             if reference_mesh is not None:
-                test_mesh = fuse(
-                    [codec.decode(codec.encode(f.depth)) for f in posed],
-                    [f.color for f in posed],
-                    [f.pose for f in posed],
-                    camera,
-                    scale,
-                )
-                mean, p95, worst = chamfer(reference_mesh, test_mesh)
-                mesh = f"{mean * 1000:.2f} / {p95 * 1000:.2f} / {worst * 1000:.1f}"
+                decoded_depths = [codec.decode(codec.encode(f.depth)) for f in posed]
+                test_mesh = mesh_vertices(posed, decoded_depths, camera, scale)
+                if len(test_mesh) == 0:
+                    mesh = "no surface"
+                else:
+                    mean, p95, worst = chamfer(reference_mesh, test_mesh)
+                    mesh = f"{mean * 1000:.2f} / {p95 * 1000:.2f} / {worst * 1000:.1f}"
             rmse = float(np.sqrt(np.mean(err**2)))
             print(
                 f"| {name} | `{spec}` | {raw / packed:.1f} | {max_rel * 100:.3f} % | {max_abs:.1f} "
