@@ -14,10 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-import pcdcodec
-from benchmarks.data import load_frames
-from benchmarks.test_bench_depth_sets import FRAMES, PRESENT
-from pcdcodec.depth import FrameCodec
+from benchmarks.test_bench_depth_sets import PRESENT, Prepared, prepare
 
 CONFIGS: dict[str, dict[str, Any]] = {
     "depthac-0.5%": {"id": "depthac", "max_rel_error": 0.005},
@@ -27,21 +24,16 @@ CONFIGS: dict[str, dict[str, Any]] = {
 }
 
 
-def setup(label: str, sequence: str) -> tuple[FrameCodec, list[Any], list[bytes], dict[str, float]]:
-    codec = pcdcodec.get_codec(CONFIGS[label])
-    assert isinstance(codec, FrameCodec)
-    depths = load_frames(sequence, FRAMES)
-    encoded = [codec.encode(d) for d in depths]
+def setup(label: str, sequence: str) -> Prepared:
     rel = CONFIGS[label].get("max_rel_error", 0.0)
-    for depth, data in zip(depths, encoded, strict=True):
-        back = codec.decode(data)
+
+    def within(back: Any, depth: Any) -> None:
         valid = depth > 0
         np.testing.assert_array_equal(back > 0, valid)
         err = np.abs(back[valid].astype(np.float64) - depth[valid])
         assert np.all(err <= rel * depth[valid])
-    raw = sum(d.nbytes for d in depths)
-    info = {"ratio": round(raw / sum(len(b) for b in encoded), 3), "frames": len(depths)}
-    return codec, depths, encoded, info
+
+    return prepare(CONFIGS[label], sequence, within)
 
 
 @pytest.mark.parametrize("sequence", PRESENT)

@@ -13,6 +13,7 @@ adds Zstandard at level 19, the strongest general-purpose baseline.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -38,16 +39,29 @@ PRESENT = [name for name in DEPTH_SETS if _present(name)]
 FRAMES = 6
 
 
-def setup(label: str, sequence: str) -> tuple[FrameCodec, list[Any], list[bytes], dict[str, float]]:
-    codec = pcdcodec.get_codec(CONFIGS[label])
+Prepared = tuple[FrameCodec, list[Any], list[bytes], dict[str, float]]
+
+
+def prepare(
+    config: dict[str, Any],
+    sequence: str,
+    check: Callable[[Any, Any], None] = np.testing.assert_array_equal,
+) -> Prepared:
+    """The codec, the set's frames, their encodings and the ratio; every frame is decoded and
+    ``check(decoded, original)``-ed (bit-exact by default) before anything is timed."""
+    codec = pcdcodec.get_codec(config)
     assert isinstance(codec, FrameCodec)
     depths = load_frames(sequence, FRAMES)
     encoded = [codec.encode(d) for d in depths]
     for depth, data in zip(depths, encoded, strict=True):
-        np.testing.assert_array_equal(codec.decode(data), depth)  # correct before timed
+        check(codec.decode(data), depth)
     raw = sum(d.nbytes for d in depths)
     info = {"ratio": round(raw / sum(len(b) for b in encoded), 3), "frames": len(depths)}
     return codec, depths, encoded, info
+
+
+def setup(label: str, sequence: str) -> Prepared:
+    return prepare(CONFIGS[label], sequence)
 
 
 @pytest.mark.parametrize("sequence", PRESENT)
