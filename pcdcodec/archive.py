@@ -414,9 +414,16 @@ def _existing_segment(part: str, digests: bool) -> dict[str, Any]:
 
 
 def _digest(array: Any) -> str:
+    """A digest of an image's values, shape and dtype, whatever its memory layout ("" for
+    ``None``)."""
+    import numpy as np
+
     if array is None:
         return ""
-    return hashlib.blake2b(memoryview(array).cast("B"), digest_size=16).hexdigest()
+    a = np.ascontiguousarray(array)
+    h = hashlib.blake2b(f"{a.dtype.str}{a.shape}".encode(), digest_size=16)
+    h.update(a.data)
+    return h.hexdigest()
 
 
 def _join_parts(parts: list[str], output: str) -> dict[str, Any]:

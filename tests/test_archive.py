@@ -24,7 +24,7 @@ import pytest
 import pcdcodec
 from pcdcodec import archive as archive_module
 from pcdcodec.archive import LOCK, MANIFEST, PARTS, archive
-from pcdcodec.datasets import RGBDSequence, load_sample
+from pcdcodec.datasets import RGBDSequence, load_sample, write_folder
 from pcdcodec.recording import _index as fmt
 from pcdcodec.recording.join import join
 
@@ -602,3 +602,31 @@ def test_cli_archive_gives_folders_a_camera(
     with pcdcodec.open(out / "bare.pcdc") as rec:
         assert rec.depth_scale == 5000.0
         assert rec.intrinsics.fx == 517.3  # the fr1 camera's published focal length
+
+
+def test_verify_at_width_424(tmp_path: Path, sample: RGBDSequence) -> None:
+    """RealSense 424x240 and Spot images: rows of 1272 bytes, which video decoders pad."""
+    from pcdcodec.cli import main
+
+    frames = [
+        pcdcodec.Frame(f.color[:240, :424].copy(), f.depth[:240, :424].copy(), f.timestamp_ns)
+        for f in sample.frames[:4]
+    ]
+    cam = pcdcodec.CameraIntrinsics(424, 240, 300.0, 300.0, 212.0, 120.0)
+    src = tmp_path / "rs424"
+    write_folder(frames, src, intrinsics=cam, depth_scale=sample.depth_scale)
+    out = tmp_path / "out"
+    args = ["archive", str(src), "-o", str(out), "--workers", "1", "--threads", "-q"]
+    assert main([*args, "--verify", "--json"]) == 0
+    with pcdcodec.open(out / "rs424.pcdc") as rec:
+        color = rec[1].color
+    assert color is not None
+    assert color.shape == (240, 424, 3)
+    assert color.flags["C_CONTIGUOUS"]  # decoders give plain images, not views of padded rows
+    # The digest is of the values, not of how they lie in memory.
+    wide = np.zeros((240, 432, 3), np.uint8)
+    wide[:, :424] = color
+    view = wide[:, :424]
+    assert not view.flags["C_CONTIGUOUS"]
+    assert archive_module._digest(view) == archive_module._digest(color)
+    assert archive_module._digest(color) != archive_module._digest(color.reshape(424, 240, 3))
