@@ -630,3 +630,57 @@ def test_verify_at_width_424(tmp_path: Path, sample: RGBDSequence) -> None:
     assert not view.flags["C_CONTIGUOUS"]
     assert archive_module._digest(view) == archive_module._digest(color)
     assert archive_module._digest(color) != archive_module._digest(color.reshape(424, 240, 3))
+
+
+def test_summary_sizes_follow_symlinks(tmp_path: Path) -> None:
+    real = make_input(tmp_path / "real", 0, 3)
+    size = sum(f.stat().st_size for f in real.rglob("*") if f.is_file())
+    # A dataset assembled from links: linked folders, a linked file, a dangling link.
+    linked = tmp_path / "src" / "linked"
+    linked.mkdir(parents=True)
+    for entry in real.iterdir():
+        (linked / entry.name).symlink_to(entry, target_is_directory=entry.is_dir())
+    (linked / "notes.txt").symlink_to(tmp_path / "gone.txt")
+    assert archive_module._stat(linked)[0] == size
+    out = tmp_path / "out"
+    summary = archive([linked], out, workers=1, processes=False, progress=False)
+    assert summary.ok
+    (item,) = summary.items
+    assert item.bytes_in == size
+    assert summary.bytes_in == size
+    assert summary.ratio is not None
+    assert summary.ratio == pytest.approx(size / summary.bytes_out)
+    text = summary.to_text()
+    assert f"{size / 1e6:.1f} MB in" in text
+    assert f"(ratio {summary.ratio:.1f}x)" in text
+    assert "ratio 0.0x" not in text
+    assert manifest(out)["linked.pcdc"]["size"] == size
+    # The hash sees the files behind the links: a changed linked image is a changed input.
+    assert archive_module._hash(linked) == archive_module._hash(real)
+
+
+def test_summary_of_an_input_of_unknown_size(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    src = make_input(tmp_path / "a", 0, 2)
+    real_stat = os.stat
+
+    def no_access(path: Any, *args: Any, **kwargs: Any) -> Any:
+        if Path(path).name == "associations.txt":
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_stat(path, *args, **kwargs)
+
+    with monkeypatch.context() as m:
+        m.setattr(archive_module.os, "stat", no_access)
+        size, mtime = archive_module._stat(src)
+    assert size is None
+    assert mtime > 0
+    item = archive_module.ArchiveItem(str(src), "a.pcdc", "done", None, 12_345, 2)
+    summary = archive_module.ArchiveSummary([item], seconds=1.0, workers=1)
+    assert summary.bytes_in is None
+    assert summary.ratio is None
+    assert summary.throughput is None
+    text = summary.to_text()
+    assert "? MB (an input's size is unknown) in, 0.0 MB out (ratio -)" in text
+    assert "0.0x" not in text
+    assert summary.to_dict()["bytes_in"] is None
