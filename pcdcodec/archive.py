@@ -43,6 +43,7 @@ import math
 import os
 import shutil
 import socket
+import stat as stat_module
 import sys
 import time
 import uuid
@@ -90,7 +91,9 @@ class ArchiveItem:
     #: ``done``, ``verified``, ``source-deleted``, ``skipped`` (done before), ``failed``, or
     #: ``pending`` (not reached: the run stopped first)
     state: str
-    bytes_in: int = 0
+    #: the input's size in bytes, following symbolic links; ``None`` when some of it could not
+    #: be reached (a dangling link, an unreadable folder)
+    bytes_in: int | None = 0
     bytes_out: int = 0
     frames: int = 0
     segments: int = 0
@@ -134,9 +137,10 @@ class ArchiveSummary:
         return not self.failed and not self.pending and self.stopped is None
 
     @property
-    def bytes_in(self) -> int:
-        """Source bytes encoded in this run."""
-        return sum(i.bytes_in for i in self.done)
+    def bytes_in(self) -> int | None:
+        """Source bytes encoded in this run; ``None`` when an input's size is unknown."""
+        sizes = [i.bytes_in for i in self.done]
+        return None if None in sizes else sum(s for s in sizes if s is not None)
 
     @property
     def bytes_out(self) -> int:
@@ -148,12 +152,18 @@ class ArchiveSummary:
 
     @property
     def ratio(self) -> float | None:
-        return self.bytes_in / self.bytes_out if self.bytes_out else None
+        """Source bytes over output bytes; ``None`` when either is unknown or zero."""
+        size = self.bytes_in
+        return size / self.bytes_out if size and self.bytes_out else None
 
     @property
-    def throughput(self) -> float:
-        """Source megabytes (10^6 bytes) per second encoded in this run."""
-        return self.bytes_in / 1e6 / self.seconds if self.seconds > 0 else 0.0
+    def throughput(self) -> float | None:
+        """Source megabytes (10^6 bytes) per second encoded in this run (``None`` when an
+        input's size is unknown)."""
+        size = self.bytes_in
+        if size is None:
+            return None
+        return size / 1e6 / self.seconds if self.seconds > 0 else 0.0
 
     @property
     def frames_per_second(self) -> float:
@@ -181,14 +191,16 @@ class ArchiveSummary:
 
     def to_text(self) -> str:
         ratio = f"{self.ratio:.1f}x" if self.ratio else "-"
+        size, rate = self.bytes_in, self.throughput
+        size_in = "? MB (an input's size is unknown)" if size is None else f"{size / 1e6:.1f} MB"
+        rate_text = "?" if rate is None else f"{rate:.2f}"
         lines = [
             f"inputs {len(self.items)}: {len(self.done)} written, {len(self.skipped)} already "
             f"done, {len(self.failed)} failed"
             + (f", {len(self.pending)} not reached" if self.pending else ""),
-            f"bytes  {self.bytes_in / 1e6:.1f} MB in, {self.bytes_out / 1e6:.1f} MB out "
-            f"(ratio {ratio})",
+            f"bytes  {size_in} in, {self.bytes_out / 1e6:.1f} MB out (ratio {ratio})",
             f"time   {self.seconds:.1f} s on {self.workers} worker(s): "
-            f"{self.throughput:.2f} MB/s, {self.frames_per_second:.1f} frames/s",
+            f"{rate_text} MB/s, {self.frames_per_second:.1f} frames/s",
         ]
         if self.stopped:
             lines.append(f"stopped: {self.stopped}")
@@ -269,20 +281,61 @@ def find_inputs(
     return found
 
 
+def _walk(path: Path) -> tuple[list[tuple[Path, os.stat_result]], bool]:
+    """The files of an input (the file itself, or a folder's files at any depth), sorted, with
+    their ``stat``, and whether some of it could not be reached (an unreadable folder or file).
+
+    Symbolic links are followed, to files and to folders alike (datasets are often assembled
+    from links), each folder once however many links lead to it; a dangling link is no file.
+    """
+    missing = False
+
+    def stat(f: Path) -> os.stat_result | None:
+        nonlocal missing
+        try:
+            return os.stat(f)  # follows links
+        except FileNotFoundError:
+            return None  # a dangling link
+        except OSError:
+            missing = True
+            return None
+
+    if not path.is_dir():
+        st = stat(path)
+        return ([(path, st)] if st is not None else []), missing or st is None
+    files: list[tuple[Path, os.stat_result]] = []
+    seen: set[str] = set()
+
+    def unreadable(_: OSError) -> None:
+        nonlocal missing
+        missing = True
+
+    for dirpath, dirnames, filenames in os.walk(path, onerror=unreadable, followlinks=True):
+        real = os.path.realpath(dirpath)
+        if real in seen:  # a second link to a folder already walked, or a loop
+            dirnames[:] = []
+            continue
+        seen.add(real)
+        for name in filenames:
+            f = Path(dirpath) / name
+            st = stat(f)
+            if st is not None and stat_module.S_ISREG(st.st_mode):
+                files.append((f, st))
+    files.sort(key=lambda item: item[0])
+    return files, missing
+
+
 def _files(path: Path) -> list[Path]:
-    if path.is_file():
-        return [path]
-    return sorted(p for p in path.rglob("*") if p.is_file())
+    return [f for f, _ in _walk(path)[0]]
 
 
-def _stat(path: Path) -> tuple[int, int]:
-    """Total size and latest modification time (ns) of a file or a folder's files."""
-    size, mtime = 0, 0
-    for f in _files(path):
-        st = f.stat()
-        size += st.st_size
-        mtime = max(mtime, st.st_mtime_ns)
-    return size, mtime
+def _stat(path: Path) -> tuple[int | None, int]:
+    """Total size (``None`` when some of the input could not be reached) and latest
+    modification time (ns) of a file or a folder's files, following symbolic links."""
+    files, missing = _walk(path)
+    size = sum(st.st_size for _, st in files)
+    mtime = max((st.st_mtime_ns for _, st in files), default=0)
+    return (None if missing else size), mtime
 
 
 def _hash(path: Path) -> str:
@@ -338,7 +391,7 @@ def _probe(
         # Index only inputs that may need more than one segment: a bag's message count bounds
         # its frame count from above.
         most = frames if frames is not None else operator.length_hint(source, -1)
-        if most < 0 or len(segment_plan(most, size, segment_frames, keyframes)) > 1:
+        if most < 0 or len(segment_plan(most, size or 0, segment_frames, keyframes)) > 1:
             index = source.frame_index()
             if index is not None:
                 frames = len(index)
@@ -414,9 +467,16 @@ def _existing_segment(part: str, digests: bool) -> dict[str, Any]:
 
 
 def _digest(array: Any) -> str:
+    """A digest of an image's values, shape and dtype, whatever its memory layout ("" for
+    ``None``)."""
+    import numpy as np
+
     if array is None:
         return ""
-    return hashlib.blake2b(memoryview(array).cast("B"), digest_size=16).hexdigest()
+    a = np.ascontiguousarray(array)
+    h = hashlib.blake2b(f"{a.dtype.str}{a.shape}".encode(), digest_size=16)
+    h.update(a.data)
+    return h.hexdigest()
 
 
 def _join_parts(parts: list[str], output: str) -> dict[str, Any]:
@@ -853,20 +913,21 @@ def _archive(
         item = ArchiveItem(str(path), str(out / rel), "pending", bytes_in=size)
         items[rel] = item
         unchanged = (
-            entry.get("size") == size
+            size is not None
+            and entry.get("size") == size
             and entry.get("mtime_ns") == mtime
             and entry.get("settings") == settings
             and (out / rel).is_file()
         )
         if unchanged and entry.get("state") in DONE_STATES:
             if verify and entry.get("state") == "done":
-                todo.append((path, rel, size, mtime))  # encoded before, not yet verified
+                todo.append((path, rel, size or 0, mtime))  # encoded before, not yet verified
             else:
                 item.state = "skipped"
                 item.bytes_out = int(entry.get("bytes_out", 0))
                 item.frames = int(entry.get("frames", 0))
             continue
-        todo.append((path, rel, size, mtime))
+        todo.append((path, rel, size or 0, mtime))
     total = sum(s for _, _, s, _ in todo)
     bar = _ByteProgress(total, show and not callable(progress), sys.stderr)
     bar.inputs = len(todo)
@@ -1036,7 +1097,7 @@ def _run(
         fut.release()
         if step == "probe":
             entry = manifest.entries.get(rel, {})
-            plan = segment_plan(result["frames"], result["size"], *segment)
+            plan = segment_plan(result["frames"], result["size"] or 0, *segment)
             index = result.get("index") if len(plan) > 1 else None
             parts_dir = out / PARTS / rel
             same = (

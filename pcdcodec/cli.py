@@ -337,7 +337,8 @@ def _cmd_decode(args: argparse.Namespace) -> int:
             overwrite=args.overwrite,
             progress=bar.update,
         )
-    print(f"wrote {count} frames to {args.output}")
+    if not args.quiet:
+        print(f"wrote {count} frames to {args.output}")
     return 0
 
 
@@ -677,7 +678,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ply", action="store_true", help="also write a PLY point cloud per frame")
     p.add_argument("--pcd", action="store_true", help="also write a PCD point cloud per frame")
     p.add_argument("--overwrite", action="store_true", help="write into a non-empty folder")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+    p.add_argument(
+        "-q", "--quiet", action="store_true", help="only errors: no progress, no summary"
+    )
     p.set_defaults(func=_cmd_decode)
 
     p = sub.add_parser("info", help="describe a recording, or a bag's topics and choices")

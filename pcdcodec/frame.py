@@ -144,14 +144,26 @@ class Frame:
         convert_rgb_to_intensity=False)`` makes it. Tensor (``tensor=True``): an
         ``open3d.t.geometry.RGBDImage`` holding the depth exactly as stored (uint16 depth
         units), to be used with ``depth_scale`` = the recording's depth scale in Open3D's
-        tensor functions. ``depth_scale`` (depth units per metre) defaults to the frame's
-        projector's; it is needed for the legacy image and for uint16 depth.
+        tensor functions.
+
+        ``depth_scale`` (depth units per metre) states the scale the frame's depth is at; it
+        never rescales. A frame with a projector (one read from a recording) is at its
+        projector's scale, the default: another value raises :class:`~pcdcodec.InputError`
+        naming both, since a legacy image made with it would not be in metres. A frame without
+        a projector needs it for the legacy image of uint16 depth.
         """
-        scale = depth_scale
+        scale = None if depth_scale is None else _scale(depth_scale)
         color = self.color
         if self.projector is not None:
-            if scale is None:
-                scale = self.projector.depth_scale
+            own = self.projector.depth_scale
+            if scale is not None and scale != own:
+                raise InputError(
+                    f"depth_scale={scale:g} differs from this frame's depth scale, {own:g} depth "
+                    f"units per metre (its camera's); depth is never rescaled silently: leave "
+                    f"depth_scale out (a legacy RGBDImage holds metres whatever the scale), or "
+                    f"convert the depth yourself"
+                )
+            scale = own
             if color is not None and self.projector.color_intrinsics is not None:
                 # Two cameras: the image is the depth camera's, each pixel colored by its point.
                 color = self.projector.color_for_depth(self.depth, color)
@@ -231,11 +243,12 @@ def open3d_rgbd(
     )
 
 
-def _scale(value: Any) -> float:
+def _scale(value: Any, name: str = "depth_scale") -> float:
+    """``value`` as a float depth scale; raises naming ``name`` unless positive and finite."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InputTypeError(f"depth_scale must be a number, got {type(value).__name__}")
+        raise InputTypeError(f"{name} must be a number, got {type(value).__name__}")
     if not (np.isfinite(value) and value > 0):
-        raise InputError(f"depth_scale must be positive and finite, got {value}")
+        raise InputError(f"{name} must be positive and finite, got {value}")
     return float(value)
 
 

@@ -200,9 +200,10 @@ def main() -> int:
         )
         src.close()
     print(
-        "| source | frames | input | .pcdc default (h264 + jpegxl) | .pcdc lossless color "
-        "(ffv1 + jpegxl) | depth bit-exact | point error vs source registration, mm "
-        "(median / mean / p95) | color error of those points (0-255, default codecs) |"
+        f"| source | frames | input | .pcdc default (h264 + {pcdcodec.DEFAULT_DEPTH_CODEC}) | "
+        f".pcdc lossless color (ffv1 + {pcdcodec.DEFAULT_DEPTH_CODEC}) | depth bit-exact | "
+        "point error vs source registration, mm (median / mean / p95) | color error of those "
+        "points (0-255, default codecs) |"
     )
     print("|---|---|---|---|---|---|---|---|")
     for name, n, size_in, size_d, size_l, exact, ll, err, _ in rows:

@@ -24,7 +24,7 @@ import pytest
 import pcdcodec
 from pcdcodec import archive as archive_module
 from pcdcodec.archive import LOCK, MANIFEST, PARTS, archive
-from pcdcodec.datasets import RGBDSequence, load_sample
+from pcdcodec.datasets import RGBDSequence, load_sample, write_folder
 from pcdcodec.recording import _index as fmt
 from pcdcodec.recording.join import join
 
@@ -602,3 +602,85 @@ def test_cli_archive_gives_folders_a_camera(
     with pcdcodec.open(out / "bare.pcdc") as rec:
         assert rec.depth_scale == 5000.0
         assert rec.intrinsics.fx == 517.3  # the fr1 camera's published focal length
+
+
+def test_verify_at_width_424(tmp_path: Path, sample: RGBDSequence) -> None:
+    """RealSense 424x240 and Spot images: rows of 1272 bytes, which video decoders pad."""
+    from pcdcodec.cli import main
+
+    frames = [
+        pcdcodec.Frame(f.color[:240, :424].copy(), f.depth[:240, :424].copy(), f.timestamp_ns)
+        for f in sample.frames[:4]
+    ]
+    cam = pcdcodec.CameraIntrinsics(424, 240, 300.0, 300.0, 212.0, 120.0)
+    src = tmp_path / "rs424"
+    write_folder(frames, src, intrinsics=cam, depth_scale=sample.depth_scale)
+    out = tmp_path / "out"
+    args = ["archive", str(src), "-o", str(out), "--workers", "1", "--threads", "-q"]
+    assert main([*args, "--verify", "--json"]) == 0
+    with pcdcodec.open(out / "rs424.pcdc") as rec:
+        color = rec[1].color
+    assert color is not None
+    assert color.shape == (240, 424, 3)
+    assert color.flags["C_CONTIGUOUS"]  # decoders give plain images, not views of padded rows
+    # The digest is of the values, not of how they lie in memory.
+    wide = np.zeros((240, 432, 3), np.uint8)
+    wide[:, :424] = color
+    view = wide[:, :424]
+    assert not view.flags["C_CONTIGUOUS"]
+    assert archive_module._digest(view) == archive_module._digest(color)
+    assert archive_module._digest(color) != archive_module._digest(color.reshape(424, 240, 3))
+
+
+def test_summary_sizes_follow_symlinks(tmp_path: Path) -> None:
+    real = make_input(tmp_path / "real", 0, 3)
+    size = sum(f.stat().st_size for f in real.rglob("*") if f.is_file())
+    # A dataset assembled from links: linked folders, a linked file, a dangling link.
+    linked = tmp_path / "src" / "linked"
+    linked.mkdir(parents=True)
+    for entry in real.iterdir():
+        (linked / entry.name).symlink_to(entry, target_is_directory=entry.is_dir())
+    (linked / "notes.txt").symlink_to(tmp_path / "gone.txt")
+    assert archive_module._stat(linked)[0] == size
+    out = tmp_path / "out"
+    summary = archive([linked], out, workers=1, processes=False, progress=False)
+    assert summary.ok
+    (item,) = summary.items
+    assert item.bytes_in == size
+    assert summary.bytes_in == size
+    assert summary.ratio is not None
+    assert summary.ratio == pytest.approx(size / summary.bytes_out)
+    text = summary.to_text()
+    assert f"{size / 1e6:.1f} MB in" in text
+    assert f"(ratio {summary.ratio:.1f}x)" in text
+    assert "ratio 0.0x" not in text
+    assert manifest(out)["linked.pcdc"]["size"] == size
+    # The hash sees the files behind the links: a changed linked image is a changed input.
+    assert archive_module._hash(linked) == archive_module._hash(real)
+
+
+def test_summary_of_an_input_of_unknown_size(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    src = make_input(tmp_path / "a", 0, 2)
+    real_stat = os.stat
+
+    def no_access(path: Any, *args: Any, **kwargs: Any) -> Any:
+        if Path(path).name == "associations.txt":
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_stat(path, *args, **kwargs)
+
+    with monkeypatch.context() as m:
+        m.setattr(archive_module.os, "stat", no_access)
+        size, mtime = archive_module._stat(src)
+    assert size is None
+    assert mtime > 0
+    item = archive_module.ArchiveItem(str(src), "a.pcdc", "done", None, 12_345, 2)
+    summary = archive_module.ArchiveSummary([item], seconds=1.0, workers=1)
+    assert summary.bytes_in is None
+    assert summary.ratio is None
+    assert summary.throughput is None
+    text = summary.to_text()
+    assert "? MB (an input's size is unknown) in, 0.0 MB out (ratio -)" in text
+    assert "0.0x" not in text
+    assert summary.to_dict()["bytes_in"] is None

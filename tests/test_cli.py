@@ -176,6 +176,18 @@ def test_decode_writes_a_tum_folder_that_encodes_again(encoded: Path, tmp_path: 
     assert "not empty" in refused.stderr
 
 
+def test_decode_quiet_prints_nothing_but_errors(encoded: Path, tmp_path: Path) -> None:
+    out = tmp_path / "quiet"
+    result = run("decode", str(encoded), "-o", str(out), "-q")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == ""
+    assert result.stderr == ""
+    assert len(list((out / "depth").glob("*.png"))) == 6
+    refused = run("decode", str(encoded), "-o", str(out), "-q")
+    assert refused.returncode == 1
+    assert "not empty" in refused.stderr  # errors still say what went wrong
+
+
 def test_verify_and_recover_a_damaged_file(tmp_path: Path) -> None:
     # zerolatency: x264 emits each frame's packet at once, so a cut file keeps frames.
     encoded = tmp_path / "z.pcdc"

@@ -130,3 +130,41 @@ def test_tensor_float_depth_is_metres(tmp_path: Path, sample: RGBDSequence) -> N
         assert rec[0].color is None
         legacy = rec[0].to_open3d_rgbd()
         np.testing.assert_array_equal(np.asarray(legacy.depth), metres)
+
+
+def test_read_side_scale_is_the_recordings(tmp_path: Path, sample: RGBDSequence) -> None:
+    frame = sample[0]
+    with _open(tmp_path / "r.pcdc", sample) as w:
+        w.write(frame.color, frame.depth, frame.timestamp_ns)
+    metres = np.asarray(_legacy(frame, 5000.0).depth)
+    with pcdcodec.open(tmp_path / "r.pcdc") as rec:
+        got = rec[0]
+        # A legacy RGBDImage holds metres whatever scale is asked for: never 5x too large.
+        for stated in (None, 5000.0, 5000):
+            legacy = got.to_open3d_rgbd(depth_scale=stated)
+            np.testing.assert_array_equal(np.asarray(legacy.depth), metres)
+        for tensor in (False, True):
+            with pytest.raises(pcdcodec.InputError, match=r"depth_scale=1000 differs.*5000"):
+                got.to_open3d_rgbd(tensor=tensor, depth_scale=1000)
+        with pytest.raises(pcdcodec.InputTypeError, match="depth_scale must be a number"):
+            got.to_open3d_rgbd(depth_scale="5000")  # type: ignore[arg-type]
+        tensor_image = got.to_open3d_rgbd(tensor=True, depth_scale=5000.0)
+        np.testing.assert_array_equal(tensor_image.depth.as_tensor().numpy()[..., 0], frame.depth)
+    # A frame without a camera: the stated scale is the only one there is.
+    bare = Frame(frame.color, frame.depth, 0)
+    np.testing.assert_array_equal(np.asarray(bare.to_open3d_rgbd(depth_scale=5000).depth), metres)
+    with pytest.raises(pcdcodec.InputError, match="needs depth_scale"):
+        bare.to_open3d_rgbd()
+
+
+def test_write_frames_scale_error_names_its_keyword(tmp_path: Path, sample: RGBDSequence) -> None:
+    image = _legacy(sample[0], 5000.0)
+    with _open(tmp_path / "k.pcdc", sample) as w:
+        with pytest.raises(pcdcodec.InputError, match=r"pass rgbd_depth_scale= ") as info:
+            w.write_frames([image])
+        assert "pass depth_scale=" not in str(info.value)
+        with pytest.raises(pcdcodec.InputError, match=r"pass depth_scale= "):
+            w.write_rgbd(image)
+        with pytest.raises(pcdcodec.InputTypeError, match="rgbd_depth_scale must be a number"):
+            w.write_frames([image], rgbd_depth_scale="5000")  # type: ignore[arg-type]
+        assert w.write_frames([image], rgbd_depth_scale=5000) == 1

@@ -173,3 +173,150 @@ def test_bag_export_writes_poses_to_tf(tmp_path: Path, to: str) -> None:
         np.testing.assert_allclose(
             quaternion_to_matrix([q.x, q.y, q.z, q.w]), pose[:3, :3], atol=1e-12
         )
+
+
+# -- poses from a bag's /tf and /tf_static ------------------------------------------------------
+
+
+@pytest.mark.parametrize(("to", "storage"), [("rosbag1", "mcap"), ("rosbag2", "mcap"),
+                                             ("rosbag2", "sqlite3")])  # fmt: skip
+def test_bag_round_trip_keeps_poses(tmp_path: Path, to: str, storage: str) -> None:
+    source = open_folder(sample_dir(), max_frames=4)
+    rec = tmp_path / "p.pcdc"
+    with pcdcodec.open(
+        rec, "w", intrinsics=source.intrinsics, depth_scale=source.depth_scale, color="ffv1"
+    ) as w:
+        w.write_frames(source)
+    bag = tmp_path / ("p.bag" if to == "rosbag1" else "p")
+    pcdcodec.export_bag(rec, bag, to=to, storage=storage)
+    back = tmp_path / "back.pcdc"
+    summary = pcdcodec.encode(bag, back, color="ffv1")
+    assert any("poses from tf" in note for note in summary.source["notes"])
+    assert source.poses is not None
+    with pcdcodec.open(back) as got:
+        assert got.has_poses
+        frames = list(got)
+    assert len(frames) == 4
+    for frame, want in zip(frames, source.poses, strict=True):
+        assert frame.pose is not None
+        assert want is not None
+        # The bag holds the rotation as a float64 quaternion: equal to its precision.
+        np.testing.assert_allclose(frame.pose, want, rtol=0, atol=1e-12)
+    # Frames read from the middle of the bag (through its index) carry the same poses.
+    with pcdcodec.open_source(bag) as src:
+        later = list(src.frames(2))
+    assert [f.timestamp_ns for f in later] == [f.timestamp_ns for f in frames[2:]]
+    for f, g in zip(later, frames[2:], strict=True):
+        assert f.pose is not None
+        assert g.pose is not None
+        np.testing.assert_allclose(f.pose, g.pose, rtol=0, atol=1e-12)
+
+
+def _tf_bag(
+    path: Path,
+    frames: list[int],
+    tf: list[tuple[str, int, str, str, np.ndarray]],
+    *,
+    ros2: bool,
+    camera: str = "cam",
+) -> Path:
+    """A bag of small depth images at ``frames`` (ns) in frame ``camera``, and transforms
+    ``(topic, stamp, parent, child, 4x4 pose of child in parent)``."""
+    from rosbags.typesys import get_types_from_msg
+
+    from .test_rosbag import _header, _image, _store, write_bag
+
+    store = _store(ros2)
+    if "tf2_msgs/msg/TFMessage" not in store.types:
+        store.register(
+            get_types_from_msg(
+                "geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"
+            )
+        )
+    t = store.types
+    messages: list[tuple[str, int, object]] = []
+    depth = np.full((6, 8), 1000, np.uint16)
+    for ns in frames:
+        image = _image(store, ros2, ns, depth, "16UC1")
+        image.header.frame_id = camera
+        messages.append(("/cam/depth", ns, image))
+    for topic, ns, parent, child, pose in tf:
+        q = matrix_to_quaternion(pose[:3, :3])
+        stamped = t["geometry_msgs/msg/TransformStamped"](
+            header=_header(store, ros2, ns, parent),
+            child_frame_id=child,
+            transform=t["geometry_msgs/msg/Transform"](
+                translation=t["geometry_msgs/msg/Vector3"](*map(float, pose[:3, 3])),
+                rotation=t["geometry_msgs/msg/Quaternion"](*map(float, q)),
+            ),
+        )
+        messages.append((topic, ns, t["tf2_msgs/msg/TFMessage"](transforms=[stamped])))
+    messages.sort(key=lambda m: m[1])
+    return write_bag(path, messages, ros2=ros2, store=store)
+
+
+def _rz(angle: float, t: tuple[float, float, float]) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    m = np.eye(4)
+    m[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    m[:3, 3] = t
+    return m
+
+
+@pytest.mark.parametrize("ros2", [False, True])
+def test_tf_chain_is_composed_and_interpolated_at_frame_stamps(tmp_path: Path, ros2: bool) -> None:
+    from pcdcodec.transform import slerp
+
+    ms = 1_000_000
+    base_in_odom = [_rz(0.1 * k, (k * 0.5, 0.0, 0.0)) for k in range(3)]
+    odom_in_map = _rz(0.3, (1.0, 2.0, 0.0))
+    cam_on_base = _rz(-0.2, (0.1, 0.0, 0.4))
+    tf = [
+        ("/tf_static", 1, "map", "odom", odom_in_map),
+        ("/tf_static", 1, "/base", "/cam", cam_on_base),  # tf1's leading slashes
+        *[("/tf", 100 * ms * k + 50 * ms, "odom", "base", p) for k, p in enumerate(base_in_odom)],
+        ("/tf", 10 * ms, "elsewhere", "other", np.eye(4)),  # another tree: ignored
+    ]
+    # Frames: on a sample, between two (interpolated), before the first and after the last.
+    frames = [150 * ms, 200 * ms, 20 * ms, 400 * ms]
+    bag = _tf_bag(tmp_path / ("t" if ros2 else "t.bag"), sorted(frames), tf, ros2=ros2)
+    with pcdcodec.open_source(bag, intrinsics=pcdcodec.CameraIntrinsics(8, 6, 5, 5, 4, 3)) as src:
+        got = {f.timestamp_ns: f.pose for f in src}
+        notes = src.describe()["notes"]
+    assert got[20 * ms] is None
+    assert got[400 * ms] is None
+    assert any("'cam' in 'map' (map -> odom -> base -> cam)" in n for n in notes)
+    want = odom_in_map @ base_in_odom[1] @ cam_on_base
+    np.testing.assert_allclose(got[150 * ms], want, rtol=0, atol=1e-12)
+    q = slerp(
+        matrix_to_quaternion(base_in_odom[1][:3, :3]),
+        matrix_to_quaternion(base_in_odom[2][:3, :3]),
+        0.5,
+    )
+    half = rigid_from_quaternion((base_in_odom[1][:3, 3] + base_in_odom[2][:3, 3]) / 2, q)
+    np.testing.assert_allclose(got[200 * ms], odom_in_map @ half @ cam_on_base, atol=1e-12)
+
+
+def test_tf_that_does_not_place_the_camera_gives_no_poses_and_says_why(tmp_path: Path) -> None:
+    ms = 1_000_000
+    camera = pcdcodec.CameraIntrinsics(8, 6, 5, 5, 4, 3)
+    cases = {
+        "several parents (a, b)": [
+            ("/tf", 10 * ms, "a", "cam", np.eye(4)),
+            ("/tf", 10 * ms, "b", "cam", np.eye(4)),
+        ],
+        "static transforms only": [("/tf_static", 1, "base", "cam", np.eye(4))],
+        "no transform to the camera frame 'cam'": [("/tf", 10 * ms, "map", "x", np.eye(4))],
+        "gap": [
+            ("/tf", 0, "map", "cam", np.eye(4)),
+            ("/tf", 600 * ms, "map", "cam", np.eye(4)),  # more than 0.5 s apart
+        ],
+    }
+    for k, (why, tf) in enumerate(cases.items()):
+        bag = _tf_bag(tmp_path / f"{k}.bag", [10 * ms, 300 * ms], tf, ros2=False)
+        with pcdcodec.open_source(bag, intrinsics=camera) as src:
+            poses = [f.pose for f in src]
+            notes = src.describe()["notes"]
+        assert poses == [None, None], why
+        if why != "gap":
+            assert any(why in n for n in notes), (why, notes)

@@ -261,9 +261,10 @@ class _PyAVDecoder(VideoDecoder):
                 )
             if f.pts is None:
                 raise DecodeError(f"{self.codec.name} decoded a frame without a timestamp")
-            rgb = f.to_ndarray(format="rgb24")
-            if (self._pw, self._ph) != (self.width, self.height):
-                rgb = np.ascontiguousarray(rgb[: self.height, : self.width])
+            # PyAV returns a view of the frame's rows where they are padded (424 x 3 = 1272
+            # bytes in lines of 1296): copy it into a C-contiguous image, cropped to the
+            # camera's size where the codec needed a padded one. A no-op copy otherwise.
+            rgb = np.ascontiguousarray(f.to_ndarray(format="rgb24")[: self.height, : self.width])
             out.append(DecodedFrame(rgb, int(f.pts)))
         return out
 

@@ -534,16 +534,23 @@ class RecordingWriter:
         (``convert_rgb_to_intensity=False``). Note that a legacy image has already lost the
         depth beyond its ``depth_trunc`` (Open3D's default 3 m).
         """
-        from ..frame import from_open3d_rgbd, open3d_rgbd_kind
+        self._write_rgbd(rgbd, timestamp, depth_scale, "depth_scale")
+
+    def _write_rgbd(
+        self, rgbd: Any, timestamp: int | None, depth_scale: float, keyword: str
+    ) -> None:
+        """:meth:`write_rgbd`, its errors naming the caller's keyword for the scale."""
+        from ..frame import _scale, from_open3d_rgbd, open3d_rgbd_kind
 
         kind = open3d_rgbd_kind(rgbd)
         tensor_float = kind == "tensor" and str(rgbd.depth.dtype) == "Float32"
-        if kind is not None and not tensor_float and float(depth_scale) != self.depth_scale:
+        scale = _scale(depth_scale, keyword)
+        if kind is not None and not tensor_float and scale != self.depth_scale:
             raise InputError(
-                f"this {kind} RGBDImage holds depth at depth_scale={float(depth_scale):g} "
+                f"this {kind} RGBDImage holds depth at {keyword}={float(depth_scale):g} "
                 f"(Open3D's default is {OPEN3D_DEPTH_SCALE:g} unless another was passed), but "
                 f"recording {str(self.path)!r} stores {self.depth_scale:g} units per metre; "
-                f"pass depth_scale= with the scale the image was made with, or open the "
+                f"pass {keyword}= with the scale the image was made with, or open the "
                 f"recording with depth_scale={float(depth_scale):g}"
             )
         color, depth = from_open3d_rgbd(rgbd, depth_scale=depth_scale)
@@ -574,11 +581,11 @@ class RecordingWriter:
             if isinstance(item, Frame):
                 self.write(item.color, item.depth, item.timestamp_ns, pose=item.pose)
             elif open3d_rgbd_kind(item) is not None:
-                self.write_rgbd(item, depth_scale=rgbd_depth_scale)
+                self._write_rgbd(item, None, rgbd_depth_scale, "rgbd_depth_scale")
             elif (
                 isinstance(item, tuple) and len(item) == 2 and open3d_rgbd_kind(item[0]) is not None
             ):
-                self.write_rgbd(item[0], item[1], depth_scale=rgbd_depth_scale)
+                self._write_rgbd(item[0], item[1], rgbd_depth_scale, "rgbd_depth_scale")
             elif isinstance(item, tuple) and len(item) in (2, 3):
                 self.write(*item)
             else:

@@ -200,6 +200,7 @@ class RosbagSource(Source):
         self.max_difference = int(max_difference)
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
         self._index: FrameIndex | None = None
+        self._tf: Any = None  # the camera's poses from /tf (False: none); read on first use
         self._reader = self._open_reader()
         try:
             self._setup(depth_topic, color_topic, info_topic, cloud_topic, intrinsics, depth_scale)
@@ -557,9 +558,23 @@ class RosbagSource(Source):
                     f"the first frame {self._shape[1]}x{self._shape[0]}"
                 )
             self.stats.frames += 1
-            yield RGBDFrame(color, depth, ts)
+            yield RGBDFrame(color, depth, ts, pose=self._pose(ts))
             if limit is not None and self.stats.frames >= limit:
                 return
+
+    def _pose(self, ts: int) -> Any:
+        """The camera-to-world pose at stamp ``ts`` from the bag's /tf and /tf_static (see
+        ``_tf``), or ``None``."""
+        if self._tf is None:
+            from . import _tf
+
+            frame = ""
+            if any(_tf.is_tf(c) for c in self._reader.connections):
+                first = self._first(self._depth_conn)
+                frame = str(first.header.frame_id) if first is not None else ""
+            found = _tf.read_tf_poses(self._messages, self._reader.connections, frame, self.notes)
+            self._tf = found if found is not None else False
+        return self._tf.at(ts) if self._tf else None
 
     def _messages(self, conns: list[Any]) -> Iterator[tuple[Any, int, Any]]:
         try:

@@ -1,0 +1,206 @@
+"""Camera poses from a bag's ``/tf`` and ``/tf_static`` (``tf2_msgs/TFMessage``).
+
+The camera frame is the ``frame_id`` of the depth (or cloud) messages. Its chain of parents in
+the transform tree is followed up to the root, which is taken as the world: a frame's pose is
+the product of the transforms along that chain (each ``TransformStamped`` is the child frame's
+pose in its parent frame), at the frame's stamp.
+
+* Dynamic transforms (``/tf``) are looked up at the frame's stamp: the sample at that stamp, or
+  the two samples around it blended (translation linearly, rotation by slerp) when they are at
+  most :data:`MAX_GAP_NS` apart. A stamp outside an edge's samples, or in a longer gap, gives
+  the frame no pose: nothing is extrapolated.
+* Static transforms (``/tf_static``) hold at every time; the last one of each edge counts.
+* A chain made only of static transforms is the sensor's mounting, not a trajectory: no poses.
+* A frame with two parents, or a loop, is ambiguous: no poses, and a note says why.
+
+Only the chain's samples are kept (the transforms are read twice: once for the tree, once for
+the chain's samples), so memory grows with the chain's messages, not with the whole tree.
+"""
+
+from __future__ import annotations
+
+from array import array
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..transform import quaternion_to_matrix, slerp
+from . import _rosmsg as rm
+
+__all__ = ["MAX_GAP_NS", "TF_TOPICS", "TF_TYPES", "TfPoses", "is_tf", "read_tf_poses"]
+
+#: The longest gap between two samples of a transform that is interpolated across (0.5 s).
+MAX_GAP_NS = 500_000_000
+#: Topics read for transforms, and the message types they must have.
+TF_TOPICS = ("/tf", "/tf_static")
+TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
+
+Messages = Callable[[list[Any]], Iterator[tuple[Any, int, Any]]]
+
+
+def is_tf(conn: Any) -> bool:
+    """Whether a bag connection is ``/tf`` or ``/tf_static`` holding transform messages."""
+    return "/" + str(conn.topic).lstrip("/") in TF_TOPICS and conn.msgtype in TF_TYPES
+
+
+def _name(frame_id: Any) -> str:
+    # ROS 1 frame ids may start with "/" (tf's old convention); tf2 drops it.
+    return str(frame_id).strip().lstrip("/")
+
+
+def _static(conn: Any) -> bool:
+    return str(conn.topic).rstrip("/").endswith("tf_static")
+
+
+def _transforms(messages: Messages, conns: list[Any]) -> Iterator[tuple[bool, Any]]:
+    for conn, _, msg in messages(conns):
+        static = _static(conn)
+        for tf in msg.transforms:
+            yield static, tf
+
+
+@dataclass
+class _Edge:
+    """The samples of one parent-to-child transform: stamps (ns) and x y z qx qy qz qw."""
+
+    static: npt.NDArray[np.float64] | None = None
+    stamps: array[int] = field(default_factory=lambda: array("q"))
+    values: array[float] = field(default_factory=lambda: array("d"))
+    bad: int = 0
+
+    def add(self, static: bool, tf: Any) -> None:
+        t, q = tf.transform.translation, tf.transform.rotation
+        row = [float(t.x), float(t.y), float(t.z), float(q.x), float(q.y), float(q.z), float(q.w)]
+        if not (np.isfinite(row).all() and sum(v * v for v in row[3:]) > 1e-12):
+            self.bad += 1  # not a transform: counted in a note, never used
+            return
+        if static:
+            self.static = np.asarray(row)
+        else:
+            self.stamps.append(rm.stamp_ns(tf))
+            self.values.extend(row)
+
+
+class TfPoses:
+    """Camera-to-world poses of one camera frame, looked up by stamp (see the module)."""
+
+    def __init__(self, camera: str, root: str, chain: list[tuple[str, str]], edges: list[Any]):
+        self.camera = camera
+        self.root = root
+        self.chain = chain  # (parent, child) from the root down to the camera
+        self._edges: list[Any] = []
+        for edge in edges:
+            if len(edge.stamps) == 0:
+                assert edge.static is not None
+                self._edges.append(_matrix(edge.static))
+                continue
+            stamps = np.frombuffer(edge.stamps, np.int64)
+            values = np.frombuffer(edge.values, np.float64).reshape(-1, 7)
+            # Sorted by stamp; of samples at one stamp the last one written counts.
+            order = np.argsort(stamps, kind="stable")
+            stamps, values = stamps[order], values[order]
+            keep = np.ones(stamps.size, bool)
+            keep[:-1] = stamps[1:] != stamps[:-1]
+            self._edges.append((stamps[keep], values[keep]))
+
+    def at(self, ns: int) -> npt.NDArray[np.float64] | None:
+        """The 4 × 4 camera-to-world pose at stamp ``ns``, or ``None`` where tf has none."""
+        pose = np.eye(4)
+        for edge in self._edges:
+            m = edge if isinstance(edge, np.ndarray) else _lookup(edge[0], edge[1], ns)
+            if m is None:
+                return None
+            pose = pose @ m
+        return pose
+
+
+def _matrix(row: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    m = np.eye(4)
+    m[:3, :3] = quaternion_to_matrix(row[3:])
+    m[:3, 3] = row[:3]
+    return m
+
+
+def _lookup(
+    stamps: npt.NDArray[np.int64], values: npt.NDArray[np.float64], ns: int
+) -> npt.NDArray[np.float64] | None:
+    i = int(np.searchsorted(stamps, ns, side="left"))
+    if i < stamps.size and int(stamps[i]) == ns:
+        return _matrix(values[i])
+    if i == 0 or i == stamps.size:
+        return None
+    t0, t1 = int(stamps[i - 1]), int(stamps[i])
+    if t1 - t0 > MAX_GAP_NS:
+        return None
+    a = (ns - t0) / (t1 - t0)
+    v0, v1 = values[i - 1], values[i]
+    m = np.eye(4)
+    m[:3, :3] = quaternion_to_matrix(slerp(v0[3:], v1[3:], a))
+    m[:3, 3] = (1 - a) * v0[:3] + a * v1[:3]
+    return m
+
+
+def read_tf_poses(
+    messages: Messages, conns: Iterable[Any], camera_frame: str, notes: list[str]
+) -> TfPoses | None:
+    """The poses of ``camera_frame`` from the tf connections ``conns`` read through
+    ``messages``, or ``None`` (with a line in ``notes`` saying why) when tf does not place the
+    camera in a world."""
+    tf_conns = [c for c in conns if is_tf(c)]
+    camera = _name(camera_frame)
+    if not tf_conns:
+        return None
+    if not camera:
+        notes.append("the bag has /tf, but the depth messages name no frame_id: no poses")
+        return None
+    parents: dict[str, set[str]] = {}
+    for _, tf in _transforms(messages, tf_conns):
+        child, parent = _name(tf.child_frame_id), _name(tf.header.frame_id)
+        if child and parent and child != parent:
+            parents.setdefault(child, set()).add(parent)
+    chain: list[tuple[str, str]] = []
+    frame, seen = camera, {camera}
+    while frame in parents:
+        options = parents[frame]
+        if len(options) > 1:
+            notes.append(
+                f"tf gives frame {frame!r} several parents ({', '.join(sorted(options))}): no poses"
+            )
+            return None
+        (parent,) = options
+        if parent in seen:
+            notes.append(f"tf has a loop through frame {parent!r}: no poses")
+            return None
+        seen.add(parent)
+        chain.append((parent, frame))
+        frame = parent
+    if not chain:
+        notes.append(f"tf has no transform to the camera frame {camera!r}: no poses")
+        return None
+    chain.reverse()
+    edges = {pc: _Edge() for pc in chain}
+    for static, tf in _transforms(messages, tf_conns):
+        edge = edges.get((_name(tf.header.frame_id), _name(tf.child_frame_id)))
+        if edge is not None:
+            edge.add(static, tf)
+    for (parent, child), edge in edges.items():
+        if edge.bad:
+            notes.append(
+                f"tf: {edge.bad} transforms from {parent!r} to {child!r} with non-finite values "
+                "or a zero quaternion were ignored"
+            )
+        if edge.static is None and len(edge.stamps) == 0:
+            notes.append(f"tf has no usable transform from {parent!r} to {child!r}: no poses")
+            return None
+    if all(len(e.stamps) == 0 for e in edges.values()):
+        notes.append(
+            f"tf places the camera frame {camera!r} in {frame!r} by static transforms only (a "
+            "mounting, not a trajectory): no poses"
+        )
+        return None
+    path = " -> ".join([frame, *(child for _, child in chain)])
+    notes.append(f"poses from tf: the camera frame {camera!r} in {frame!r} ({path})")
+    return TfPoses(camera, frame, chain, [edges[pc] for pc in chain])
