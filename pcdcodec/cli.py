@@ -103,6 +103,11 @@ _CLI_WORDS = (
         "pass --intrinsics FILE, --camera NAME or --fx --fy --cx --cy",
     ),
     ("pass depth_scale=", "pass --depth-scale "),
+    (
+        "pass camera= (for every input that lacks one) or input_options= (for this input)",
+        "pass --camera NAME or --intrinsics FILE (for every input that lacks one) or "
+        "--input-camera INPUT=CAMERA (for this input)",
+    ),
 )
 
 
@@ -578,21 +583,74 @@ def _cmd_import(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_archive(args: argparse.Namespace) -> int:
-    from .archive import archive
-    from .camera import camera_preset
+def _archive_defaults(args: argparse.Namespace) -> Any:
+    """The camera of inputs that lack one: --camera NAME or --intrinsics FILE, --depth-scale."""
+    from .camera import camera_preset, read_intrinsics
+    from .sources.base import CameraDefaults
 
-    source_options: dict[str, Any] = {}
+    if args.camera is not None and args.intrinsics is not None:
+        raise InputError("give the camera one way: --camera and --intrinsics were both given")
+    intrinsics, scale, origin = None, args.depth_scale, "--depth-scale"
     if args.camera is not None:
         preset = camera_preset(args.camera)
-        source_options["intrinsics"] = preset.intrinsics
-        source_options["depth_scale"] = preset.depth_scale
-    if args.depth_scale is not None:
-        source_options["depth_scale"] = args.depth_scale
+        intrinsics, origin = preset.intrinsics, f"--camera {args.camera}"
+        scale = scale if scale is not None else preset.depth_scale
+    elif args.intrinsics is not None:
+        intrinsics, origin = read_intrinsics(args.intrinsics), f"--intrinsics {args.intrinsics}"
+    if intrinsics is None and scale is None:
+        return None
+    scale_origin = "--depth-scale" if args.depth_scale is not None else None
+    return CameraDefaults(intrinsics, scale, origin, scale_origin)
+
+
+def _input_camera(spec: str) -> tuple[str, dict[str, Any]]:
+    """``INPUT=CAMERA[,depth_scale=N]`` (CAMERA: a preset name or an intrinsics file) to the
+    input and its reader options."""
+    from .camera import CAMERA_PRESETS, read_intrinsics
+
+    path, sep, what = spec.partition("=")
+    if not sep or not path or not what:
+        raise InputError(
+            f"--input-camera takes INPUT=CAMERA[,depth_scale=N] (CAMERA: a preset name or an "
+            f"intrinsics file), got {spec!r}"
+        )
+    options: dict[str, Any] = {}
+    for item in what.split(","):
+        key, eq, value = item.partition("=")
+        if eq and key.strip() == "depth_scale":
+            try:
+                options["depth_scale"] = float(value)
+            except ValueError:
+                raise InputError(
+                    f"--input-camera {spec!r}: depth_scale must be a number, got {value!r}"
+                ) from None
+        elif item in CAMERA_PRESETS:
+            preset = CAMERA_PRESETS[item]
+            options["intrinsics"] = preset.intrinsics
+            if preset.depth_scale is not None:
+                options.setdefault("depth_scale", preset.depth_scale)
+        elif Path(item).is_file():
+            try:
+                options["intrinsics"] = read_intrinsics(item)
+            except InputError:
+                options["intrinsics"] = item  # a bare K: the folder gives the image size
+        else:
+            raise InputError(
+                f"--input-camera {spec!r}: {item!r} is neither a camera preset "
+                f"({', '.join(CAMERA_PRESETS)}), an intrinsics file nor depth_scale=N"
+            )
+    return path, options
+
+
+def _cmd_archive(args: argparse.Namespace) -> int:
+    from .archive import archive
+
+    input_options = dict(_input_camera(s) for s in args.input_camera or ())
     summary = archive(
         args.src,
         args.output,
-        source_options=source_options or None,
+        camera=_archive_defaults(args),
+        input_options=input_options or None,
         scheduler=args.scheduler,
         workers=args.workers,
         color=parse_codec(args.color, "color") if args.color != "none" else None,
@@ -604,6 +662,9 @@ def _cmd_archive(args: argparse.Namespace) -> int:
         processes=not args.threads,
         progress=False if args.quiet else None,
     )
+    for item in summary.items:
+        if item.error is not None:
+            item.error = cli_message(item.error)
     print(json.dumps(summary.to_dict(), indent=2) if args.json else summary.to_text())
     return 0 if summary.ok else 1
 
@@ -762,16 +823,35 @@ def build_parser() -> argparse.ArgumentParser:
         "--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec, e.g. depthac or zstd:level=9"
     )
     p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
-    p.add_argument(
+    g = p.add_argument_group(
+        "cameras (an input's own camera and depth scale always win: recorded, in its "
+        "folder's camera.json or intrinsics file, or by its dataset; these fill in what an "
+        "input lacks, with a warning where they contradict it)"
+    )
+    g.add_argument(
         "--camera",
         metavar="NAME",
-        help="camera of inputs that do not carry one (folders without camera.json): "
-        + ", ".join(CAMERA_PRESETS),
+        help="camera (and depth scale) of inputs that do not carry one: "
+        + ", ".join(CAMERA_PRESETS)
+        + " (values: pcdcodec encode --camera list)",
     )
-    p.add_argument(
+    g.add_argument(
+        "--intrinsics",
+        metavar="FILE",
+        help="camera of inputs that do not carry one, from a file that gives the image size "
+        "(ROS CameraInfo YAML, Open3D intrinsic JSON, camera.json)",
+    )
+    g.add_argument(
         "--depth-scale",
         type=float,
         help="depth units per metre of inputs that do not say it (1000 for mm)",
+    )
+    g.add_argument(
+        "--input-camera",
+        action="append",
+        metavar="INPUT=CAMERA",
+        help="one input's own camera, replacing what it says: a preset name or an intrinsics "
+        "file, and/or depth_scale=N (INPUT=tum-fr1, INPUT=K.txt,depth_scale=1000); repeatable",
     )
     p.add_argument(
         "--segment-frames",

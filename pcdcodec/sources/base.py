@@ -251,6 +251,8 @@ class CameraDefaults:
     intrinsics: CameraIntrinsics | None = None
     depth_scale: float | None = None
     origin: str = "defaults"
+    #: where the depth scale came from, when not from ``origin`` (``"--depth-scale"``)
+    depth_scale_origin: str | None = None
 
 
 def _camera_text(camera: CameraIntrinsics) -> str:
@@ -284,7 +286,7 @@ def _with_defaults(kind: SourceKind, p: Path, options: dict[str, Any], d: Camera
             source = _open(kind, p, {**options, "depth_scale": d.depth_scale})
         except InputError:
             raise first from None
-        source.depth_scale_origin = d.origin
+        source.depth_scale_origin = d.depth_scale_origin or d.origin
         scale_filled = True
     notes = list(source.camera_notes)
     if d.intrinsics is not None:
@@ -299,7 +301,8 @@ def _with_defaults(kind: SourceKind, p: Path, options: dict[str, Any], d: Camera
             )
     if d.depth_scale is not None and not scale_filled and source.depth_scale != d.depth_scale:
         notes.append(
-            f"{d.origin} depth scale {d.depth_scale:g} differs from the input's own "
+            f"{d.depth_scale_origin or d.origin} depth scale {d.depth_scale:g} differs from "
+            "the input's own "
             f"{source.depth_scale:g} (from {source.depth_scale_origin}); the input's is used"
         )
     source.camera_notes = tuple(notes)
