@@ -42,7 +42,9 @@ def _intrinsics_from_args(args: argparse.Namespace, width: int, height: int) -> 
     return CameraIntrinsics(width, height, given["fx"], given["fy"], given["cx"], given["cy"])
 
 
-def _frame_size(src: str, depth_scale: float | None) -> tuple[int, int]:
+def _frame_size(
+    src: str, depth_scale: float | None, options: dict[str, Any] | None = None
+) -> tuple[int, int]:
     """(width, height) of the input's frames: a recording's camera, or a folder's first frame."""
     from .sources.base import detect_kind
 
@@ -54,7 +56,8 @@ def _frame_size(src: str, depth_scale: float | None) -> tuple[int, int]:
             return rec.intrinsics.width, rec.intrinsics.height
     from .sources import open_source
 
-    with open_source(path, max_frames=1, depth_scale=depth_scale or 1000.0) as source:
+    opts = {**(options or {}), "max_frames": 1, "depth_scale": depth_scale or 1000.0}
+    with open_source(path, **opts) as source:
         first = next(iter(source), None)
     if first is None:
         raise InputError(f"{src!r} gives no frames")
@@ -86,10 +89,10 @@ def _camera_from_args(args: argparse.Namespace) -> tuple[Any, float | None]:
         preset = camera_preset(args.camera)
         return preset.intrinsics, scale if scale is not None else preset.depth_scale
     if args.intrinsics is not None:
-        w, h = _frame_size(args.src, scale)
+        w, h = _frame_size(args.src, scale, _folder_options(args))
         return read_intrinsics(args.intrinsics, w, h), scale
     if by_values:
-        w, h = _frame_size(args.src, scale)
+        w, h = _frame_size(args.src, scale, _folder_options(args))
         return _intrinsics_from_args(args, w, h), scale
     return None, scale
 
@@ -104,6 +107,13 @@ _CLI_WORDS = (
     ),
     ("pass depth_scale=", "pass --depth-scale "),
     (
+        "pass color_intrinsics= (and depth_to_color=, the 4x4 depth-to-color transform in metres)",
+        "pass --color-intrinsics FILE (and --depth-to-color FILE, the 4x4 depth-to-color "
+        "transform in metres)",
+    ),
+    ("(color=False)", "(--depth-only)"),
+    ("need depth_pattern= and color_pattern=", "need --depth-pattern and --color-pattern"),
+    (
         "pass camera= (for every input that lacks one) or input_options= (for this input)",
         "pass --camera NAME or --intrinsics FILE (for every input that lacks one) or "
         "--input-camera INPUT=CAMERA (for this input)",
@@ -116,6 +126,16 @@ def cli_message(message: str) -> str:
     for library, flag in _CLI_WORDS:
         message = message.replace(library, flag)
     return message
+
+
+class _CameraFlag(argparse.Action):
+    """``--camera NAME``; ``--camera list`` prints the presets with their values and exits."""
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
+        if values == "list":
+            _print_presets()
+            parser.exit()
+        setattr(namespace, self.dest, values)
 
 
 def _add_camera_options(p: argparse.ArgumentParser) -> None:
@@ -133,7 +153,15 @@ def _add_camera_options(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--camera",
         metavar="NAME",
-        help=f"a dataset camera's published intrinsics: {', '.join(CAMERA_PRESETS)}",
+        action=_CameraFlag,
+        help="a dataset camera's published intrinsics and depth scale ('--camera list' prints "
+        "them): "
+        + "; ".join(
+            f"{n} (fx={c.intrinsics.fx:g} fy={c.intrinsics.fy:g} cx={c.intrinsics.cx:g} "
+            f"cy={c.intrinsics.cy:g}, scale {c.depth_scale:g})"
+            for n, c in CAMERA_PRESETS.items()
+            if c.depth_scale is not None
+        ),
     )
     for k, what in (
         ("fx", "focal length x"),
@@ -143,6 +171,53 @@ def _add_camera_options(p: argparse.ArgumentParser) -> None:
     ):
         g.add_argument(f"--{k}", type=float, help=f"{what} in pixels")
     g.add_argument("--depth-scale", type=float, help="depth units per metre (1000 for mm)")
+    f = p.add_argument_group(
+        "RGB-D folders (default: TUM lists, rgb/ and depth/, or files named *depth* and *rgb*)"
+    )
+    f.add_argument("--depth-pattern", metavar="GLOB", help="depth files, e.g. 'frame_*_depth.tiff'")
+    f.add_argument(
+        "--color-pattern",
+        metavar="GLOB",
+        help="color files, e.g. 'frame_*_rgb.tiff'; paired with depth by the text the "
+        "wildcards match (without it: depth only)",
+    )
+    f.add_argument(
+        "--color-intrinsics",
+        metavar="FILE",
+        help="the color camera, for color images of another size than depth (not registered)",
+    )
+    f.add_argument(
+        "--depth-to-color",
+        metavar="FILE",
+        help="with --color-intrinsics: the 4x4 depth-to-color transform in metres, 16 numbers "
+        "row-major (default: identity)",
+    )
+    f.add_argument("--depth-only", action="store_true", help="read depth, leave color out")
+
+
+def _folder_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The folder flags as options of :func:`pcdcodec.datasets.open_folder`."""
+    opts: dict[str, Any] = {}
+    for key in ("depth_pattern", "color_pattern", "color_intrinsics", "depth_to_color"):
+        if getattr(args, key, None) is not None:
+            opts[key] = getattr(args, key)
+    if getattr(args, "depth_only", False):
+        opts["color"] = False
+    return opts
+
+
+def _print_presets() -> int:
+    from .camera import CAMERA_PRESETS
+
+    print(f"{'name':10} {'size':8} {'fx':>7} {'fy':>7} {'cx':>7} {'cy':>7} {'scale':>6}  source")
+    for name, c in CAMERA_PRESETS.items():
+        k = c.intrinsics
+        scale = f"{c.depth_scale:g}" if c.depth_scale is not None else "-"
+        print(
+            f"{name:10} {k.width}x{k.height:<4} {k.fx:7g} {k.fy:7g} {k.cx:7g} {k.cy:7g} "
+            f"{scale:>6}  {c.source}"
+        )
+    return 0
 
 
 def _add_topic_options(p: argparse.ArgumentParser) -> None:
@@ -243,8 +318,13 @@ def _source_options(args: argparse.Namespace) -> dict[str, Any]:
     if args.depth_scale is not None:
         opts["depth_scale"] = args.depth_scale
     kind = detect_kind(args.src)
+    folder = _folder_options(args)
     if kind == "folder":
         opts["fps"] = args.fps
+        opts.update(folder)
+    elif folder and kind is not None:
+        flags = " ".join("--" + k.replace("_", "-") for k in folder)
+        raise InputError(f"{flags} apply to RGB-D folders; {args.src!r} is a {kind}")
     topics = {
         "depth_topic": args.depth_topic,
         "color_topic": args.color_topic,
@@ -368,16 +448,38 @@ def _info(rec: Any) -> dict[str, Any]:
 
 
 def _cmd_info_source(args: argparse.Namespace) -> int:
-    from .sources import open_source
+    from .sources import CameraDefaults, open_source
 
-    with open_source(args.input) as source:
+    args.src = args.input
+    camera, depth_scale = _camera_from_args(args)
+    options = _source_options(args)
+    if camera is not None:
+        options["intrinsics"] = camera
+    if depth_scale is not None:
+        options["depth_scale"] = depth_scale
+    # Without a depth scale, describe what can be known: a stand-in scale is marked unknown.
+    unknown = CameraDefaults(depth_scale=1.0, origin="unknown") if depth_scale is None else None
+    with open_source(args.input, defaults=unknown, **options) as source:
         info = source.describe()
+        if source.depth_scale_origin == "unknown":
+            info["depth_scale"] = None
+        info["intrinsics_from"] = (
+            "the camera flags" if camera is not None else source.intrinsics_origin
+        )
+        info["depth_scale_from"] = (
+            "the camera flags" if depth_scale is not None else source.depth_scale_origin
+        )
         candidates = getattr(source, "candidates", None)
         topics = [c.to_dict() for c in candidates()] if callable(candidates) else []
     if args.json:
         print(json.dumps({**info, "topics": topics}, indent=2, default=str))
         return 0
     print(f"{args.input}: {info['source']}")
+    for key, label in (("layout", "layout"), ("frames", "frames"), ("size", "size")):
+        if info.get(key) is not None:
+            print(f"  {label:12} {info[key]}")
+    if info.get("timestamps"):
+        print(f"  {'timestamps':12} {info['timestamps']}")
     if topics:
         print("  topics (role from the type and the first message):")
         for t in topics:
@@ -392,9 +494,24 @@ def _cmd_info_source(args: argparse.Namespace) -> int:
     if cam:
         print(
             f"    camera       {cam['width']}x{cam['height']}, fx={cam['fx']:.6g} "
-            f"fy={cam['fy']:.6g} cx={cam['cx']:.6g} cy={cam['cy']:.6g}"
+            f"fy={cam['fy']:.6g} cx={cam['cx']:.6g} cy={cam['cy']:.6g} "
+            f"(from {info['intrinsics_from']})"
         )
-    print(f"    depth scale  {info['depth_scale']} per metre")
+    else:
+        print("    camera       unknown (pass --camera NAME, --intrinsics FILE or --fx ...)")
+    color_cam = info.get("color_intrinsics")
+    if color_cam:
+        print(
+            f"    color camera {color_cam['width']}x{color_cam['height']}, "
+            f"fx={color_cam['fx']:.6g} fy={color_cam['fy']:.6g} cx={color_cam['cx']:.6g} "
+            f"cy={color_cam['cy']:.6g}"
+        )
+    if info["depth_scale"] is None:
+        print("    depth scale  unknown (pass --depth-scale UNITS_PER_METRE)")
+    else:
+        print(
+            f"    depth scale  {info['depth_scale']:g} per metre (from {info['depth_scale_from']})"
+        )
     for note in info.get("notes", []):
         print(f"    note         {note}")
     return 0
@@ -741,10 +858,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=_cmd_decode)
 
-    p = sub.add_parser("info", help="describe a recording, or a bag's topics and choices")
+    p = sub.add_parser(
+        "info", help="describe a recording, or an input (folder, bag...) and what encode would use"
+    )
     p.add_argument("input")
     p.add_argument("--json", action="store_true", help="print JSON")
-    p.set_defaults(func=_cmd_info)
+    p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate of a folder")
+    _add_camera_options(p)
+    _add_topic_options(p)
+    p.set_defaults(func=_cmd_info, max_frames=None)
 
     p = sub.add_parser("verify", help="decode every frame and check every checksum")
     p.add_argument("input")
@@ -831,9 +953,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument(
         "--camera",
         metavar="NAME",
+        action=_CameraFlag,
         help="camera (and depth scale) of inputs that do not carry one: "
         + ", ".join(CAMERA_PRESETS)
-        + " (values: pcdcodec encode --camera list)",
+        + " (--camera list prints their values)",
     )
     g.add_argument(
         "--intrinsics",

@@ -339,7 +339,7 @@ def _pattern_files(
     )
 
 
-_SECONDS = re.compile(r"(?<![\d.])(\d{9,10})\.(\d{1,9})(?![\d.])")
+_SECONDS = re.compile(r"(?<![\d.])(\d{9,10})\.(\d{1,9})(?!\d|\.\d)")
 _NANOSECONDS = re.compile(r"(?<!\d)(\d{18,19})(?!\d)")
 
 
@@ -531,6 +531,22 @@ class FolderSource(Source):
 
     def __len__(self) -> int:
         return len(self.pairs)
+
+    def describe(self) -> dict[str, Any]:
+        """As :meth:`Source.describe`, with the image sizes (from the first pair) and how the
+        timestamps were made."""
+        out = super().describe()
+        _, c, d = self.pairs[0]
+        h, w = _read_depth(d).shape
+        size = f"{w}x{h} depth"
+        if c is not None:
+            ch, cw = _read_color(c).shape[:2]
+            size += f", {cw}x{ch} color"
+        else:
+            size += ", no color"
+        out["size"] = size
+        out["timestamps"] = self.metadata.get("timestamps")
+        return out
 
     def __iter__(self) -> Iterator[RGBDFrame]:
         return self.frames()
