@@ -319,6 +319,8 @@ def _source_options(args: argparse.Namespace) -> dict[str, Any]:
         opts["depth_scale"] = args.depth_scale
     kind = detect_kind(args.src)
     folder = _folder_options(args)
+    if kind is None and folder.get("depth_pattern") is not None and Path(args.src).is_dir():
+        kind = "folder"  # a folder of files named as the patterns say
     if kind == "folder":
         opts["fps"] = args.fps
         opts.update(folder)

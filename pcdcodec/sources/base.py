@@ -334,6 +334,8 @@ def open_source(
         found: SourceKind | None = _KINDS[kind]
     else:
         found = next((k for k in _KINDS.values() if k.probe(p)), None)
+        if found is None and options.get("depth_pattern") is not None and p.is_dir():
+            found = _KINDS.get("folder")  # files named as the caller says, not as probed
     if found is not None:
         if defaults is not None:
             return _with_defaults(found, p, options, defaults)

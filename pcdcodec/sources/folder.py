@@ -43,5 +43,5 @@ register_source(
     _is_folder,
     _open,
     "a TUM RGB-D folder, rgb/ (or color/) and depth/ image folders, or one folder of "
-    "*depth* and *rgb* files",
+    "*depth* and *rgb* files; other names need depth_pattern= and color_pattern=",
 )
