@@ -377,7 +377,8 @@ def _cmd_encode(args: argparse.Namespace) -> int:
         elif args.camera is not None:
             scale_from = f"--camera {args.camera}"
         else:
-            scale_from = getattr(source, "depth_scale_origin", None) or "the input"
+            origin = source.depth_scale_origin
+            scale_from = "the input" if origin in ("input", "given") else origin
     camera_from = "the input" if camera is None else "the camera flags"
     n = summary.frames
     print(
@@ -666,6 +667,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         raise InputError(f"--frames must be at least 1, got {frames}")
     source: Any = args.src
     intrinsics, depth_scale = _camera_from_args(args)
+    folder = _folder_options(args)
+    if folder:  # a folder read with the folder flags, then compared as a sequence
+        from .datasets import load_folder
+
+        source = load_folder(
+            args.src, max_frames=frames, intrinsics=intrinsics, depth_scale=depth_scale, **folder
+        )
     quiet = args.quiet or not sys.stderr.isatty()
 
     def say(step: str) -> None:
