@@ -448,6 +448,16 @@ def read_camera_json(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise InputError(f"{str(p)!r} gives {', '.join(pin)} but not {', '.join(missing)}")
     if not pin and any(k in data for k in ("distortion_model", "distortion")):
         raise InputError(f"{str(p)!r} gives a distortion without fx, fy, cx, cy")
+    if data.get("depth_to_color") is not None and data.get("color") is None:
+        raise InputError(
+            f"{str(p)!r} gives depth_to_color without color: the transform needs the color "
+            "camera it leads to"
+        )
+    if data.get("color") is not None and not isinstance(data["color"], dict):
+        raise InputError(
+            f"{str(p)!r}: color must be a dict of the color camera's keys (width, height, fx, "
+            f"fy, cx, cy), got {data['color']!r}"
+        )
     scale = data.get("depth_scale")
     if scale is not None:
         if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not scale > 0:
@@ -740,12 +750,19 @@ def open_folder(
             camera, camera_from = read_intrinsics(found, *depth_size()), found.name
 
     has_color = any(c is not None for _, c, _ in pairs)
+
+    def color_size() -> tuple[int, int]:
+        first = pairs[0][1]
+        assert first is not None
+        h, w = _read_color(first).shape[:2]
+        return w, h
+
     color_camera = None
     d2c = depth_to_color
-    if color_intrinsics is not None:
-        color_camera = _as_camera(color_intrinsics, "color_intrinsics", None, None)
+    if color_intrinsics is not None and has_color:
+        color_camera = _as_camera(color_intrinsics, "color_intrinsics", *color_size())
     elif meta.get("color") is not None and has_color:
-        color_camera = _as_camera(meta["color"], f"{str(camera_file)!r} color", None, None)
+        color_camera = _as_camera(meta["color"], f"{str(camera_file)!r} color", *color_size())
         if d2c is None:
             d2c = meta.get("depth_to_color")
     if d2c is not None:
@@ -775,7 +792,7 @@ def open_folder(
         has_color=has_color,
     )
     source.metadata["timestamps"] = note
-    if camera_from and camera_from != "given":
+    if camera_from not in ("", "given", "camera.json"):
         source.metadata["intrinsics_file"] = camera_from
     return source
 

@@ -254,6 +254,9 @@ def test_camera_json_with_only_a_depth_scale_beside_an_intrinsics_file(tmp_path:
     (root / "camera.json").write_text('{"fx": 500, "depth_scale": 1000}')
     with pytest.raises(pcdcodec.InputError, match="gives fx but not fy, cx, cy"):
         open_folder(root)
+    (root / "camera.json").write_text('{"depth_scale": 1000, "depth_to_color": [[1]]}')
+    with pytest.raises(pcdcodec.InputError, match="depth_to_color without color"):
+        open_folder(root)
     (root / "camera.json").write_text('{"depth_scale": -1}')
     with pytest.raises(pcdcodec.InputError, match="depth_scale must be a positive"):
         open_folder(root)
