@@ -47,7 +47,7 @@ import stat as stat_module
 import sys
 import time
 import uuid
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -98,6 +98,33 @@ class ArchiveItem:
     frames: int = 0
     segments: int = 0
     error: str | None = None
+    #: the depth camera recorded (:meth:`~pcdcodec.CameraIntrinsics.to_dict`), and where it
+    #: came from: ``"input"`` (recorded in it), a file of the input (``"camera.json"``,
+    #: ``"camera-intrinsics.txt"``...), ``"given"`` (``input_options``) or the origin of
+    #: ``camera`` (``"--camera tum-ros"``); ``None``/``""`` when not known (not probed)
+    camera: dict[str, Any] | None = None
+    camera_from: str = ""
+    #: the depth scale recorded (units per metre), and where it came from (as ``camera_from``,
+    #: or a dataset's convention: ``"TUM RGB-D dataset"``, ``"7-Scenes dataset"``)
+    depth_scale: float | None = None
+    depth_scale_from: str = ""
+    #: where ``camera`` contradicted what the input carries (the input's own was used)
+    notes: list[str] = field(default_factory=list)
+
+    def camera_text(self) -> str:
+        """``camera 640x480 fx=525 ... (from X), depth scale 5000 (from Y)``, or ``""``."""
+        if self.camera is None and self.depth_scale is None:
+            return ""
+        parts = []
+        if self.camera is not None:
+            c = self.camera
+            parts.append(
+                f"camera {c['width']}x{c['height']} fx={c['fx']:g} fy={c['fy']:g} "
+                f"cx={c['cx']:g} cy={c['cy']:g} (from {self.camera_from})"
+            )
+        if self.depth_scale is not None:
+            parts.append(f"depth scale {self.depth_scale:g} (from {self.depth_scale_from})")
+        return ", ".join(parts)
 
 
 @dataclass
@@ -204,6 +231,12 @@ class ArchiveSummary:
         ]
         if self.stopped:
             lines.append(f"stopped: {self.stopped}")
+        cameras = [(i, i.camera_text()) for i in self.items]
+        if any(text for _, text in cameras):
+            lines.append("cameras:")
+            lines += [f"  {i.source}: {text}" for i, text in cameras if text]
+        for item in self.items:
+            lines += [f"NOTE {item.source}: {note}" for note in item.notes]
         for item in self.failed:
             lines.append(f"FAILED {item.source}: {item.error}")
         return "\n".join(lines)
@@ -368,6 +401,9 @@ def _disk_full(exc: BaseException, where: Path) -> DiskFullError | None:
 
 # -- tasks (run on the workers) ------------------------------------------------------------------
 
+#: What an input without a camera needs, in the library's words (the CLI says its flags).
+NO_CAMERA_HINT = "pass camera= (for every input that lacks one) or input_options= (for this input)"
+
 
 def _probe(
     src: str, options: dict[str, Any], segment_frames: int | None, keyframes: int
@@ -384,9 +420,16 @@ def _probe(
     with open_source(path, **options) as source:
         if source.intrinsics is None:
             raise InputError(
-                f"{src!r} does not say its camera intrinsics; pass them as a source option "
-                "(source_options={'intrinsics': ...}; on the command line --camera NAME)"
+                f"{src!r} does not say its camera intrinsics; {NO_CAMERA_HINT}, or put a "
+                "camera.json in the folder"
             )
+        camera = {
+            "camera": source.intrinsics.to_dict(),
+            "camera_from": source.intrinsics_origin,
+            "depth_scale": float(source.depth_scale),
+            "depth_scale_from": source.depth_scale_origin,
+            "notes": list(source.camera_notes),
+        }
         frames = source.frame_count
         # Index only inputs that may need more than one segment: a bag's message count bounds
         # its frame count from above.
@@ -395,7 +438,14 @@ def _probe(
             index = source.frame_index()
             if index is not None:
                 frames = len(index)
-    return {"size": size, "mtime_ns": mtime, "hash": digest, "frames": frames, "index": index}
+    return {
+        "size": size,
+        "mtime_ns": mtime,
+        "hash": digest,
+        "frames": frames,
+        "index": index,
+        "camera": camera,
+    }
 
 
 def _partial(path: Path) -> Path:
@@ -804,6 +854,8 @@ def archive(
     verify: bool = False,
     delete_source_after_verify: bool = False,
     source_options: dict[str, Any] | None = None,
+    camera: Any = None,
+    input_options: Mapping[Any, dict[str, Any]] | None = None,
     processes: bool = True,
     progress: bool | Callable[[int, int], None] | None = None,
     log: Callable[[str], None] | None = None,
@@ -818,7 +870,19 @@ def archive(
     1 GB of source and at least 300 frames; see :func:`segment_plan`), encoded one task each
     and joined. ``verify`` decodes every output and compares it with its source;
     ``delete_source_after_verify`` (implies ``verify``) then deletes each verified source.
-    ``source_options`` go to :func:`pcdcodec.open_source` for every input. ``progress`` is
+    ``source_options`` go to :func:`pcdcodec.open_source` for every input.
+
+    Cameras: an input's own camera and depth scale (recorded in it, in its folder's
+    ``camera.json`` or intrinsics file, or its dataset's convention) always win. ``camera``
+    fills in only what an input lacks: a preset name (:data:`~pcdcodec.camera.CAMERA_PRESETS`,
+    camera and depth scale), a :class:`~pcdcodec.CameraIntrinsics`, or a
+    :class:`~pcdcodec.sources.CameraDefaults`; ``intrinsics`` and ``depth_scale`` in
+    ``source_options`` are taken the same way. Where it contradicts what an input carries, the
+    input's is used, and a warning goes to ``log`` and into the input's ``notes``.
+    ``input_options`` maps an input (a path as given or found) to options of its own, which
+    go to its reader and replace what the input says (``{"take3": {"intrinsics": cam,
+    "depth_scale": 1000.0}}``). The summary lists each input's camera and depth scale and
+    where each came from. ``progress`` is
     ``True`` for a progress line on stderr (default: when stderr is a terminal), ``False``
     for none, or a callable given (bytes done, bytes total). ``log`` receives messages (the
     dashboard link); default: printed to stderr when progress is shown.
@@ -852,14 +916,29 @@ def archive(
     keyframes = int(gop(float(fps))) if callable(gop) else 1
     depth_config = _codec(depth, "depth").get_config()
     writer_options = {"color": color_config, "depth": depth_config, "fps": float(fps)}
-    options = dict(source_options or {})
-    settings = {"color": color_config, "depth": depth_config, "fps": float(fps)}
+    common = dict(source_options or {})
+    defaults = _camera_defaults(camera, common)
+    settings_all = {"color": color_config, "depth": depth_config, "fps": float(fps)}
+    if defaults is not None:
+        # Another default camera may change what inputs without one record.
+        settings_all["camera"] = {
+            "intrinsics": defaults.intrinsics.to_dict() if defaults.intrinsics else None,
+            "depth_scale": defaults.depth_scale,
+        }
+        common["defaults"] = defaults
 
     out = Path(output)
     out.mkdir(parents=True, exist_ok=True)
     inputs = find_inputs(sources, exclude=out)
+    own = _input_options(inputs, input_options)
+    options = {rel: {**common, **own.get(rel, {})} for _, rel in inputs}
+    settings = {
+        rel: {**settings_all, "input": _jsonable(own[rel])} if rel in own else settings_all
+        for _, rel in inputs
+    }
     show = sys.stderr.isatty() if progress is None else bool(progress)
     say = log if log is not None else (lambda m: print(m, file=sys.stderr) if show else None)
+    warn = log if log is not None else (lambda m: print(m, file=sys.stderr))
 
     with _Lock(out):
         _sweep(out)
@@ -879,6 +958,7 @@ def archive(
                 progress,
                 show,
                 say,
+                warn,
                 started,
             )
         finally:
@@ -887,21 +967,96 @@ def archive(
             _prune(out / PARTS)
 
 
+def _camera_defaults(camera: Any, common: dict[str, Any]) -> Any:
+    """The :class:`~pcdcodec.sources.CameraDefaults` for inputs that lack a camera, from
+    ``camera`` and the ``intrinsics``/``depth_scale`` taken out of ``common``; or None."""
+    from .camera import CameraIntrinsics, camera_preset
+    from .sources.base import CameraDefaults
+
+    intrinsics = common.pop("intrinsics", None)
+    scale = common.pop("depth_scale", None)
+    origin = "source_options"
+    if isinstance(camera, CameraDefaults):
+        if intrinsics is not None or scale is not None:
+            raise InputError(
+                "give the default camera once: as camera= or in source_options, not both"
+            )
+        return camera
+    if isinstance(camera, str):
+        preset = camera_preset(camera)
+        origin = f"camera preset {camera}"
+        if intrinsics is not None:
+            raise InputError("give the default camera once: as camera= or in source_options")
+        intrinsics = preset.intrinsics
+        scale = scale if scale is not None else preset.depth_scale
+    elif camera is not None:
+        if intrinsics is not None:
+            raise InputError("give the default camera once: as camera= or in source_options")
+        intrinsics, origin = camera, "camera="
+    if intrinsics is not None and not isinstance(intrinsics, CameraIntrinsics):
+        raise InputError(
+            "the default camera must be a preset name, a pcdcodec.CameraIntrinsics or a "
+            f"CameraDefaults, got {type(intrinsics).__name__}"
+        )
+    if scale is not None and (isinstance(scale, bool) or not float(scale) > 0):
+        raise InputError(f"depth_scale must be a positive number of units per metre, got {scale!r}")
+    if intrinsics is None and scale is None:
+        return None
+    return CameraDefaults(intrinsics, None if scale is None else float(scale), origin)
+
+
+def _input_options(
+    inputs: list[tuple[Path, str]],
+    given: Mapping[Any, dict[str, Any]] | None,
+) -> dict[str, dict[str, Any]]:
+    """``input_options`` keyed by each input's output name; a key naming no input is refused."""
+    if not given:
+        return {}
+    by_path = {p.resolve(): rel for p, rel in inputs}
+    out: dict[str, dict[str, Any]] = {}
+    for key, opts in given.items():
+        rel = by_path.get(Path(key).resolve())
+        if rel is None:
+            raise InputError(
+                f"input_options names {str(key)!r}, which is not one of the inputs: "
+                + ", ".join(repr(str(p)) for p, _ in inputs[:5])
+                + (" ..." if len(inputs) > 5 else "")
+            )
+        if not isinstance(opts, dict):
+            raise InputError(
+                f"input_options for {str(key)!r} must be a dict of options, got {opts!r}"
+            )
+        out[rel] = dict(opts)
+    return out
+
+
+def _jsonable(options: dict[str, Any]) -> dict[str, Any]:
+    """Per-input options as the manifest keeps them, to notice when they change."""
+    out: dict[str, Any] = {}
+    for k, v in sorted(options.items()):
+        to_dict = getattr(v, "to_dict", None)
+        out[k] = (
+            to_dict() if callable(to_dict) else v if isinstance(v, (int, float, bool)) else str(v)
+        )
+    return out
+
+
 def _archive(
     inputs: list[tuple[Path, str]],
     out: Path,
     scheduler: str | None,
     workers: int | None,
     processes: bool,
-    options: dict[str, Any],
+    options: dict[str, dict[str, Any]],
     writer_options: dict[str, Any],
-    settings: dict[str, Any],
+    settings: dict[str, dict[str, Any]],
     segment: tuple[int | None, int],
     verify: bool,
     delete_source_after_verify: bool,
     progress: bool | Callable[[int, int], None] | None,
     show: bool,
     say: Callable[[str], None],
+    warn: Callable[[str], None],
     started: float,
 ) -> ArchiveSummary:
     manifest = _Manifest(out)
@@ -916,7 +1071,7 @@ def _archive(
             size is not None
             and entry.get("size") == size
             and entry.get("mtime_ns") == mtime
-            and entry.get("settings") == settings
+            and entry.get("settings") == settings[rel]
             and (out / rel).is_file()
         )
         if unchanged and entry.get("state") in DONE_STATES:
@@ -926,6 +1081,7 @@ def _archive(
                 item.state = "skipped"
                 item.bytes_out = int(entry.get("bytes_out", 0))
                 item.frames = int(entry.get("frames", 0))
+                _take_camera(item, entry.get("camera"))
             continue
         todo.append((path, rel, size or 0, mtime))
     total = sum(s for _, _, s, _ in todo)
@@ -960,6 +1116,7 @@ def _archive(
                     delete_source_after_verify,
                     advance,
                     bar,
+                    warn,
                 )
             finally:
                 bar.close()
@@ -973,6 +1130,18 @@ def _archive(
         dashboard,
         stopped,
     )
+
+
+def _take_camera(item: ArchiveItem, camera: Any) -> None:
+    """Fill in ``item``'s camera from what :func:`_probe` found (kept in the manifest)."""
+    if not isinstance(camera, dict):
+        return  # a manifest of an earlier version
+    item.camera = camera.get("camera")
+    item.camera_from = str(camera.get("camera_from", ""))
+    scale = camera.get("depth_scale")
+    item.depth_scale = float(scale) if scale is not None else None
+    item.depth_scale_from = str(camera.get("depth_scale_from", ""))
+    item.notes = [str(n) for n in camera.get("notes", [])]
 
 
 @dataclass
@@ -996,14 +1165,15 @@ def _run(
     items: dict[str, ArchiveItem],
     manifest: _Manifest,
     out: Path,
-    options: dict[str, Any],
+    options: dict[str, dict[str, Any]],
     writer_options: dict[str, Any],
-    settings: dict[str, Any],
+    settings: dict[str, dict[str, Any]],
     segment: tuple[int | None, int],
     verify: bool,
     delete_source: bool,
     advance: Callable[[float], None],
     bar: _ByteProgress,
+    warn: Callable[[str], None],
 ) -> str | None:
     import importlib
 
@@ -1025,14 +1195,15 @@ def _run(
     for path, rel, size, mtime in todo:
         jobs[rel] = _Job(path, rel, size, mtime)
         entry = manifest.entries.get(rel, {})
-        if entry.get("state") == "done" and entry.get("settings") == settings and verify:
+        if entry.get("state") == "done" and entry.get("settings") == settings[rel] and verify:
             items[rel].state = "done"
             items[rel].bytes_out = int(entry.get("bytes_out", 0))
             items[rel].frames = int(entry.get("frames", 0))
-            submit(rel, "verify", 0, _verify, str(path), options, str(out / rel), None)
+            _take_camera(items[rel], entry.get("camera"))
+            submit(rel, "verify", 0, _verify, str(path), options[rel], str(out / rel), None)
             advance(size)
             continue
-        submit(rel, "probe", 0, _probe, str(path), options, *segment)
+        submit(rel, "probe", 0, _probe, str(path), options[rel], *segment)
 
     def fail(rel: str, exc: BaseException) -> None:
         job = jobs[rel]
@@ -1072,7 +1243,7 @@ def _run(
                     0,
                     _encode_segment,
                     str(job.path),
-                    options,
+                    options[rel],
                     str(job.parts[0]),
                     0,
                     None,
@@ -1096,13 +1267,16 @@ def _run(
         result = fut.result()
         fut.release()
         if step == "probe":
+            _take_camera(items[rel], result["camera"])
+            for note in result["camera"]["notes"]:
+                warn(f"warning: {job.path}: {note}")
             entry = manifest.entries.get(rel, {})
             plan = segment_plan(result["frames"], result["size"] or 0, *segment)
             index = result.get("index") if len(plan) > 1 else None
             parts_dir = out / PARTS / rel
             same = (
                 entry.get("hash") == result["hash"]
-                and entry.get("settings") == settings
+                and entry.get("settings") == settings[rel]
                 and [tuple(s) for s in entry.get("segments", [])] == plan
             )
             if not same:
@@ -1117,7 +1291,8 @@ def _run(
                 hash=result["hash"],
                 frames=result["frames"],
                 segments=[list(s) for s in plan],
-                settings=settings,
+                settings=settings[rel],
+                camera=result["camera"],
                 state="encoding",
                 error=None,
             )
@@ -1133,7 +1308,7 @@ def _run(
                     i,
                     _encode_segment,
                     str(job.path),
-                    options,
+                    options[rel],
                     str(job.parts[i]),
                     start,
                     stop,
@@ -1163,7 +1338,9 @@ def _run(
                     if writer_options["color"] is not None and len(job.colors) == len(job.plan)
                     else None
                 )
-                submit(rel, "verify", 0, _verify, str(job.path), options, str(out / rel), colors)
+                submit(
+                    rel, "verify", 0, _verify, str(job.path), options[rel], str(out / rel), colors
+                )
             else:
                 bar.inputs_done += 1
         elif step == "verify":

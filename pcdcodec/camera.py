@@ -570,12 +570,25 @@ INTRINSICS_FILE_NAMES = (
 )
 
 
+def _names_a_camera(path: Path) -> bool:
+    """Whether a ``camera.json`` gives a camera; one holding only ``depth_scale`` does not."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return True  # let read_intrinsics say what is wrong with it
+    return not isinstance(data, dict) or bool({"fx", "fy", "cx", "cy"} & set(data))
+
+
 def find_intrinsics_file(folder: str | os.PathLike[str]) -> Path | None:
-    """The first intrinsics file of :data:`INTRINSICS_FILE_NAMES` in ``folder``, or ``None``."""
+    """The first intrinsics file of :data:`INTRINSICS_FILE_NAMES` in ``folder``, or ``None``.
+
+    A ``camera.json`` that gives no camera (only a ``depth_scale``) is passed over for the
+    next file."""
     root = Path(folder)
     for name in INTRINSICS_FILE_NAMES:
-        if (root / name).is_file():
-            return root / name
+        p = root / name
+        if p.is_file() and (name != "camera.json" or _names_a_camera(p)):
+            return p
     return None
 
 

@@ -42,7 +42,9 @@ def _intrinsics_from_args(args: argparse.Namespace, width: int, height: int) -> 
     return CameraIntrinsics(width, height, given["fx"], given["fy"], given["cx"], given["cy"])
 
 
-def _frame_size(src: str, depth_scale: float | None) -> tuple[int, int]:
+def _frame_size(
+    src: str, depth_scale: float | None, options: dict[str, Any] | None = None
+) -> tuple[int, int]:
     """(width, height) of the input's frames: a recording's camera, or a folder's first frame."""
     from .sources.base import detect_kind
 
@@ -54,7 +56,8 @@ def _frame_size(src: str, depth_scale: float | None) -> tuple[int, int]:
             return rec.intrinsics.width, rec.intrinsics.height
     from .sources import open_source
 
-    with open_source(path, max_frames=1, depth_scale=depth_scale or 1000.0) as source:
+    opts = {**(options or {}), "max_frames": 1, "depth_scale": depth_scale or 1000.0}
+    with open_source(path, **opts) as source:
         first = next(iter(source), None)
     if first is None:
         raise InputError(f"{src!r} gives no frames")
@@ -86,10 +89,10 @@ def _camera_from_args(args: argparse.Namespace) -> tuple[Any, float | None]:
         preset = camera_preset(args.camera)
         return preset.intrinsics, scale if scale is not None else preset.depth_scale
     if args.intrinsics is not None:
-        w, h = _frame_size(args.src, scale)
+        w, h = _frame_size(args.src, scale, _folder_options(args))
         return read_intrinsics(args.intrinsics, w, h), scale
     if by_values:
-        w, h = _frame_size(args.src, scale)
+        w, h = _frame_size(args.src, scale, _folder_options(args))
         return _intrinsics_from_args(args, w, h), scale
     return None, scale
 
@@ -103,6 +106,18 @@ _CLI_WORDS = (
         "pass --intrinsics FILE, --camera NAME or --fx --fy --cx --cy",
     ),
     ("pass depth_scale=", "pass --depth-scale "),
+    (
+        "pass color_intrinsics= (and depth_to_color=, the 4x4 depth-to-color transform in metres)",
+        "pass --color-intrinsics FILE (and --depth-to-color FILE, the 4x4 depth-to-color "
+        "transform in metres)",
+    ),
+    ("(color=False)", "(--depth-only)"),
+    ("need depth_pattern= and color_pattern=", "need --depth-pattern and --color-pattern"),
+    (
+        "pass camera= (for every input that lacks one) or input_options= (for this input)",
+        "pass --camera NAME or --intrinsics FILE (for every input that lacks one) or "
+        "--input-camera INPUT=CAMERA (for this input)",
+    ),
 )
 
 
@@ -111,6 +126,16 @@ def cli_message(message: str) -> str:
     for library, flag in _CLI_WORDS:
         message = message.replace(library, flag)
     return message
+
+
+class _CameraFlag(argparse.Action):
+    """``--camera NAME``; ``--camera list`` prints the presets with their values and exits."""
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
+        if values == "list":
+            _print_presets()
+            parser.exit()
+        setattr(namespace, self.dest, values)
 
 
 def _add_camera_options(p: argparse.ArgumentParser) -> None:
@@ -128,7 +153,15 @@ def _add_camera_options(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--camera",
         metavar="NAME",
-        help=f"a dataset camera's published intrinsics: {', '.join(CAMERA_PRESETS)}",
+        action=_CameraFlag,
+        help="a dataset camera's published intrinsics and depth scale ('--camera list' prints "
+        "them): "
+        + "; ".join(
+            f"{n} (fx={c.intrinsics.fx:g} fy={c.intrinsics.fy:g} cx={c.intrinsics.cx:g} "
+            f"cy={c.intrinsics.cy:g}, scale {c.depth_scale:g})"
+            for n, c in CAMERA_PRESETS.items()
+            if c.depth_scale is not None
+        ),
     )
     for k, what in (
         ("fx", "focal length x"),
@@ -138,6 +171,53 @@ def _add_camera_options(p: argparse.ArgumentParser) -> None:
     ):
         g.add_argument(f"--{k}", type=float, help=f"{what} in pixels")
     g.add_argument("--depth-scale", type=float, help="depth units per metre (1000 for mm)")
+    f = p.add_argument_group(
+        "RGB-D folders (default: TUM lists, rgb/ and depth/, or files named *depth* and *rgb*)"
+    )
+    f.add_argument("--depth-pattern", metavar="GLOB", help="depth files, e.g. 'frame_*_depth.tiff'")
+    f.add_argument(
+        "--color-pattern",
+        metavar="GLOB",
+        help="color files, e.g. 'frame_*_rgb.tiff'; paired with depth by the text the "
+        "wildcards match (without it: depth only)",
+    )
+    f.add_argument(
+        "--color-intrinsics",
+        metavar="FILE",
+        help="the color camera, for color images of another size than depth (not registered)",
+    )
+    f.add_argument(
+        "--depth-to-color",
+        metavar="FILE",
+        help="with --color-intrinsics: the 4x4 depth-to-color transform in metres, 16 numbers "
+        "row-major (default: identity)",
+    )
+    f.add_argument("--depth-only", action="store_true", help="read depth, leave color out")
+
+
+def _folder_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The folder flags as options of :func:`pcdcodec.datasets.open_folder`."""
+    opts: dict[str, Any] = {}
+    for key in ("depth_pattern", "color_pattern", "color_intrinsics", "depth_to_color"):
+        if getattr(args, key, None) is not None:
+            opts[key] = getattr(args, key)
+    if getattr(args, "depth_only", False):
+        opts["color"] = False
+    return opts
+
+
+def _print_presets() -> int:
+    from .camera import CAMERA_PRESETS
+
+    print(f"{'name':10} {'size':8} {'fx':>7} {'fy':>7} {'cx':>7} {'cy':>7} {'scale':>6}  source")
+    for name, c in CAMERA_PRESETS.items():
+        k = c.intrinsics
+        scale = f"{c.depth_scale:g}" if c.depth_scale is not None else "-"
+        print(
+            f"{name:10} {k.width}x{k.height:<4} {k.fx:7g} {k.fy:7g} {k.cx:7g} {k.cy:7g} "
+            f"{scale:>6}  {c.source}"
+        )
+    return 0
 
 
 def _add_topic_options(p: argparse.ArgumentParser) -> None:
@@ -238,8 +318,15 @@ def _source_options(args: argparse.Namespace) -> dict[str, Any]:
     if args.depth_scale is not None:
         opts["depth_scale"] = args.depth_scale
     kind = detect_kind(args.src)
+    folder = _folder_options(args)
+    if kind is None and folder.get("depth_pattern") is not None and Path(args.src).is_dir():
+        kind = "folder"  # a folder of files named as the patterns say
     if kind == "folder":
         opts["fps"] = args.fps
+        opts.update(folder)
+    elif folder and kind is not None:
+        flags = " ".join("--" + k.replace("_", "-") for k in folder)
+        raise InputError(f"{flags} apply to RGB-D folders; {args.src!r} is a {kind}")
     topics = {
         "depth_topic": args.depth_topic,
         "color_topic": args.color_topic,
@@ -290,7 +377,8 @@ def _cmd_encode(args: argparse.Namespace) -> int:
         elif args.camera is not None:
             scale_from = f"--camera {args.camera}"
         else:
-            scale_from = getattr(source, "depth_scale_origin", None) or "the input"
+            origin = source.depth_scale_origin
+            scale_from = "the input" if origin in ("input", "given") else origin
     camera_from = "the input" if camera is None else "the camera flags"
     n = summary.frames
     print(
@@ -364,16 +452,38 @@ def _info(rec: Any) -> dict[str, Any]:
 
 
 def _cmd_info_source(args: argparse.Namespace) -> int:
-    from .sources import open_source
+    from .sources import CameraDefaults, open_source
 
-    with open_source(args.input) as source:
+    args.src = args.input
+    camera, depth_scale = _camera_from_args(args)
+    options = _source_options(args)
+    if camera is not None:
+        options["intrinsics"] = camera
+    if depth_scale is not None:
+        options["depth_scale"] = depth_scale
+    # Without a depth scale, describe what can be known: a stand-in scale is marked unknown.
+    unknown = CameraDefaults(depth_scale=1.0, origin="unknown") if depth_scale is None else None
+    with open_source(args.input, defaults=unknown, **options) as source:
         info = source.describe()
+        if source.depth_scale_origin == "unknown":
+            info["depth_scale"] = None
+        info["intrinsics_from"] = (
+            "the camera flags" if camera is not None else source.intrinsics_origin
+        )
+        info["depth_scale_from"] = (
+            "the camera flags" if depth_scale is not None else source.depth_scale_origin
+        )
         candidates = getattr(source, "candidates", None)
         topics = [c.to_dict() for c in candidates()] if callable(candidates) else []
     if args.json:
         print(json.dumps({**info, "topics": topics}, indent=2, default=str))
         return 0
     print(f"{args.input}: {info['source']}")
+    for key, label in (("layout", "layout"), ("frames", "frames"), ("size", "size")):
+        if info.get(key) is not None:
+            print(f"  {label:12} {info[key]}")
+    if info.get("timestamps"):
+        print(f"  {'timestamps':12} {info['timestamps']}")
     if topics:
         print("  topics (role from the type and the first message):")
         for t in topics:
@@ -388,9 +498,24 @@ def _cmd_info_source(args: argparse.Namespace) -> int:
     if cam:
         print(
             f"    camera       {cam['width']}x{cam['height']}, fx={cam['fx']:.6g} "
-            f"fy={cam['fy']:.6g} cx={cam['cx']:.6g} cy={cam['cy']:.6g}"
+            f"fy={cam['fy']:.6g} cx={cam['cx']:.6g} cy={cam['cy']:.6g} "
+            f"(from {info['intrinsics_from']})"
         )
-    print(f"    depth scale  {info['depth_scale']} per metre")
+    else:
+        print("    camera       unknown (pass --camera NAME, --intrinsics FILE or --fx ...)")
+    color_cam = info.get("color_intrinsics")
+    if color_cam:
+        print(
+            f"    color camera {color_cam['width']}x{color_cam['height']}, "
+            f"fx={color_cam['fx']:.6g} fy={color_cam['fy']:.6g} cx={color_cam['cx']:.6g} "
+            f"cy={color_cam['cy']:.6g}"
+        )
+    if info["depth_scale"] is None:
+        print("    depth scale  unknown (pass --depth-scale UNITS_PER_METRE)")
+    else:
+        print(
+            f"    depth scale  {info['depth_scale']:g} per metre (from {info['depth_scale_from']})"
+        )
     for note in info.get("notes", []):
         print(f"    note         {note}")
     return 0
@@ -543,6 +668,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         raise InputError(f"--frames must be at least 1, got {frames}")
     source: Any = args.src
     intrinsics, depth_scale = _camera_from_args(args)
+    folder = _folder_options(args)
+    if folder:  # a folder read with the folder flags, then compared as a sequence
+        from .datasets import load_folder
+
+        source = load_folder(
+            args.src, max_frames=frames, intrinsics=intrinsics, depth_scale=depth_scale, **folder
+        )
     quiet = args.quiet or not sys.stderr.isatty()
 
     def say(step: str) -> None:
@@ -579,21 +711,74 @@ def _cmd_import(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_archive(args: argparse.Namespace) -> int:
-    from .archive import archive
-    from .camera import camera_preset
+def _archive_defaults(args: argparse.Namespace) -> Any:
+    """The camera of inputs that lack one: --camera NAME or --intrinsics FILE, --depth-scale."""
+    from .camera import camera_preset, read_intrinsics
+    from .sources.base import CameraDefaults
 
-    source_options: dict[str, Any] = {}
+    if args.camera is not None and args.intrinsics is not None:
+        raise InputError("give the camera one way: --camera and --intrinsics were both given")
+    intrinsics, scale, origin = None, args.depth_scale, "--depth-scale"
     if args.camera is not None:
         preset = camera_preset(args.camera)
-        source_options["intrinsics"] = preset.intrinsics
-        source_options["depth_scale"] = preset.depth_scale
-    if args.depth_scale is not None:
-        source_options["depth_scale"] = args.depth_scale
+        intrinsics, origin = preset.intrinsics, f"--camera {args.camera}"
+        scale = scale if scale is not None else preset.depth_scale
+    elif args.intrinsics is not None:
+        intrinsics, origin = read_intrinsics(args.intrinsics), f"--intrinsics {args.intrinsics}"
+    if intrinsics is None and scale is None:
+        return None
+    scale_origin = "--depth-scale" if args.depth_scale is not None else None
+    return CameraDefaults(intrinsics, scale, origin, scale_origin)
+
+
+def _input_camera(spec: str) -> tuple[str, dict[str, Any]]:
+    """``INPUT=CAMERA[,depth_scale=N]`` (CAMERA: a preset name or an intrinsics file) to the
+    input and its reader options."""
+    from .camera import CAMERA_PRESETS, read_intrinsics
+
+    path, sep, what = spec.partition("=")
+    if not sep or not path or not what:
+        raise InputError(
+            f"--input-camera takes INPUT=CAMERA[,depth_scale=N] (CAMERA: a preset name or an "
+            f"intrinsics file), got {spec!r}"
+        )
+    options: dict[str, Any] = {}
+    for item in what.split(","):
+        key, eq, value = item.partition("=")
+        if eq and key.strip() == "depth_scale":
+            try:
+                options["depth_scale"] = float(value)
+            except ValueError:
+                raise InputError(
+                    f"--input-camera {spec!r}: depth_scale must be a number, got {value!r}"
+                ) from None
+        elif item in CAMERA_PRESETS:
+            preset = CAMERA_PRESETS[item]
+            options["intrinsics"] = preset.intrinsics
+            if preset.depth_scale is not None:
+                options.setdefault("depth_scale", preset.depth_scale)
+        elif Path(item).is_file():
+            try:
+                options["intrinsics"] = read_intrinsics(item)
+            except InputError:
+                options["intrinsics"] = item  # a bare K: the folder gives the image size
+        else:
+            raise InputError(
+                f"--input-camera {spec!r}: {item!r} is neither a camera preset "
+                f"({', '.join(CAMERA_PRESETS)}), an intrinsics file nor depth_scale=N"
+            )
+    return path, options
+
+
+def _cmd_archive(args: argparse.Namespace) -> int:
+    from .archive import archive
+
+    input_options = dict(_input_camera(s) for s in args.input_camera or ())
     summary = archive(
         args.src,
         args.output,
-        source_options=source_options or None,
+        camera=_archive_defaults(args),
+        input_options=input_options or None,
         scheduler=args.scheduler,
         workers=args.workers,
         color=parse_codec(args.color, "color") if args.color != "none" else None,
@@ -605,6 +790,9 @@ def _cmd_archive(args: argparse.Namespace) -> int:
         processes=not args.threads,
         progress=False if args.quiet else None,
     )
+    for item in summary.items:
+        if item.error is not None:
+            item.error = cli_message(item.error)
     print(json.dumps(summary.to_dict(), indent=2) if args.json else summary.to_text())
     return 0 if summary.ok else 1
 
@@ -683,10 +871,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_cmd_decode)
 
-    p = sub.add_parser("info", help="describe a recording, or a bag's topics and choices")
+    p = sub.add_parser(
+        "info", help="describe a recording, or an input (folder, bag...) and what encode would use"
+    )
     p.add_argument("input")
     p.add_argument("--json", action="store_true", help="print JSON")
-    p.set_defaults(func=_cmd_info)
+    p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate of a folder")
+    _add_camera_options(p)
+    _add_topic_options(p)
+    p.set_defaults(func=_cmd_info, max_frames=None)
 
     p = sub.add_parser("verify", help="decode every frame and check every checksum")
     p.add_argument("input")
@@ -765,16 +958,36 @@ def build_parser() -> argparse.ArgumentParser:
         "--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec, e.g. depthac or zstd:level=9"
     )
     p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
-    p.add_argument(
+    g = p.add_argument_group(
+        "cameras (an input's own camera and depth scale always win: recorded, in its "
+        "folder's camera.json or intrinsics file, or by its dataset; these fill in what an "
+        "input lacks, with a warning where they contradict it)"
+    )
+    g.add_argument(
         "--camera",
         metavar="NAME",
-        help="camera of inputs that do not carry one (folders without camera.json): "
-        + ", ".join(CAMERA_PRESETS),
+        action=_CameraFlag,
+        help="camera (and depth scale) of inputs that do not carry one: "
+        + ", ".join(CAMERA_PRESETS)
+        + " (--camera list prints their values)",
     )
-    p.add_argument(
+    g.add_argument(
+        "--intrinsics",
+        metavar="FILE",
+        help="camera of inputs that do not carry one, from a file that gives the image size "
+        "(ROS CameraInfo YAML, Open3D intrinsic JSON, camera.json)",
+    )
+    g.add_argument(
         "--depth-scale",
         type=float,
         help="depth units per metre of inputs that do not say it (1000 for mm)",
+    )
+    g.add_argument(
+        "--input-camera",
+        action="append",
+        metavar="INPUT=CAMERA",
+        help="one input's own camera, replacing what it says: a preset name or an intrinsics "
+        "file, and/or depth_scale=N (INPUT=tum-fr1, INPUT=K.txt,depth_scale=1000); repeatable",
     )
     p.add_argument(
         "--segment-frames",

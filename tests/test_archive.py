@@ -684,3 +684,109 @@ def test_summary_of_an_input_of_unknown_size(
     assert "? MB (an input's size is unknown) in, 0.0 MB out (ratio -)" in text
     assert "0.0x" not in text
     assert summary.to_dict()["bytes_in"] is None
+
+
+def _seven_scenes_like(dst: Path, count: int = 3) -> Path:
+    """Sample frames laid out as 7-Scenes ships them: rgb/frame-NNNNNN.color.png,
+    depth/frame-NNNNNN.depth.png and camera-intrinsics.txt, no depth scale written down."""
+    rows = (SAMPLE / "associations.txt").read_text().splitlines()[:count]
+    (dst / "rgb").mkdir(parents=True)
+    (dst / "depth").mkdir()
+    for i, row in enumerate(rows):
+        _, rgb, _, depth = row.split()
+        shutil.copyfile(SAMPLE / rgb, dst / "rgb" / f"frame-{i:06d}.color.png")
+        shutil.copyfile(SAMPLE / depth, dst / "depth" / f"frame-{i:06d}.depth.png")
+    (dst / "camera-intrinsics.txt").write_text("585 0 320\n0 585 240\n0 0 1\n")
+    return dst
+
+
+def test_cli_archive_camera_fills_in_only_what_inputs_lack(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from pcdcodec.cli import main
+
+    src = tmp_path / "src"
+    kitchen = _seven_scenes_like(src / "kitchen")
+    office = make_input(src / "office", 0, 3)  # an intrinsics file and a scale-only camera.json
+    (office / "camera.json").write_text('{"depth_scale": 1000}')
+    (office / "intrinsics.K.txt").write_text("615 0 320\n0 616 240\n0 0 1\n")
+    bare = make_input(src / "bare", 0, 3)
+    (bare / "camera.json").unlink()  # says nothing: the command line fills in
+    out = tmp_path / "out"
+    args = ["archive", str(src), "-o", str(out), "--workers", "1", "--threads", "-q"]
+    assert main([*args, "--camera", "tum-ros", "--verify", "--json"]) == 0
+    captured = capsys.readouterr()
+    result = json.loads(captured.out)
+    assert result["failed"] == 0
+    items = {Path(i["source"]).name: i for i in result["items"]}
+    expected = {
+        "kitchen": (585.0, 585.0, 1000.0, "camera-intrinsics.txt", "7-Scenes dataset"),
+        "office": (615.0, 616.0, 1000.0, "intrinsics.K.txt", "camera.json"),
+        "bare": (525.0, 525.0, 5000.0, "--camera tum-ros", "--camera tum-ros"),
+    }
+    for name, (fx, fy, scale, camera_from, scale_from) in expected.items():
+        with pcdcodec.open(out / "src" / f"{name}.pcdc") as rec:
+            assert (rec.intrinsics.fx, rec.intrinsics.fy, rec.depth_scale) == (fx, fy, scale)
+        item = items[name]
+        assert item["state"] == "verified"
+        assert (item["camera"]["fx"], item["depth_scale"]) == (fx, scale)
+        assert (item["camera_from"], item["depth_scale_from"]) == (camera_from, scale_from)
+    # The preset contradicts the two inputs that carry their own camera and scale: said.
+    assert len(items["kitchen"]["notes"]) == 2
+    assert "the input's is used" in items["office"]["notes"][0]
+    assert items["bare"]["notes"] == []
+    assert f"warning: {kitchen}: --camera tum-ros camera" in captured.err
+    assert f"warning: {office}: --camera tum-ros depth scale 5000" in captured.err
+    # The text summary lists each input's camera, scale and their origins, and the notes.
+    shutil.rmtree(out)
+    assert main([*args, "--camera", "tum-ros"]) == 0
+    text = capsys.readouterr().out
+    assert f"{kitchen}: camera 640x480 fx=585" in text
+    assert "(from camera-intrinsics.txt), depth scale 1000 (from 7-Scenes dataset)" in text
+    assert f"{bare}: camera 640x480 fx=525 fy=525 cx=319.5 cy=239.5 (from --camera tum-ros)" in text
+    assert f"NOTE {office}: --camera tum-ros depth scale 5000 differs" in text
+    # Rerun: skipped inputs keep their camera in the summary (from the manifest).
+    assert main([*args, "--camera", "tum-ros"]) == 0
+    assert "(from intrinsics.K.txt), depth scale 1000 (from camera.json)" in capsys.readouterr().out
+
+
+def test_archive_input_options_and_cli_words(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from pcdcodec.cli import main
+
+    a = make_input(tmp_path / "a", 0, 3)
+    b = make_input(tmp_path / "b", 0, 3)
+    (a / "camera.json").unlink()
+    (b / "camera.json").unlink()
+    out = tmp_path / "out"
+    # One input given its own camera (a preset with its scale), the other none: its error
+    # names the command-line flags, not Python keywords.
+    args = ["archive", str(a), str(b), "-o", str(out), "--workers", "1", "--threads", "-q"]
+    assert main([*args, "--input-camera", f"{a}=7scenes"]) == 1
+    text = capsys.readouterr().out
+    assert f"FAILED {b}" in text
+    assert "--depth-scale" in text
+    assert "depth_scale=" not in text
+    with pcdcodec.open(out / "a.pcdc") as rec:
+        assert (rec.intrinsics.fx, rec.depth_scale) == (585.0, 1000.0)
+    both = [*args, "--input-camera", f"{a}=7scenes"]
+    assert main([*both, "--input-camera", f"{b}=tum-fr1,depth_scale=1000", "--json"]) == 0
+    items = {Path(i["source"]).name: i for i in json.loads(capsys.readouterr().out)["items"]}
+    assert (items["a"]["state"], items["b"]["camera_from"]) == ("skipped", "given")
+    with pcdcodec.open(out / "b.pcdc") as rec:
+        assert (rec.intrinsics.fx, rec.depth_scale) == (517.3, 1000.0)
+    # No camera at all: the hint names the flags.
+    (a / "camera.json").write_text('{"depth_scale": 1000}')
+    c = tmp_path / "c"
+    shutil.copytree(a, c)
+    assert (
+        main(["archive", str(c), "-o", str(tmp_path / "o2"), "--workers", "1", "--threads", "-q"])
+        == 1
+    )
+    text = capsys.readouterr().out
+    assert "does not say its camera intrinsics; pass --camera NAME or --intrinsics FILE" in text
+    assert "source_options" not in text
+    assert "camera=" not in text
+    with pytest.raises(pcdcodec.InputError, match="not one of the inputs"):
+        archive([a], tmp_path / "o3", input_options={tmp_path / "zz": {}}, progress=False)

@@ -247,3 +247,30 @@ def test_importing_does_not_import_heavy_backends() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, check=True
     ).stdout
     assert out.strip() == ""
+
+
+def test_docs_list_every_preset_and_the_readme_uses_the_samples_camera() -> None:
+    import json
+    import re
+    from pathlib import Path
+
+    from pcdcodec.camera import CAMERA_PRESETS
+    from pcdcodec.datasets import sample_dir
+
+    root = Path(__file__).resolve().parents[1]
+    ingest = (root / "docs" / "ingest.md").read_text()
+    for name, preset in CAMERA_PRESETS.items():
+        k = preset.intrinsics
+        row = next((line for line in ingest.splitlines() if line.startswith(f"| `{name}` |")), "")
+        assert row, f"docs/ingest.md does not list the preset {name}"
+        cells = [c.strip() for c in row.split("|")[2:7]]
+        assert [float(c) for c in cells[:4]] == [k.fx, k.fy, k.cx, k.cy], name
+        assert float(cells[4]) == preset.depth_scale, name
+    # The README's TUM example names the camera the bundled TUM sample records.
+    readme = (root / "README.md").read_text()
+    named = re.findall(r"encode path/to/tum_sequence .*?--camera (\S+)", readme)
+    assert named
+    sample = json.loads((sample_dir() / "camera.json").read_text())
+    for name in named:
+        k = CAMERA_PRESETS[name].intrinsics
+        assert (k.fx, k.fy, k.cx, k.cy) == tuple(sample[c] for c in ("fx", "fy", "cx", "cy"))

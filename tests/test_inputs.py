@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -132,3 +133,182 @@ def test_load_shared_7scenes_folder() -> None:
     assert len(loaded) == 2
     assert loaded[0].depth.dtype == np.uint16
     assert loaded[0].color.shape == (480, 640, 3)
+
+
+# -- other folder layouts ------------------------------------------------------------------------
+
+
+def _sample_pairs(n: int = 3) -> list[tuple[np.ndarray, np.ndarray]]:
+    sample = load_sample(max_frames=n)
+    return [(f.color, f.depth) for f in sample]  # type: ignore[misc]
+
+
+def test_flat_pcl_folder_of_tiffs(tmp_path: Path) -> None:
+    import imagecodecs
+
+    root = tmp_path / "pcl"
+    root.mkdir()
+    frames = _sample_pairs()
+    for i, (color, depth) in zip((0, 1, 3), frames, strict=True):  # frame 2 was dropped
+        (root / f"frame_{i:06d}_depth.tiff").write_bytes(imagecodecs.tiff_encode(depth))
+        (root / f"frame_{i:06d}_rgb.tiff").write_bytes(imagecodecs.tiff_encode(color))
+    assert pcdcodec.sources.base.detect_kind(root) == "folder"
+    source = pcdcodec.open_source(root, depth_scale=5000.0, fps=10.0)
+    assert source.metadata["timestamps"].startswith("not recorded: frame numbers")
+    seq = list(source)
+    assert [f.timestamp_ns for f in seq] == [0, 100_000_000, 300_000_000]
+    for frame, (color, depth) in zip(seq, frames, strict=True):
+        np.testing.assert_array_equal(frame.depth, depth)
+        np.testing.assert_array_equal(frame.color, color)
+    # A depth file without its color partner is named, not paired with the wrong one.
+    (root / "frame_000001_rgb.tiff").unlink()
+    with pytest.raises(pcdcodec.InputError, match=r"frame_000001_depth\.tiff"):
+        load_folder(root, depth_scale=5000.0)
+
+
+def test_flat_folder_with_nanosecond_names(tmp_path: Path) -> None:
+    import imagecodecs
+
+    root = tmp_path / "ns"
+    root.mkdir()
+    stamps = [1614787200123456789, 1614787200156789012, 1614787200190000000]
+    for t, (color, depth) in zip(stamps, _sample_pairs(), strict=True):
+        (root / f"{t}_depth.png").write_bytes(imagecodecs.png_encode(depth))
+        (root / f"{t}_color.png").write_bytes(imagecodecs.png_encode(color))
+    source = pcdcodec.open_source(root, depth_scale=5000.0)
+    assert source.metadata["timestamps"] == "recorded: nanoseconds in the depth file names"
+    assert [f.timestamp_ns for f in source] == stamps
+
+
+def test_npy_depth_by_patterns_with_tum_names(tmp_path: Path) -> None:
+    import imagecodecs
+
+    root = tmp_path / "npy"
+    (root / "cam").mkdir(parents=True)
+    (root / "range").mkdir()
+    names = ["1305031102.175304", "1305031102.211214", "1305031102.243211"]
+    frames = _sample_pairs()
+    for name, (color, depth) in zip(names, frames, strict=True):
+        np.save(root / "range" / f"{name}.npy", depth)
+        (root / "cam" / f"{name}.png").write_bytes(imagecodecs.png_encode(color))
+    with pytest.raises(pcdcodec.InputError, match=r"\.npy.*depth_pattern"):
+        load_folder(root, depth_scale=5000.0)  # a layout of its own: say what was looked for
+    seq = load_folder(
+        root, depth_scale=5000.0, depth_pattern="range/*.npy", color_pattern="cam/*.png"
+    )
+    assert [f.timestamp_ns for f in seq] == [
+        1305031102_175304000,
+        1305031102_211214000,
+        1305031102_243211000,
+    ]
+    for frame, (color, depth) in zip(seq, frames, strict=True):
+        np.testing.assert_array_equal(frame.depth, depth)
+        np.testing.assert_array_equal(frame.color, color)
+    # float32 metres, depth only
+    metres = (frames[0][1] / 5000.0).astype(np.float32)
+    for name in names:
+        np.save(root / "range" / f"{name}.npy", metres)
+    only = load_folder(root, depth_scale=1.0, depth_pattern="range/*.npy")
+    assert only[0].color is None
+    assert only[0].depth.dtype == np.float32
+    np.testing.assert_array_equal(only[0].depth, metres)
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [
+        (lambda p: np.save(p, np.zeros((4, 4), np.float64)), "float64"),
+        (lambda p: np.save(p, np.zeros((4, 4, 3), np.uint16)), "2-D"),
+        (lambda p: p.write_bytes(b"\x93NUMPY not really"), "cannot read depth array"),
+        (  # a header declaring 30000 x 30000 over a few bytes: refused before allocating
+            lambda p: p.write_bytes(
+                np.lib.format.magic(1, 0)
+                + b"{'descr': '<u2', 'fortran_order': False, 'shape': (30000, 30000), }"
+                + b" " * 50
+                + b"\n"
+                + b"\0" * 64
+            ),
+            "cannot read depth array",
+        ),
+    ],
+)
+def test_bad_npy_depth_is_an_input_error(tmp_path: Path, content: object, match: str) -> None:
+    root = tmp_path / "bad"
+    (root / "depth").mkdir(parents=True)
+    path = root / "depth" / "0001.npy"
+    content(path)  # type: ignore[operator]
+    with pytest.raises(pcdcodec.InputError, match=match) as info:
+        load_folder(root, depth_scale=1000.0)
+    assert "0001.npy" in str(info.value)
+
+
+def test_depth_only_folder_records_without_color(tmp_path: Path) -> None:
+    root = tmp_path / "donly"
+    (root / "depth").mkdir(parents=True)
+    sample = load_sample(max_frames=3)
+    for _, depth_path in sample.paths:
+        shutil.copy(depth_path, root / "depth")
+    source = pcdcodec.open_source(root, depth_scale=5000.0, intrinsics=sample.intrinsics)
+    assert not source.has_color
+    out = tmp_path / "donly.pcdc"
+    pcdcodec.encode(source, out)
+    with pcdcodec.open(out) as rec:
+        assert rec.codecs["color"] is None
+        assert len(rec) == 3
+        np.testing.assert_array_equal(rec[2].depth, sample[2].depth)
+
+
+def test_color_of_another_size_needs_and_takes_a_color_camera(tmp_path: Path) -> None:
+    import imagecodecs
+
+    root = tmp_path / "k4a"
+    (root / "rgb").mkdir(parents=True)
+    (root / "depth").mkdir()
+    frames = _sample_pairs(2)
+    for i, (color, depth) in enumerate(frames):
+        (root / "rgb" / f"{i:04d}.png").write_bytes(imagecodecs.png_encode(color))
+        small = np.ascontiguousarray(depth[::2, ::2])  # a depth camera of its own size
+        (root / "depth" / f"{i:04d}.png").write_bytes(imagecodecs.png_encode(small))
+    with pytest.raises(pcdcodec.InputError, match="color_intrinsics=") as info:
+        list(pcdcodec.open_source(root, depth_scale=5000.0))
+    assert "0000.png" in str(info.value)
+    color_cam = {"width": 640, "height": 480, "fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5}
+    d2c = np.eye(4)
+    d2c[0, 3] = -0.025
+    (root / "camera.json").write_text(
+        json.dumps(
+            {
+                "fx": 262.5,
+                "fy": 262.5,
+                "cx": 159.75,
+                "cy": 119.75,
+                "depth_scale": 5000,
+                "color": color_cam,
+                "depth_to_color": d2c.tolist(),
+            }
+        )
+    )
+    source = pcdcodec.open_source(root)
+    assert source.color_intrinsics is not None
+    assert source.color_intrinsics.shape == (480, 640)
+    np.testing.assert_array_equal(source.depth_to_color, d2c)
+    out = tmp_path / "k4a.pcdc"
+    pcdcodec.encode(source, out)
+    with pcdcodec.open(out) as rec:
+        assert rec.color_intrinsics == source.color_intrinsics
+        assert rec[0].depth.shape == (240, 320)
+        assert rec[0].color.shape == (480, 640, 3)
+    # Depth only also reads it.
+    assert load_folder(root, color=False)[0].color is None
+
+
+def test_no_pairs_error_says_what_was_looked_for(tmp_path: Path) -> None:
+    (tmp_path / "empty" / "depth").mkdir(parents=True)
+    with pytest.raises(pcdcodec.InputError, match="no color/depth pairs") as info:
+        load_folder(tmp_path / "empty", depth_scale=1000.0)
+    for what in (".npy", "16-bit PNG", "rgb.txt", "*depth*", "depth_pattern"):
+        assert what in str(info.value)
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "a.png").write_bytes(b"")
+    with pytest.raises(pcdcodec.InputError, match=r"not an RGB-D folder.*\.npy"):
+        load_folder(tmp_path / "other")

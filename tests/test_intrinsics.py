@@ -234,3 +234,129 @@ def test_cli_words() -> None:
     assert cli_message("'x' already exists; pass overwrite=True to replace it") == (
         "'x' already exists; pass --overwrite to replace it"
     )
+
+
+# -- camera.json, dataset scales, info and the folder flags ----------------------------------
+
+
+def test_camera_json_with_only_a_depth_scale_beside_an_intrinsics_file(tmp_path: Path) -> None:
+    root = _plain_folder(tmp_path / "f", [0, 1], "intrinsics.K.txt")
+    (root / "camera.json").write_text('{"depth_scale": 4000}')
+    assert find_intrinsics_file(root) == root / "intrinsics.K.txt"
+    source = open_folder(root)
+    assert source.intrinsics == CAM
+    assert (source.intrinsics_origin, source.depth_scale) == ("intrinsics.K.txt", 4000.0)
+    assert source.depth_scale_origin == "camera.json"
+    # What camera.json may hold is checked: a misspelt key is named, not ignored.
+    (root / "camera.json").write_text('{"depth_scael": 4000}')
+    with pytest.raises(pcdcodec.InputError, match=r"unknown key.*depth_scael.*may hold"):
+        open_folder(root)
+    (root / "camera.json").write_text('{"fx": 500, "depth_scale": 1000}')
+    with pytest.raises(pcdcodec.InputError, match="gives fx but not fy, cx, cy"):
+        open_folder(root)
+    (root / "camera.json").write_text('{"depth_scale": 1000, "depth_to_color": [[1]]}')
+    with pytest.raises(pcdcodec.InputError, match="depth_to_color without color"):
+        open_folder(root)
+    (root / "camera.json").write_text('{"depth_scale": -1}')
+    with pytest.raises(pcdcodec.InputError, match="depth_scale must be a positive"):
+        open_folder(root)
+
+
+def test_defaults_fill_in_only_what_an_input_lacks(tmp_path: Path) -> None:
+    from pcdcodec.sources import CameraDefaults
+
+    preset = camera_preset("tum-ros")
+    defaults = CameraDefaults(preset.intrinsics, preset.depth_scale, "--camera tum-ros")
+    own = _plain_folder(tmp_path / "own", [0, 1], "camera-intrinsics.txt")  # 7-Scenes: 1000
+    source = pcdcodec.open_source(own, defaults=defaults)
+    assert (source.intrinsics, source.depth_scale) == (CAM, 1000.0)
+    assert (source.intrinsics_origin, source.depth_scale_origin) == (
+        "camera-intrinsics.txt",
+        "7-Scenes dataset",
+    )
+    assert len(source.camera_notes) == 2
+    assert all("the input's is used" in n for n in source.camera_notes)
+    bare = _plain_folder(tmp_path / "bare", [0, 1])
+    source = pcdcodec.open_source(bare, defaults=defaults)
+    assert (source.intrinsics, source.depth_scale) == (preset.intrinsics, 5000.0)
+    assert source.intrinsics_origin == source.depth_scale_origin == "--camera tum-ros"
+    assert source.camera_notes == ()
+    # Options given to the reader still replace what the input says.
+    given = pcdcodec.open_source(own, depth_scale=5000.0)
+    assert (given.depth_scale, given.depth_scale_origin) == (5000.0, "given")
+
+
+@pytest.mark.shared_data
+def test_7scenes_folder_gets_its_datasets_depth_scale() -> None:
+    root = SHARED / "7scenes_redkitchen"
+    if not root.is_dir():
+        pytest.skip(f"{root} is not present")
+    source = open_folder(root, max_frames=2)
+    assert (source.depth_scale, source.depth_scale_origin) == (1000.0, "7-Scenes dataset")
+
+
+def test_info_describes_a_folder_without_and_with_camera_flags(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    root = _plain_folder(tmp_path / "f", [0, 1, 2])
+    assert main(["info", str(root)]) == 0
+    out = capsys.readouterr().out
+    assert "frames       3" in out
+    assert "640x480 depth, 640x480 color" in out
+    assert "timestamps   not recorded: frame numbers" in out
+    assert "depth scale  unknown (pass --depth-scale" in out
+    assert "camera       unknown" in out
+    assert main(["info", str(root), "--camera", "tum-fr1", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (info["depth_scale"], info["intrinsics"]["fx"]) == (5000.0, 517.3)
+    assert main(["info", str(root), "--depth-scale", "1000"]) == 0
+    assert "depth scale  1000 per metre (from the camera flags)" in capsys.readouterr().out
+
+
+def test_cli_color_camera_depth_only_and_patterns(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import imagecodecs
+
+    root = tmp_path / "k4a"
+    root.mkdir()
+    seq = pcdcodec.load_sample(max_frames=2)
+    for i, frame in enumerate(seq):
+        assert frame.color is not None
+        (root / f"c_{i}.png").write_bytes(imagecodecs.png_encode(frame.color))
+        small = np.ascontiguousarray(frame.depth[::2, ::2])
+        (root / f"d_{i}.png").write_bytes(imagecodecs.png_encode(small))
+    out = tmp_path / "a.pcdc"
+    base = ["encode", str(root), "-o", str(out), "-q", "--depth-scale", "5000"]
+    base += ["--fx", "262.5", "--fy", "262.5", "--cx", "159.75", "--cy", "119.75"]
+    assert main(base) == 1
+    err = capsys.readouterr().err
+    assert "--depth-pattern and --color-pattern" in err  # no layout of its own: say so
+    patterns = [*base, "--depth-pattern", "d_*.png", "--color-pattern", "c_*.png"]
+    assert main(patterns) == 1
+    err = capsys.readouterr().err
+    assert "--color-intrinsics FILE" in err
+    assert "--depth-only" in err
+    assert "color_intrinsics=" not in err
+    color_cam = tmp_path / "color.json"
+    color_cam.write_text(json.dumps(camera_preset("tum-ros").intrinsics.to_dict()))
+    d2c = tmp_path / "d2c.txt"
+    np.savetxt(d2c, np.eye(4))
+    assert (
+        main([*patterns, "--color-intrinsics", str(color_cam), "--depth-to-color", str(d2c)]) == 0
+    )
+    with pcdcodec.open(out) as rec:
+        assert rec.color_intrinsics == camera_preset("tum-ros").intrinsics
+        assert rec[1].color.shape == (480, 640, 3)
+        np.testing.assert_array_equal(rec[1].depth, seq[1].depth[::2, ::2])
+    capsys.readouterr()
+    assert main([*patterns, "--depth-only", "--overwrite"]) == 0
+    with pcdcodec.open(out) as rec:
+        assert rec.codecs["color"] is None
+    with pytest.raises(SystemExit) as exit_info:
+        main(["encode", "--camera", "list"])
+    assert exit_info.value.code == 0
+    listing = capsys.readouterr().out
+    for name, preset in CAMERA_PRESETS.items():
+        assert name in listing
+        assert f"{preset.intrinsics.fx:g}" in listing

@@ -2,6 +2,22 @@
 
 from __future__ import annotations
 
-from .base import FrameIndex, Source, SourceKind, open_source, register_source, source_kinds
+from .base import (
+    CameraDefaults,
+    FrameIndex,
+    Source,
+    SourceKind,
+    open_source,
+    register_source,
+    source_kinds,
+)
 
-__all__ = ["FrameIndex", "Source", "SourceKind", "open_source", "register_source", "source_kinds"]
+__all__ = [
+    "CameraDefaults",
+    "FrameIndex",
+    "Source",
+    "SourceKind",
+    "open_source",
+    "register_source",
+    "source_kinds",
+]

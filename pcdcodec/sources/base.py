@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     from ..datasets import RGBDFrame
 
 __all__ = [
+    "CameraDefaults",
     "FrameIndex",
     "Source",
     "SourceKind",
@@ -80,6 +81,11 @@ class Source(abc.ABC):
       the depth camera, the color camera and the rigid 4 × 4 transform from the depth to the
       color camera frame (both ``None`` when color is registered to depth, the default).
     * ``has_color``: whether frames carry color (``RGBDFrame.color`` is ``None`` otherwise).
+    * ``intrinsics_origin`` and ``depth_scale_origin``: where the camera and the depth scale
+      came from: ``"input"`` (recorded in the input), a file of the input (``"camera.json"``,
+      ``"camera-intrinsics.txt"``), a dataset's convention (``"TUM RGB-D dataset"``),
+      ``"given"`` (an option), or the origin of the :class:`CameraDefaults` that filled it in.
+    * ``camera_notes``: where :class:`CameraDefaults` contradicted what the input carries.
 
     Iterating yields frames one at a time, so a source of any length runs in bounded memory.
     A source is a context manager; :meth:`close` releases files it holds.
@@ -92,6 +98,9 @@ class Source(abc.ABC):
     color_intrinsics: CameraIntrinsics | None = None
     depth_to_color: Any = None
     has_color: bool = True
+    intrinsics_origin: str = "input"
+    depth_scale_origin: str = "input"
+    camera_notes: tuple[str, ...] = ()
 
     @abc.abstractmethod
     def __iter__(self) -> Iterator[RGBDFrame]:
@@ -228,12 +237,92 @@ def _call(kind: SourceKind, p: Path, options: dict[str, Any]) -> Source:
         ) from None
 
 
-def open_source(path: str | os.PathLike[str], *, kind: str | None = None, **options: Any) -> Source:
+@dataclass(frozen=True)
+class CameraDefaults:
+    """A camera and a depth scale for inputs that do not carry their own.
+
+    Given to :func:`open_source` as ``defaults``, they fill in only what the input lacks: an
+    input's own intrinsics and depth scale (recorded, in its files, or by its dataset's
+    convention) always win. Where a default contradicts what the input carries, the source's
+    ``camera_notes`` say so. ``origin`` names the defaults in those notes and in the source's
+    ``intrinsics_origin`` / ``depth_scale_origin`` (``"--camera tum-ros"``, say).
+    """
+
+    intrinsics: CameraIntrinsics | None = None
+    depth_scale: float | None = None
+    origin: str = "defaults"
+    #: where the depth scale came from, when not from ``origin`` (``"--depth-scale"``)
+    depth_scale_origin: str | None = None
+
+
+def _camera_text(camera: CameraIntrinsics) -> str:
+    return (
+        f"{camera.width}x{camera.height} fx={camera.fx:g} fy={camera.fy:g} "
+        f"cx={camera.cx:g} cy={camera.cy:g}"
+    )
+
+
+def _open(kind: SourceKind, p: Path, options: dict[str, Any]) -> Source:
+    source = _call(kind, p, options)
+    # A camera or scale passed as an option replaces the input's own.
+    if options.get("intrinsics") is not None and source.intrinsics_origin == "input":
+        source.intrinsics_origin = "given"
+    if options.get("depth_scale") is not None and source.depth_scale_origin == "input":
+        source.depth_scale_origin = "given"
+    return source
+
+
+def _with_defaults(kind: SourceKind, p: Path, options: dict[str, Any], d: CameraDefaults) -> Source:
+    """Open ``p`` with what it carries, and fill in from ``d`` only what it lacks."""
+    scale_filled = False
+    try:
+        source = _open(kind, p, options)
+    except InputError as first:
+        if d.depth_scale is None or options.get("depth_scale") is not None:
+            raise
+        # Opening failed, and only the depth scale changes on the second try: when that
+        # opens, the scale was what the input lacked.
+        try:
+            source = _open(kind, p, {**options, "depth_scale": d.depth_scale})
+        except InputError:
+            raise first from None
+        source.depth_scale_origin = d.depth_scale_origin or d.origin
+        scale_filled = True
+    notes = list(source.camera_notes)
+    if d.intrinsics is not None:
+        own = source.intrinsics
+        if own is None:
+            source.intrinsics = d.intrinsics
+            source.intrinsics_origin = d.origin
+        elif own.pinhole() != d.intrinsics.pinhole():
+            notes.append(
+                f"{d.origin} camera {_camera_text(d.intrinsics)} differs from the input's own "
+                f"{_camera_text(own)} (from {source.intrinsics_origin}); the input's is used"
+            )
+    if d.depth_scale is not None and not scale_filled and source.depth_scale != d.depth_scale:
+        notes.append(
+            f"{d.depth_scale_origin or d.origin} depth scale {d.depth_scale:g} differs from "
+            "the input's own "
+            f"{source.depth_scale:g} (from {source.depth_scale_origin}); the input's is used"
+        )
+    source.camera_notes = tuple(notes)
+    return source
+
+
+def open_source(
+    path: str | os.PathLike[str],
+    *,
+    kind: str | None = None,
+    defaults: CameraDefaults | None = None,
+    **options: Any,
+) -> Source:
     """Open any RGB-D input: a folder, a ROS 1 or ROS 2 bag, a camera recording.
 
     The reader is chosen from the content of ``path`` (``kind`` names one explicitly);
-    ``options`` go to that reader (for example ``intrinsics``, ``depth_scale``, topics).
-    Raises :class:`~pcdcodec.InputError` when ``path`` does not exist or no reader knows it.
+    ``options`` go to that reader (for example ``intrinsics``, ``depth_scale``, topics), and
+    replace what the input says. ``defaults`` (:class:`CameraDefaults`) instead fill in only
+    the camera or depth scale the input lacks. Raises :class:`~pcdcodec.InputError` when
+    ``path`` does not exist or no reader knows it.
     """
     _load_builtin()
     p = Path(path)
@@ -242,10 +331,15 @@ def open_source(path: str | os.PathLike[str], *, kind: str | None = None, **opti
     if kind is not None:
         if kind not in _KINDS:
             raise InputError(f"unknown source kind {kind!r}; known: {', '.join(_KINDS)}")
-        return _call(_KINDS[kind], p, options)
-    for k in _KINDS.values():
-        if k.probe(p):
-            return _call(k, p, options)
+        found: SourceKind | None = _KINDS[kind]
+    else:
+        found = next((k for k in _KINDS.values() if k.probe(p)), None)
+        if found is None and options.get("depth_pattern") is not None and p.is_dir():
+            found = _KINDS.get("folder")  # files named as the caller says, not as probed
+    if found is not None:
+        if defaults is not None:
+            return _with_defaults(found, p, options, defaults)
+        return _open(found, p, options)
     raise InputError(
         f"{str(p)!r} is not an input pcdcodec reads; expected one of: "
         + "; ".join(f"{k.name} ({k.description})" for k in _KINDS.values())

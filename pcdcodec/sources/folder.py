@@ -1,7 +1,8 @@
-"""RGB-D image folders (TUM layout, or rgb/ + depth/) as a :class:`Source`."""
+"""RGB-D image folders (TUM layout, rgb/ + depth/, or flat) as a :class:`Source`."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -10,10 +11,24 @@ from .base import Source, register_source
 __all__: list[str] = []
 
 
+def _has_flat_depth(path: Path) -> bool:
+    """Whether the folder holds a depth file of the flat layout (``*depth*.png``, ...)."""
+    from ..datasets import _DEPTH_SUFFIXES, _FLAT_DEPTH
+
+    try:
+        with os.scandir(path) as entries:
+            for e in entries:
+                stem, ext = os.path.splitext(e.name)
+                if ext.lower() in _DEPTH_SUFFIXES and _FLAT_DEPTH.match(stem) and e.is_file():
+                    return True
+    except OSError:
+        return False
+    return False
+
+
 def _is_folder(path: Path) -> bool:
     return path.is_dir() and (
-        ((path / "rgb.txt").exists() and (path / "depth.txt").exists())
-        or ((path / "depth").is_dir() and any((path / n).is_dir() for n in ("rgb", "color")))
+        (path / "depth.txt").is_file() or (path / "depth").is_dir() or _has_flat_depth(path)
     )
 
 
@@ -24,5 +39,9 @@ def _open(path: Path, **options: Any) -> Source:
 
 
 register_source(
-    "folder", _is_folder, _open, "a TUM RGB-D folder, or rgb/ (or color/) and depth/ image folders"
+    "folder",
+    _is_folder,
+    _open,
+    "a TUM RGB-D folder, rgb/ (or color/) and depth/ image folders, or one folder of "
+    "*depth* and *rgb* files; other names need depth_pattern= and color_pattern=",
 )

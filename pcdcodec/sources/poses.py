@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -69,7 +70,7 @@ def _depth_time(path: Path, fallback: int) -> int:
 
 
 def folder_poses(
-    root: Path, pairs: list[tuple[int, Path, Path]], *, tum: bool
+    root: Path, pairs: Sequence[tuple[int, Path | None, Path]], *, tum: bool
 ) -> list[Pose | None] | None:
     """The pose of each ``(timestamp, color, depth)`` pair, or ``None`` when the folder has no
     poses at all. Pairs without a pose of their own get ``None`` in the list."""
