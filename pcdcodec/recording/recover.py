@@ -70,7 +70,16 @@ def _copy(f: IO[bytes], tmp: Path, src_path: Path, writer_class: Any, compressio
         raise DecodeError(f"could not be read ({type(exc).__name__}: {exc})") from exc
     if index.profile != fmt.PROFILE or fmt.METADATA_NAME not in index.metadata:
         raise DecodeError(f"{str(src_path)!r} is not a pcdcodec recording")
+    if index.loose_messages:
+        raise DecodeError(
+            f"{str(src_path)!r} holds {index.loose_messages} message(s) outside chunks (an "
+            "unchunked MCAP file), which carry no CRC of their own: nothing to recover from"
+        )
     fmt.check_metadata(index, repr(str(src_path)))
+    integrity = fmt.integrity_version(index, repr(str(src_path)))
+    offsets = sorted({o for topic in index.offsets.values() for o in topic})
+    if integrity:
+        offsets = offsets[: _complete(f, index, offsets)]
     with tmp.open("wb") as out:
         writer = writer_class(
             out, chunk_size=0, compression=compression.NONE, enable_data_crcs=True
@@ -88,8 +97,9 @@ def _copy(f: IO[bytes], tmp: Path, src_path: Path, writer_class: Any, compressio
             )
             for cid, ch in index.channels.items()
         }
-        offsets = sorted({o for topic in index.offsets.values() for o in topic})
         seen: set[tuple[int, int]] = set()
+        sealer = fmt.Sealer()
+        keyframes = set(index.times.get(fmt.TOPIC_KEYFRAMES, []))
         for offset in offsets:
             for m in fmt.read_chunk_messages(f, offset, what="recover", size=index.size):
                 key = (m.channel_id, m.log_time)
@@ -98,7 +108,51 @@ def _copy(f: IO[bytes], tmp: Path, src_path: Path, writer_class: Any, compressio
                     writer.add_message(
                         channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
                     )
+                    topic = index.channels[m.channel_id].topic
+                    sealer.note(topic, m.log_time)
+                    if topic == fmt.TOPIC_COLOR:
+                        sealer.packet(m.log_time, m.publish_time, m.log_time in keyframes, m.data)
+                    elif topic == fmt.TOPIC_COLOR_DIGEST:
+                        sealer.frame_record()  # copied as written: checked by _complete
+        if integrity:
+            writer.add_metadata(fmt.SEAL_NAME, fmt.seal(fmt.SEAL_NAME, sealer.seal()))
         writer.finish()
+
+
+def _complete(f: IO[bytes], index: fmt.FileIndex, offsets: list[int]) -> int:
+    """How many of the chunks at ``offsets`` (in file order) hold complete frames.
+
+    In a file with color digests, a frame is complete once the digest after it is written and
+    matches the color packets before it; the chunks up to the last such digest are kept (the
+    packets after it too when the file's seal vouches for them). A group whose packets do not
+    match their digest ends what is kept, like a damaged record.
+    """
+    channel = index.channel(fmt.TOPIC_COLOR_DIGEST)
+    if channel is None:
+        return len(offsets)  # depth only: every depth frame carries its own check
+    keyframes = set(index.times.get(fmt.TOPIC_KEYFRAMES, []))
+    sealer = fmt.Sealer()
+    seen: set[tuple[int, int]] = set()
+    kept = 0
+    for k, offset in enumerate(offsets):
+        for m in fmt.read_chunk_messages(f, offset, what="recover", size=index.size):
+            info = index.channels.get(m.channel_id)
+            if info is None or (m.channel_id, m.log_time) in seen:
+                continue
+            seen.add((m.channel_id, m.log_time))
+            if info.topic == fmt.TOPIC_COLOR:
+                sealer.packet(m.log_time, m.publish_time, m.log_time in keyframes, m.data)
+            elif info.topic == fmt.TOPIC_COLOR_DIGEST:
+                if bytes(m.data) != sealer.frame_record():
+                    return kept
+                kept = k + 1
+    seal = index.metadata.get(fmt.SEAL_NAME)
+    tail = sealer.seal()
+    if seal is not None and all(
+        seal.get(key) == tail[key] for key in ("tail_packets", "tail_digest")
+    ):
+        return len(offsets)
+    return kept
 
 
 def _schema_of(index: fmt.FileIndex, channel_id: int) -> int:
