@@ -5,8 +5,10 @@ CRCs, offsets and summary are all consistent (used by the integrity tests and th
 from __future__ import annotations
 
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import IO
 
 
 @dataclass(frozen=True)
@@ -30,7 +32,7 @@ class Contents:
     messages: list[Message]
 
 
-def read(path: Path) -> Contents:
+def read(path: Path | IO[bytes]) -> Contents:
     """Every record of the data section of ``path`` (chunks opened), in file order."""
     from mcap.records import Channel, DataEnd, Header, Metadata, Schema
     from mcap.records import Message as McapMessage
@@ -39,7 +41,7 @@ def read(path: Path) -> Contents:
     schemas: dict[int, tuple[str, str, bytes]] = {}
     channels: dict[int, Channel] = {}
     out = Contents("", "", [], {}, [])
-    with path.open("rb") as f:
+    with path.open("rb") if isinstance(path, Path) else nullcontext(path) as f:
         for record in StreamReader(f, emit_chunks=False).records:
             if isinstance(record, Header):
                 out.profile, out.library = record.profile, record.library
@@ -70,7 +72,7 @@ def read(path: Path) -> Contents:
     return out
 
 
-def write(contents: Contents, path: Path, *, chunked: bool = True) -> None:
+def write(contents: Contents, path: Path | IO[bytes], *, chunked: bool = True) -> None:
     """Write ``contents`` as a complete MCAP file: CRCs, data end and summary all consistent.
 
     ``chunked`` writes each message in a chunk of its own, as pcdcodec does; otherwise the
@@ -78,7 +80,7 @@ def write(contents: Contents, path: Path, *, chunked: bool = True) -> None:
     """
     from mcap.writer import CompressionType, Writer
 
-    with path.open("wb") as f:
+    with path.open("wb") if isinstance(path, Path) else nullcontext(path) as f:
         writer = Writer(
             f,
             chunk_size=0,
@@ -116,8 +118,8 @@ def without_integrity(contents: Contents) -> Contents:
             data = fmt.seal(name, data)
         metadata.append((name, data))
     contents.metadata = metadata
-    contents.channels.pop(fmt.TOPIC_COLOR_DIGEST, None)
-    contents.messages = [m for m in contents.messages if m.topic != fmt.TOPIC_COLOR_DIGEST]
+    contents.channels.pop(fmt.TOPIC_FRAME_DIGEST, None)
+    contents.messages = [m for m in contents.messages if m.topic != fmt.TOPIC_FRAME_DIGEST]
     return contents
 
 

@@ -84,8 +84,8 @@ def test_color_digests_and_the_seal_only_add_to_the_earlier_layout(tmp_path: Pat
     """What an earlier reader knows is as before: the same format version, channels and
     metadata, plus one channel, one metadata record and one key it does not read."""
     now, before = _structure(SEALED), _structure(RECORDING)
-    assert now["channels"].pop(fmt.TOPIC_COLOR_DIGEST) == {
-        "encoding": fmt.ENCODING_COLOR_DIGEST,
+    assert now["channels"].pop(fmt.TOPIC_FRAME_DIGEST) == {
+        "encoding": fmt.ENCODING_FRAME_DIGEST,
         "schema": None,
         "metadata": {},
         "messages": 4,

@@ -49,10 +49,10 @@ ENCODING_POSE_MATRIX = "pcdcodec.pose"  # 4 x 4 float64, row-major, little-endia
 ENCODING_DEPTH = "pcdcodec.depth"  # one encoded depth frame (docs/format.md), no schema
 ENCODING_COLOR = "pcdcodec.color"  # one raw codec packet, for codecs without a standard schema
 ENCODING_KEYFRAME = "pcdcodec.keyframe"  # an empty marker at each keyframe's pts
-#: One message per frame, after the frame's depth (and pose): the digest of the color packets
-#: written since the previous one (:class:`Sealer`).
-TOPIC_COLOR_DIGEST = "/camera/color/digest"
-ENCODING_COLOR_DIGEST = "pcdcodec.color_digest"
+#: One message per frame, the frame's last: digests of the color packets written since the
+#: previous one, of the frame's depth message and of its pose messages (:data:`DIGEST_RECORD`).
+TOPIC_FRAME_DIGEST = "/camera/frame_digest"
+ENCODING_FRAME_DIGEST = "pcdcodec.frame_digest"
 
 METADATA_NAME = "pcdcodec"
 USER_METADATA_NAME = "user"
@@ -69,7 +69,7 @@ SEAL_NAME = "pcdcodec.seal"
 SEALED_TOPICS = (
     TOPIC_COLOR,
     TOPIC_KEYFRAMES,
-    TOPIC_COLOR_DIGEST,
+    TOPIC_FRAME_DIGEST,
     TOPIC_DEPTH,
     TOPIC_CALIBRATION,
     TOPIC_COLOR_CALIBRATION,
@@ -567,18 +567,29 @@ def _listed(main: dict[str, str], what: str) -> list[str]:
 
 # -- color digests and the seal ----------------------------------------------------------------
 
-#: What a color packet adds to its frame's digest: pts, dts (as stored), keyframe flag, length.
+#: What a color packet adds to its group's digest: pts, dts (as stored), keyframe flag, length.
 _PACKET_FIELDS = struct.Struct("<QQBQ")
-#: A ``/camera/color/digest`` message: the number of packets, then their SHA-256.
-DIGEST_RECORD = struct.Struct("<I32s")
+#: A ``/camera/frame_digest`` message: the number of color packets in the frame's group and
+#: their SHA-256, the SHA-256 of the depth message's data, and the SHA-256 of the pose and pose
+#: matrix messages' data (32 zero bytes for a frame without a pose).
+DIGEST_RECORD = struct.Struct("<I32s32s32s")
+NO_POSE = bytes(32)
+
+
+def data_digest(*parts: bytes | memoryview) -> bytes:
+    """SHA-256 of the message data ``parts`` one after another."""
+    h = hashlib.sha256()
+    for part in parts:
+        h.update(part)
+    return h.digest()
 
 
 class Sealer:
     """Follows the messages of a recording in file order and makes its integrity records.
 
-    A writer calls :meth:`note` for every message it writes, :meth:`packet` for every color
-    packet, takes :meth:`frame_record` as the data of each ``/camera/color/digest`` message and
-    :meth:`seal` as the seal record; a reader uses the same methods to recompute them.
+    A writer calls :meth:`note` for every message it writes and :meth:`packet` for every color
+    packet; :meth:`group` closes the group of packets of one frame (for its digest message) and
+    :meth:`seal` makes the seal record. A reader uses the same methods to recompute them.
     """
 
     def __init__(self) -> None:
@@ -605,15 +616,21 @@ class Sealer:
         self._group.update(data)
         self._group_count += 1
 
-    def frame_record(self) -> bytes:
-        """The digest of the packets since the last call (or the start); starts a new group."""
-        out = DIGEST_RECORD.pack(self._group_count, self._group.digest())
+    def group(self) -> tuple[int, bytes]:
+        """The number and SHA-256 of the packets since the last call; starts a new group."""
+        out = self._group_count, self._group.digest()
         self._group, self._group_count = hashlib.sha256(), 0
         return out
 
+    def frame_record(self, depth: bytes | memoryview, pose: bytes = NO_POSE) -> bytes:
+        """The data of a frame's digest message: :meth:`group`, the depth message's data and
+        the digest of its pose messages' data (:func:`data_digest`)."""
+        count, color = self.group()
+        return DIGEST_RECORD.pack(count, color, data_digest(depth), pose)
+
     def seal(self) -> dict[str, str]:
         """The seal record (before its own digest is added by :func:`seal`)."""
-        count, digest_ = DIGEST_RECORD.unpack(self.frame_record())
+        count, digest_ = self.group()
         return {
             **self.summary(),
             "tail_packets": str(count),

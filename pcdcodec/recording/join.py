@@ -164,13 +164,8 @@ def join(
                                 key = m.log_time in keyframes
                                 check.packet(m.log_time, m.publish_time, key, m.data)
                                 sealer.packet(m.log_time, m.publish_time, key, m.data)
-                            elif topic == fmt.TOPIC_COLOR_DIGEST:
-                                if bytes(m.data) != check.frame_record():
-                                    raise DecodeError(
-                                        f"{str(path)!r}: the color packets before byte offset "
-                                        f"{offset} do not match their digest there"
-                                    )
-                                payload = sealer.frame_record()
+                            elif topic == fmt.TOPIC_FRAME_DIGEST:
+                                payload = _rejoin(m.data, check, sealer, path, offset)
                             writer.add_message(
                                 topic_ids[topic], m.log_time, payload, m.publish_time, sequence
                             )
@@ -197,6 +192,21 @@ def join(
         tmp.unlink(missing_ok=True)
         raise
     return frames
+
+
+def _rejoin(data: bytes, check: fmt.Sealer, sealer: fmt.Sealer, path: Path, offset: int) -> bytes:
+    """A part's frame digest message as the joined file needs it: the part's color group
+    checked, and replaced by the joined file's group (which may begin in the part before);
+    the depth and pose digests are kept as written."""
+    if len(data) != fmt.DIGEST_RECORD.size:
+        raise DecodeError(f"{str(path)!r}: the frame digest at byte offset {offset} is damaged")
+    count, color, depth, pose = fmt.DIGEST_RECORD.unpack(data)
+    if check.group() != (count, color):
+        raise DecodeError(
+            f"{str(path)!r}: the color packets before byte offset {offset} do not match their "
+            "digest there"
+        )
+    return fmt.DIGEST_RECORD.pack(*sealer.group(), depth, pose)
 
 
 def _library(path: Path) -> str:

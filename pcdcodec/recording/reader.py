@@ -212,14 +212,21 @@ class Recording:
         self._extradata: bytes | None = None
         self._keyframes: list[int] = []
         self._keyframe_set: set[int] = set()
-        # Color digests: the digest messages' offsets in file order, and each packet's group
-        # (the index of the first digest message after it; len(offsets) for the tail).
-        self._digest_times, self._digest_offsets = index.arrays(fmt.TOPIC_COLOR_DIGEST)
+        # Frame digests: the digest messages' offsets in file order, and each color packet's
+        # group (the index of the first digest message after it; len(offsets) for the tail).
+        self._digest_times, self._digest_offsets = index.arrays(fmt.TOPIC_FRAME_DIGEST)
         order = np.argsort(self._digest_offsets, kind="stable")
         self._digest_times = self._digest_times[order]
         self._digest_offsets = self._digest_offsets[order]
+        self._digest_of_time = {int(t): g for g, t in enumerate(self._digest_times.tolist())}
+        self._records: dict[int, tuple[int, bytes, bytes, bytes]] = {}
         self._packet_group: npt.NDArray[np.int64] = np.zeros(0, np.int64)
         self._groups_checked: set[int] = set()
+        if self.integrity and self._seal is None:
+            # Written before the writer stopped: a frame is complete with its digest message.
+            has = [i for i, t in enumerate(d_times.tolist()) if int(t) in self._digest_of_time]
+            keep_done = list(range(has[-1] + 1)) if has else []
+            d_times, d_offsets = d_times[keep_done], d_offsets[keep_done]
         if color_codec is not None:
             c_pts, c_offsets = index.arrays(fmt.TOPIC_COLOR)
             k_times, _ = index.arrays(fmt.TOPIC_KEYFRAMES)
@@ -357,8 +364,43 @@ class Recording:
         """Whether frames were written with a pose."""
         return bool(self._pose_at)
 
+    def _check_pose(self, i: int, ts: int) -> None:
+        """The frame's pose messages (or their absence) must match its digest message."""
+        what = f"{str(self.path)!r}: frame {i} (t={ts} ns) pose"
+        record = self._frame_record(i, what)
+        if record is None:
+            return
+        parts = []
+        for topic, at in (
+            (fmt.TOPIC_POSE, self._pose_at),
+            (fmt.TOPIC_POSE_MATRIX, self._pose_matrix_at),
+        ):
+            offset = at.get(ts)
+            if offset is None:
+                continue
+            with self._lock:
+                messages = fmt.read_chunk_messages(self._file, offset, what=what)
+            channel = self.index.channel(topic)
+            data = next(
+                (
+                    bytes(m.data)
+                    for m in messages
+                    if channel is not None and m.channel_id == channel.id and m.log_time == ts
+                ),
+                None,
+            )
+            if data is None:
+                raise DecodeError(f"{what}: no {topic} message at byte offset {offset}")
+            parts.append(data)
+        if (fmt.data_digest(*parts) if parts else fmt.NO_POSE) != record[3]:
+            raise DecodeError(
+                f"{what} does not match the frame's digest: its pose messages were changed, "
+                "added or removed"
+            )
+
     def _pose(self, i: int) -> npt.NDArray[np.float64] | None:
         ts = int(self._times[i])
+        self._check_pose(i, ts)
         exact = self._pose_matrix_at.get(ts)
         if exact is not None:
             with self._lock:
@@ -436,7 +478,14 @@ class Recording:
         channel = self.index.channel(fmt.TOPIC_DEPTH)
         for m in messages:
             if channel is not None and m.channel_id == channel.id and m.log_time == ts:
-                return bytes(m.data)
+                data = bytes(m.data)
+                record = self._frame_record(i, what)
+                if record is not None and fmt.data_digest(data) != record[2]:
+                    raise DecodeError(
+                        f"{what} does not match the frame's digest: the depth message was "
+                        "changed, or belongs to another frame"
+                    )
+                return data
         raise DecodeError(f"{what}: no depth message with that time in the chunk there")
 
     def depth(self, i: int) -> npt.NDArray[Any]:
@@ -542,10 +591,47 @@ class Recording:
         for g in range(int(groups[first]), int(groups[last]) + 1):
             if g in self._groups_checked:
                 continue
-            problem = self._group_problem(g)
+            try:
+                problem = self._group_problem(g)
+            except DecodeError as exc:
+                raise DecodeError(f"{what}: {exc}") from exc
             if problem:
                 raise DecodeError(f"{what}: {problem}")
             self._groups_checked.add(g)
+
+    def _record(self, g: int) -> tuple[int, bytes, bytes, bytes]:
+        """Frame digest message ``g`` (in file order): packets, color, depth and pose digests."""
+        if g in self._records:
+            return self._records[g]
+        offset, ts = int(self._digest_offsets[g]), int(self._digest_times[g])
+        where = f"{str(self.path)!r}: the frame digest at byte offset {offset}"
+        with self._lock:
+            messages = fmt.read_chunk_messages(
+                self._file, offset, what=where, size=self.index.size or None
+            )
+        channel = self.index.channel(fmt.TOPIC_FRAME_DIGEST)
+        data = next(
+            (
+                bytes(m.data)
+                for m in messages
+                if channel is not None and m.channel_id == channel.id and m.log_time == ts
+            ),
+            None,
+        )
+        if data is None or len(data) != fmt.DIGEST_RECORD.size:
+            raise DecodeError(f"{where}: no frame digest message of {fmt.DIGEST_RECORD.size} bytes")
+        record: tuple[int, bytes, bytes, bytes] = fmt.DIGEST_RECORD.unpack(data)
+        self._records[g] = record
+        return record
+
+    def _frame_record(self, i: int, what: str) -> tuple[int, bytes, bytes, bytes] | None:
+        """The digest message of frame ``i``; ``None`` in files written without them."""
+        if not self.integrity:
+            return None
+        g = self._digest_of_time.get(int(self._times[i]))
+        if g is None:
+            raise DecodeError(f"{what}: the frame has no digest message")
+        return self._record(g)
 
     def _group_problem(self, g: int) -> str:
         """Why the color packets of digest group ``g`` differ from their digest, or ``""``."""
@@ -554,26 +640,10 @@ class Recording:
         for j in range(lo, hi):
             m = self._packet_message(j)
             sealer.packet(int(m.log_time), int(m.publish_time), j in self._keyframe_set, m.data)
-        count, digest = fmt.DIGEST_RECORD.unpack(sealer.frame_record())
+        count, digest = sealer.group()
         if g < len(self._digest_offsets):
-            offset, ts = int(self._digest_offsets[g]), int(self._digest_times[g])
-            where = f"the color digest at byte offset {offset}"
-            with self._lock:
-                messages = fmt.read_chunk_messages(
-                    self._file, offset, what=where, size=self.index.size or None
-                )
-            channel = self.index.channel(fmt.TOPIC_COLOR_DIGEST)
-            data = next(
-                (
-                    bytes(m.data)
-                    for m in messages
-                    if channel is not None and m.channel_id == channel.id and m.log_time == ts
-                ),
-                None,
-            )
-            if data is None or len(data) != fmt.DIGEST_RECORD.size:
-                return f"{where} is not a color digest message"
-            want_count, want = fmt.DIGEST_RECORD.unpack(data)
+            where = f"the frame digest at byte offset {int(self._digest_offsets[g])}"
+            want_count, want, _, _ = self._record(g)
         elif self._seal is not None:
             where = f"the seal's digest of the last {hi - lo} color packet(s)"
             try:
@@ -584,9 +654,13 @@ class Recording:
         else:
             return f"the last {hi - lo} color packet(s) have no digest (the writer stopped first)"
         if (count, digest) != (want_count, want):
-            first = int(self._packet_offsets[lo]) if hi > lo else None
+            found = (
+                f"the {count} color packet(s) from byte offset {int(self._packet_offsets[lo])}"
+                if hi > lo
+                else "no color packet"
+            )
             return (
-                f"the {count} color packet(s) from byte offset {first} do not match {where} "
+                f"{found} do not match {where} "
                 f"({want_count} packet(s)): the color packets were changed, reordered, added or "
                 "removed"
             )
@@ -802,7 +876,7 @@ class Recording:
         depth = np.asarray(sorted(scanned.times.get(fmt.TOPIC_DEPTH, [])), dtype=np.int64)
         if np.any(np.diff(depth) <= 0):
             errors.append("depth messages share timestamps")
-        if self.integrity:
+        if self.integrity and not scanned.damaged_chunks:  # (those are reported already)
             try:
                 problems = fmt.seal_problems(scanned, "reading the whole file")
             except PcdcodecError as exc:

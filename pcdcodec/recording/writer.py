@@ -342,9 +342,6 @@ class RecordingWriter:
             self._channels["key"] = mcap.register_channel(
                 fmt.TOPIC_KEYFRAMES, fmt.ENCODING_KEYFRAME, 0, {}
             )
-            self._channels["digest"] = mcap.register_channel(
-                fmt.TOPIC_COLOR_DIGEST, fmt.ENCODING_COLOR_DIGEST, 0, {}
-            )
         self._channels["depth"] = mcap.register_channel(
             fmt.TOPIC_DEPTH,
             fmt.ENCODING_DEPTH,
@@ -354,6 +351,9 @@ class RecordingWriter:
                 "codec": json.dumps(self.depth_codec.stored_config()),
                 "depth_scale": repr(self.depth_scale),
             },
+        )
+        self._channels["digest"] = mcap.register_channel(
+            fmt.TOPIC_FRAME_DIGEST, fmt.ENCODING_FRAME_DIGEST, 0, {}
         )
         sid = mcap.register_schema(CAMERA_CALIBRATION, "ros2msg", CAMERA_CALIBRATION_SCHEMA)
         cal = self._channels["cal"] = mcap.register_channel(fmt.TOPIC_CALIBRATION, "cdr", sid, {})
@@ -729,6 +729,7 @@ class RecordingWriter:
         self._sealer.note(fmt.TOPIC_DEPTH, timestamp)
         self.bytes_depth += len(data)
         pose = self._poses.pop(timestamp, None)
+        pose_digest = fmt.NO_POSE
         if pose is not None:
             if "pose" not in self._channels:
                 self._channels["pose"] = self._mcap.register_channel(
@@ -744,17 +745,17 @@ class RecordingWriter:
             self._mcap.add_message(self._channels["pose_matrix"], timestamp, exact, timestamp)
             self._sealer.note(fmt.TOPIC_POSE, timestamp)
             self._sealer.note(fmt.TOPIC_POSE_MATRIX, timestamp)
+            pose_digest = fmt.data_digest(msg, exact)
             self.poses_written += 1
-        if "digest" in self._channels:
-            # Last of the frame: the digest of the color packets written since the previous
-            # one (this frame's group), which makes them readable.
-            record = self._sealer.frame_record()
-            self._mcap.add_message(
-                self._channels["digest"], timestamp, record, timestamp, self.frames_written
-            )
-            self._sealer.note(fmt.TOPIC_COLOR_DIGEST, timestamp)
-            self._color_written.update(self._group_pts)
-            self._group_pts.clear()
+        # Last of the frame: the digests of the color packets written since the previous
+        # frame's (its group), of its depth and of its pose; the frame is readable from here.
+        record = self._sealer.frame_record(data, pose_digest)
+        self._mcap.add_message(
+            self._channels["digest"], timestamp, record, timestamp, self.frames_written
+        )
+        self._sealer.note(fmt.TOPIC_FRAME_DIGEST, timestamp)
+        self._color_written.update(self._group_pts)
+        self._group_pts.clear()
         self.frames_written += 1
         self._depth_written.append(timestamp)
         self._count_complete()
