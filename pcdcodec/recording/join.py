@@ -139,8 +139,9 @@ def join(
                 for cid, ch in first.channels.items()
             }
             # Sequence numbers continue across parts: the color packets (and the keyframe
-            # markers, which share their packet's number) and the depth frames count apart.
-            base = {fmt.TOPIC_COLOR: 0, fmt.TOPIC_DEPTH: 0}
+            # markers, which share their packet's number), the depth frames and the frame
+            # digests count apart.
+            base = {fmt.TOPIC_COLOR: 0, fmt.TOPIC_DEPTH: 0, fmt.TOPIC_FRAME_DIGEST: 0}
             # Each part's color digests are checked as its packets are copied; the joined
             # file gets its own (a part's last packets join the next part's first frame's).
             integrity = fmt.integrity_version(first, repr(str(paths[0])))

@@ -115,7 +115,7 @@ class Recording:
                 f"(profile {index.profile!r}, no {fmt.METADATA_NAME!r} metadata)"
             )
         fmt.check_metadata(index, repr(name))
-        #: Whether the file carries color digests and a seal (``docs/format.md``).
+        #: 1 for files with frame digests and a seal (``docs/format.md``), 0 for earlier ones.
         self.integrity = fmt.integrity_version(index, repr(name))
         problems = fmt.seal_problems(index, repr(name))
         if problems:
@@ -125,7 +125,7 @@ class Recording:
                 + "; `pcdcodec recover` copies the frames it can read into a new file"
             )
         self._seal: dict[str, str] | None = (
-            index.metadata.get(fmt.SEAL_NAME) if (self.integrity) else None
+            index.metadata.get(fmt.SEAL_NAME) if self.integrity else None
         )
         where = f"{name!r}: the {fmt.METADATA_NAME!r} metadata at byte offset " + str(
             index.metadata_offsets.get(fmt.METADATA_NAME)
