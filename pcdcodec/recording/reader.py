@@ -784,7 +784,9 @@ class Recording:
 
         Besides decoding each frame (which checks every CRC on its way), the file is read from
         start to end without the summary, and what that finds (channels, messages, their times,
-        the data section's CRC, the metadata) is compared with what the index said.
+        the data section's CRC, the metadata) is compared with what the index said. In files
+        with frame digests and a seal, what the scan finds is compared with the seal too, and
+        every group of color packets with its digest (``docs/format.md``).
         """
         errors: list[str] = []
         index = self.index
