@@ -222,6 +222,7 @@ class Recording:
         self._records: dict[int, tuple[int, bytes, bytes, bytes]] = {}
         self._packet_group: npt.NDArray[np.int64] = np.zeros(0, np.int64)
         self._groups_checked: set[int] = set()
+        self._packet_cache: dict[int, Any] = {}
         if self.integrity and self._seal is None:
             # Written before the writer stopped: a frame is complete with its digest message.
             has = [i for i, t in enumerate(d_times.tolist()) if int(t) in self._digest_of_time]
@@ -565,6 +566,9 @@ class Recording:
 
     def _packet_message(self, j: int) -> Any:
         """The MCAP message of color packet ``j``, as stored."""
+        cached = self._packet_cache.pop(j, None)
+        if cached is not None:
+            return cached
         offset = int(self._packet_offsets[j])
         pts = int(self._packet_pts[j])
         what = f"{str(self.path)!r}: color packet {j} (pts {pts}) at byte offset {offset}"
@@ -640,6 +644,8 @@ class Recording:
         for j in range(lo, hi):
             m = self._packet_message(j)
             sealer.packet(int(m.log_time), int(m.publish_time), j in self._keyframe_set, m.data)
+            if len(self._packet_cache) < 64:  # decoding usually reads them next: once is enough
+                self._packet_cache[j] = m
         count, digest = sealer.group()
         if g < len(self._digest_offsets):
             where = f"the frame digest at byte offset {int(self._digest_offsets[g])}"
