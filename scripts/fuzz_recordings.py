@@ -3,8 +3,11 @@
 
 The cases are those of ``tests/test_fuzz_recording.py`` (see ``tests/recording_fuzz.py``): for
 each codec pair a small clean recording is written, then case ``k`` of ``--seed`` changes its
-bytes in one way (mostly aimed at the header, metadata, record headers, summary and footer), and
-the mutant is opened, decoded frame by frame against the clean file, and verified. A case fails
+bytes in one way (mostly aimed at the header, metadata, record headers, summary and footer; a
+quarter of the cases remove, swap, duplicate, move or retime whole messages, swap payloads,
+drop a metadata record or write the file unchunked, every CRC and the summary recomputed:
+region "structure"), and the mutant is opened, decoded frame by frame against the clean file,
+and verified. A case fails
 on an exception outside pcdcodec's tree, a frame or setting that differs without an error,
 frames lost without a word, or a hang (``--timeout``; the stacks of all threads are printed).
 

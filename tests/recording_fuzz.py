@@ -3,32 +3,38 @@
 A clean recording is written for each codec pair and decoded once. Each case changes its bytes
 (bit flips, overwrites, zeroed or special values, truncation, deletion, duplication), most of
 them aimed at the parts that say how to read the rest: the header, the metadata records, record
-headers and lengths, the summary and the footer. The mutant is then opened, every frame decoded
-and compared with the clean file's frame of the same timestamp, and ``verify()`` run.
+headers and lengths, the summary and the footer. A quarter of the cases change whole records
+instead (remove, swap, duplicate, move or retime a message, swap two payloads, drop a metadata
+record, write the file unchunked) and write the file anew, every CRC and the summary matching.
+The mutant is then opened, every frame decoded and compared with the clean file's frame of the
+same timestamp, and ``verify()`` run.
 
 A case passes when only :class:`~pcdcodec.PcdcodecError` subclasses were raised, every frame
 that came back equals the clean one, the settings equal the clean ones, and frames are missing
-only where the file says so (an error, a failing ``verify()``, or a file that reads as unfinished
-because its end was cut off). Everything is seeded: case ``k`` of seed ``s`` is the same mutation
-on every run (given the same clean file).
+only where the file says so (an error, a failing ``verify()``, or a file that reads as
+unfinished because its end was cut off). Everything is seeded: case ``k`` of seed ``s`` is the
+same mutation on every run (given the same clean file).
 """
 
 from __future__ import annotations
 
 import faulthandler
+import io
 import os
 import struct
 import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 import pcdcodec
+
+from .recording_rewrite import read, write
 
 #: name -> writer options; small frames so a case takes milliseconds.
 CONFIGS: dict[str, dict[str, Any]] = {
@@ -52,6 +58,8 @@ class Clean:
     frames: dict[int, tuple[Any, Any]]  # timestamp -> (color, depth)
     settings: dict[str, Any]
     regions: list[tuple[int, int, str]]
+    #: the records of the data section, for the structural mutations
+    contents: Any = None
 
 
 @dataclass
@@ -109,7 +117,7 @@ def load_clean(name: str, path: Path) -> Clean:
         if len(frames) != FRAMES or not rec.verify().ok:
             raise RuntimeError(f"{path} is not a clean {FRAMES}-frame recording")
     data = path.read_bytes()
-    return Clean(name, path, data, frames, settings, regions(data))
+    return Clean(name, path, data, frames, settings, regions(data), read(path))
 
 
 def regions(data: bytes) -> list[tuple[int, int, str]]:
@@ -152,8 +160,76 @@ AIM = {
 OPERATORS = ("flip", "overwrite", "zero", "special", "truncate", "delete", "duplicate")
 
 
+#: the share of cases that change whole records, every CRC and the summary made to match
+STRUCTURAL = 0.25
+STRUCTURAL_OPERATORS = (
+    "remove",
+    "swap",
+    "duplicate",
+    "move",
+    "swap-payloads",
+    "retime",
+    "unchunked",
+    "drop-metadata",
+)
+
+
+def mutate_structure(clean: Clean, rng: np.random.Generator) -> tuple[bytes, str]:
+    """Remove, swap, duplicate, move or retime whole MCAP messages (or swap the payloads of
+    two on one channel, drop a metadata record, or write the file unchunked), then write the
+    file anew with the ``mcap`` library, so that every CRC, offset and the summary agree."""
+    contents = replace(
+        clean.contents,
+        metadata=list(clean.contents.metadata),
+        messages=list(clean.contents.messages),
+    )
+    ms = contents.messages
+    n = len(ms)
+    op = STRUCTURAL_OPERATORS[rng.integers(len(STRUCTURAL_OPERATORS))]
+    k, other = int(rng.integers(n)), int(rng.integers(n))
+    chunked = True
+    what = f"{op} message {k} ({ms[k].topic} t={ms[k].log_time})"
+    if op == "remove":
+        del ms[k]
+    elif op == "swap":
+        ms[k], ms[other] = ms[other], ms[k]
+        what += f" with message {other}"
+    elif op == "duplicate":
+        ms.insert(other, ms[k])
+        what += f" at {other}"
+    elif op == "move":
+        ms.insert(other, ms.pop(k))
+        what += f" to {other}"
+    elif op == "swap-payloads":
+        same = [j for j, m in enumerate(ms) if m.topic == ms[k].topic and j != k]
+        if same:
+            other = same[int(rng.integers(len(same)))]
+            ms[k], ms[other] = (
+                replace(ms[k], data=ms[other].data),
+                replace(ms[other], data=ms[k].data),
+            )
+        what += f" with message {other}"
+    elif op == "retime":
+        delta = [-1, 1, -33_333_333, 33_333_333, 10**9][int(rng.integers(5))]
+        ms[k] = replace(ms[k], log_time=max(0, ms[k].log_time + delta))
+        what += f" by {delta} ns"
+    elif op == "unchunked":
+        chunked = False
+        what = "unchunked"
+    else:
+        j = int(rng.integers(len(contents.metadata)))
+        what = f"drop metadata record {contents.metadata[j][0]!r}"
+        del contents.metadata[j]
+    out = io.BytesIO()
+    write(contents, out, chunked=chunked)
+    return out.getvalue(), what
+
+
 def mutate(clean: Clean, seed: int, case: int) -> tuple[bytes, str]:
     """Case ``case`` of ``seed``: the mutant's bytes and a description to reproduce it by."""
+    if clean.contents is not None and np.random.default_rng([seed, case, 1]).random() < STRUCTURAL:
+        data, what = mutate_structure(clean, np.random.default_rng([seed, case, 2]))
+        return data, f"{clean.name} case {case} seed {seed} (structure): {what}"
     rng = np.random.default_rng([seed, case])
     data = bytearray(clean.data)
     n = len(data)

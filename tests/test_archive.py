@@ -131,13 +131,18 @@ def test_join_reads_like_one_writer(tmp_path: Path, sample: RGBDSequence, color:
 
     with out.open("rb") as f:
         reader = make_reader(f)
-        assert [m.name for m in reader.iter_metadata()] == [fmt.METADATA_NAME, "user"]
+        assert [m.name for m in reader.iter_metadata()] == [
+            fmt.METADATA_NAME,
+            "user",
+            fmt.SEAL_NAME,
+        ]
         seqs: dict[str, list[int]] = {}
         for _, channel, message in reader.iter_messages(log_time_order=False):
             seqs.setdefault(channel.topic, []).append(message.sequence)
     assert seqs[fmt.TOPIC_CALIBRATION] == [0]
     assert seqs[fmt.TOPIC_DEPTH] == list(range(9))
     assert seqs[fmt.TOPIC_COLOR] == list(range(9))
+    assert seqs[fmt.TOPIC_FRAME_DIGEST] == list(range(9))
     assert {0, 4, 7} <= set(seqs[fmt.TOPIC_KEYFRAMES]) <= set(range(9))
 
 

@@ -17,10 +17,11 @@ import numpy as np
 import pytest
 
 import pcdcodec
+from pcdcodec.recording import _index as fmt
 from pcdcodec.recording.paper import export_paper, import_paper
 from pcdcodec.registry import codec_for_reading
 
-from .golden.make_layout_golden import PAPER, RECORDING, write_recording
+from .golden.make_layout_golden import PAPER, RECORDING, SEALED, write_recording
 from .golden.make_recording_golden import golden_frames
 
 #: Values that name the writing library's version; everything else must match.
@@ -55,9 +56,12 @@ def _structure(path: Path) -> dict[str, Any]:
         return {"profile": reader.get_header().profile, "channels": channels, "metadata": metadata}
 
 
-def test_golden_recording_reads_back() -> None:
-    with pcdcodec.open(RECORDING) as rec:
+@pytest.mark.parametrize("golden", [RECORDING, SEALED], ids=["before-seals", "sealed"])
+def test_golden_recording_reads_back(golden: Path) -> None:
+    with pcdcodec.open(golden) as rec:
         frames = list(rec)
+        assert rec.integrity == (golden == SEALED)
+        assert rec.verify().ok
     expected = golden_frames()
     assert len(frames) == len(expected)
     for frame, (color, depth, ts) in zip(frames, expected, strict=True):
@@ -69,11 +73,31 @@ def test_golden_recording_reads_back() -> None:
 def test_a_fresh_write_has_the_golden_container_layout(tmp_path: Path) -> None:
     fresh = tmp_path / "fresh.pcdc"
     write_recording(fresh)
-    golden, now = _structure(RECORDING), _structure(fresh)
+    golden, now = _structure(SEALED), _structure(fresh)
     assert now == golden, (
-        "the .pcdc container layout changed; if that is intended, raise FORMAT_VERSION and add "
-        "new goldens with tests/golden/make_layout_golden.py"
+        "the .pcdc container layout changed; if that is intended, raise FORMAT_VERSION (or the "
+        "integrity version) and add new goldens with tests/golden/make_layout_golden.py"
     )
+
+
+def test_color_digests_and_the_seal_only_add_to_the_earlier_layout(tmp_path: Path) -> None:
+    """What an earlier reader knows is as before: the same format version, channels and
+    metadata, plus one channel, one metadata record and one key it does not read."""
+    now, before = _structure(SEALED), _structure(RECORDING)
+    assert now["channels"].pop(fmt.TOPIC_FRAME_DIGEST) == {
+        "encoding": fmt.ENCODING_FRAME_DIGEST,
+        "schema": None,
+        "metadata": {},
+        "messages": 4,
+    }
+    seal = now["metadata"].pop(fmt.SEAL_NAME)
+    assert seal["frames"] == "4"
+    assert seal["tail_packets"] == "0"
+    main_now, main_before = now["metadata"]["pcdcodec"], before["metadata"]["pcdcodec"]
+    assert main_now.pop(fmt.INTEGRITY_KEY) == "1"
+    assert main_now.pop(fmt.DIGEST_KEY) != main_before.pop(fmt.DIGEST_KEY)
+    assert main_now["format_version"] == "1"
+    assert now == before
 
 
 def _layout_doc(folder: Path) -> dict[str, Any]:

@@ -32,15 +32,19 @@ def test_mutated_recordings_give_right_frames_or_errors(
 ) -> None:
     outcomes: Counter[str] = Counter()
     failures = []
+    structural = 0
     for case in range(CASES):
         result = run_case(cleans[name], SEED, case, tmp_path, timeout=60.0)
         outcomes[result.outcome] += 1
+        structural += "(structure)" in result.detail
         if result.outcome not in OK_OUTCOMES:
             failures.append(f"{result.outcome}: {result.detail}")
     assert not failures, "\n".join(failures)
     # The mutations reach the places that matter: most are noticed, at open or later.
     assert outcomes["detected-at-open"] >= CASES // 10
     assert outcomes["detected"] >= CASES // 10
+    # Whole messages removed, swapped, duplicated, retimed... with every CRC recomputed.
+    assert structural >= CASES // 10
 
 
 def test_cli_never_shows_a_traceback_for_a_mutant(

@@ -18,6 +18,7 @@ from pcdcodec.datasets import load_sample
 from pcdcodec.recording import _index as fmt
 
 from .golden.make_recording_golden import GOLDEN, golden_frames
+from .recording_rewrite import rewrite
 
 W, H = 160, 120
 CAMERA = pcdcodec.CameraIntrinsics(W, H, 525.0, 525.0, 79.5, 59.5)
@@ -172,6 +173,26 @@ def test_wrong_time_in_a_consistent_index_gives_an_error_not_a_frame(
     fix_summary_crc(data)
     path = tmp_path / "time.pcdc"
     path.write_bytes(bytes(data))
+    # The summary disagrees with the seal, so the frames are found by reading the file.
+    frames, report = read_all(path)
+    assert_same(frames, decoded)
+    assert not report.ok
+    assert any("disagrees with the file's seal" in e for e in report.errors)
+    # A file without a seal (written before seals) has only the summary to go by.
+    old = tmp_path / "old.pcdc"
+    rewrite(clean, old, strip_integrity=True)
+    data = bytearray(old.read_bytes())
+    ids = channel_ids(old)
+    depth_indexes = [
+        p
+        for p, op, _ in summary_records(bytes(data))
+        if op == 0x08 and struct.unpack_from("<H", data, p + 9 + 36)[0] == ids[fmt.TOPIC_DEPTH]
+    ]
+    pos = depth_indexes[4]
+    t = struct.unpack_from("<Q", data, pos + 9)[0]
+    struct.pack_into("<QQ", data, pos + 9, t + 1, t + 1)
+    fix_summary_crc(data)
+    path.write_bytes(bytes(data))
     with pcdcodec.open(path) as rec:
         assert len(rec) == len(decoded)
         with pytest.raises(pcdcodec.DecodeError, match=r"frame 4 .*no decodable color packet"):
@@ -298,7 +319,7 @@ def test_old_files_without_digest_still_read() -> None:
 
 def test_every_metadata_record_is_sealed(clean: Path) -> None:
     with pcdcodec.open(clean) as rec:
-        assert set(rec.index.metadata) == {"pcdcodec", "user"}
+        assert set(rec.index.metadata) == {"pcdcodec", "user", fmt.SEAL_NAME}
         for name, data in rec.index.metadata.items():
             assert data[fmt.DIGEST_KEY] == fmt.digest(name, data)
         assert rec.metadata == {"site": "lab"}

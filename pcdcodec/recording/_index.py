@@ -49,6 +49,10 @@ ENCODING_POSE_MATRIX = "pcdcodec.pose"  # 4 x 4 float64, row-major, little-endia
 ENCODING_DEPTH = "pcdcodec.depth"  # one encoded depth frame (docs/format.md), no schema
 ENCODING_COLOR = "pcdcodec.color"  # one raw codec packet, for codecs without a standard schema
 ENCODING_KEYFRAME = "pcdcodec.keyframe"  # an empty marker at each keyframe's pts
+#: One message per frame, the frame's last: digests of the color packets written since the
+#: previous one, of the frame's depth message and of its pose messages (:data:`DIGEST_RECORD`).
+TOPIC_FRAME_DIGEST = "/camera/frame_digest"
+ENCODING_FRAME_DIGEST = "pcdcodec.frame_digest"
 
 METADATA_NAME = "pcdcodec"
 USER_METADATA_NAME = "user"
@@ -56,6 +60,23 @@ USER_METADATA_NAME = "user"
 DIGEST_KEY = "pcdcodec.digest"
 #: In the ``pcdcodec`` record: JSON list of the other metadata records written with it.
 RECORDS_KEY = "metadata_records"
+#: In the ``pcdcodec`` record of files with color digests and a seal: their version, ``1``.
+INTEGRITY_KEY = "integrity"
+INTEGRITY_VERSION = 1
+#: The metadata record written on close: what the file holds (:meth:`Sealer.seal`).
+SEAL_NAME = "pcdcodec.seal"
+#: The topics whose messages the seal counts and lists (other channels may come and go).
+SEALED_TOPICS = (
+    TOPIC_COLOR,
+    TOPIC_KEYFRAMES,
+    TOPIC_FRAME_DIGEST,
+    TOPIC_DEPTH,
+    TOPIC_CALIBRATION,
+    TOPIC_COLOR_CALIBRATION,
+    TOPIC_EXTRINSICS,
+    TOPIC_POSE,
+    TOPIC_POSE_MATRIX,
+)
 
 _OP_HEADER, _OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL = 0x01, 0x02, 0x03, 0x04
 _OP_MESSAGE, _OP_CHUNK, _OP_MESSAGE_INDEX, _OP_CHUNK_INDEX = 0x05, 0x06, 0x07, 0x08
@@ -119,6 +140,8 @@ class FileIndex:
     damaged_chunks: list[tuple[int, str]] = field(default_factory=list)
     #: size of the file in bytes
     size: int = 0
+    #: message records a scan found outside chunks (an unchunked MCAP file; not indexed)
+    loose_messages: int = 0
 
     def add(self, channel_id: int, log_time: int, offset: int) -> None:
         info = self.channels.get(channel_id)
@@ -232,7 +255,15 @@ def load(f: IO[bytes]) -> FileIndex:
     except _SummaryError as exc:
         index, problem = None, str(exc)
     if index is not None:
-        return index
+        # A summary that disagrees with the seal (written last, in the data section) is not
+        # used either: the scan then finds what the file really holds.
+        try:
+            disagree = seal_problems(index, "the summary")
+        except DecodeError as exc:
+            disagree = [str(exc)]
+        if not disagree:
+            return index
+        problem = "it disagrees with the file's seal (" + "; ".join(disagree) + ")"
     index = scan(f)
     if problem is None and index.data_crc is not None:
         problem = "the data section ends, but no intact summary and footer follow it"
@@ -359,6 +390,9 @@ def _parse_summary(f: IO[bytes], summary: bytes, start: int, size: int) -> FileI
         for message in read_chunk_messages(f, ci.chunk_start_offset, what="index", size=size):
             index.add(message.channel_id, message.log_time, ci.chunk_start_offset)
             counts[message.channel_id] = counts.get(message.channel_id, 0) + 1
+    if statistics is None and index.channels:
+        # Without statistics nothing says whether every message is in an indexed chunk.
+        raise _SummaryError("it has no statistics record to check its chunk indexes against")
     unknown = set(counts) - set(index.channels)
     if unknown:
         raise _SummaryError(f"chunks hold messages of channels {sorted(unknown)} it does not list")
@@ -445,6 +479,8 @@ def scan(f: IO[bytes], *, skip_damaged_chunks: bool = False) -> FileIndex:
                         continue
                     seen.add(key)
                     index.add(message.channel_id, message.log_time, pos)
+            elif opcode == _OP_MESSAGE:
+                index.loose_messages += 1  # no CRC of its own: such files are refused
             elif opcode == _OP_DATA_END:
                 stored = DataEnd.read(_stream(content)).data_section_crc
                 index.data_crc = (stored, crc)
@@ -527,3 +563,154 @@ def _listed(main: dict[str, str], what: str) -> list[str]:
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         raise DecodeError(f"{what}: {RECORDS_KEY!r} is not a list of record names")
     return names
+
+
+# -- color digests and the seal ----------------------------------------------------------------
+
+#: What a color packet adds to its group's digest: pts, dts (as stored), keyframe flag, length.
+_PACKET_FIELDS = struct.Struct("<QQBQ")
+#: A ``/camera/frame_digest`` message: the number of color packets in the frame's group and
+#: their SHA-256, the SHA-256 of the depth message's data, and the SHA-256 of the pose and pose
+#: matrix messages' data (32 zero bytes for a frame without a pose).
+DIGEST_RECORD = struct.Struct("<I32s32s32s")
+NO_POSE = bytes(32)
+
+
+def data_digest(*parts: bytes | memoryview) -> bytes:
+    """SHA-256 of the message data ``parts`` one after another."""
+    h = hashlib.sha256()
+    for part in parts:
+        h.update(part)
+    return h.digest()
+
+
+class Sealer:
+    """Follows the messages of a recording in file order and makes its integrity records.
+
+    A writer calls :meth:`note` for every message it writes and :meth:`packet` for every color
+    packet; :meth:`group` closes the group of packets of one frame (for its digest message) and
+    :meth:`seal` makes the seal record. A reader uses the same methods to recompute them.
+    """
+
+    def __init__(self) -> None:
+        self._structure = hashlib.sha256()
+        self.counts: dict[str, int] = {}
+        self.first: int | None = None
+        self.last: int | None = None
+        self._group = hashlib.sha256()
+        self._group_count = 0
+
+    def note(self, topic: str, log_time: int) -> None:
+        """A message on ``topic`` at ``log_time`` (ns), the next one in the file."""
+        if topic not in SEALED_TOPICS:
+            return
+        self._structure.update(f"{topic} {log_time}\n".encode())
+        self.counts[topic] = self.counts.get(topic, 0) + 1
+        if topic == TOPIC_DEPTH:
+            self.first = log_time if self.first is None else self.first
+            self.last = log_time
+
+    def packet(self, pts: int, dts: int, keyframe: bool, data: bytes | memoryview) -> None:
+        """A color packet: its message's log time, publish time and data, as stored."""
+        self._group.update(_PACKET_FIELDS.pack(pts, dts, int(keyframe), len(data)))
+        self._group.update(data)
+        self._group_count += 1
+
+    def group(self) -> tuple[int, bytes]:
+        """The number and SHA-256 of the packets since the last call; starts a new group."""
+        out = self._group_count, self._group.digest()
+        self._group, self._group_count = hashlib.sha256(), 0
+        return out
+
+    def frame_record(self, depth: bytes | memoryview, pose: bytes = NO_POSE) -> bytes:
+        """The data of a frame's digest message: :meth:`group`, the depth message's data and
+        the digest of its pose messages' data (:func:`data_digest`)."""
+        count, color = self.group()
+        return DIGEST_RECORD.pack(count, color, data_digest(depth), pose)
+
+    def seal(self) -> dict[str, str]:
+        """The seal record (before its own digest is added by :func:`seal`)."""
+        count, digest_ = self.group()
+        return {
+            **self.summary(),
+            "tail_packets": str(count),
+            "tail_digest": "sha256:" + digest_.hex(),
+        }
+
+    def summary(self) -> dict[str, str]:
+        """The part of the seal that an index alone can be checked against."""
+        return {
+            "frames": str(self.counts.get(TOPIC_DEPTH, 0)),
+            "messages": json.dumps(dict(sorted(self.counts.items())), separators=(",", ":")),
+            "first_timestamp": "" if self.first is None else str(self.first),
+            "last_timestamp": "" if self.last is None else str(self.last),
+            "structure": "sha256:" + self._structure.hexdigest(),
+        }
+
+
+def structure_of(index: FileIndex) -> Sealer:
+    """A :class:`Sealer` that has noted the messages of ``index`` in file order."""
+    entries = [
+        (offset, k, topic, t)
+        for topic in SEALED_TOPICS
+        for k, (t, offset) in enumerate(
+            zip(index.times.get(topic, []), index.offsets.get(topic, []), strict=True)
+        )
+    ]
+    # One message per chunk in files pcdcodec writes; within a chunk, the index keeps order.
+    entries.sort(key=lambda e: (e[0], e[1]))
+    sealer = Sealer()
+    for _, _, topic, t in entries:
+        sealer.note(topic, t)
+    return sealer
+
+
+def integrity_version(index: FileIndex, what: str) -> int:
+    """The ``integrity`` of the file's ``pcdcodec`` record, 0 for files written without it."""
+    text = index.metadata.get(METADATA_NAME, {}).get(INTEGRITY_KEY)
+    if text is None:
+        return 0
+    try:
+        version = int(text)
+        if version < 1:
+            raise ValueError
+    except ValueError:
+        raise DecodeError(
+            f"{what}: {INTEGRITY_KEY!r} is {text!r}, expected a positive int"
+        ) from None
+    return version
+
+
+def seal_problems(index: FileIndex, what: str) -> list[str]:
+    """How the messages of ``index`` differ from the file's seal (empty when they agree).
+
+    Raises :class:`DecodeError` when a file written with integrity records lacks a seal
+    although it was closed (it has a usable summary, or its data section ends), or its seal
+    has no digest. A file without a seal that was not closed (its writer died) has none.
+    """
+    if not integrity_version(index, what):
+        return []
+    seal_ = index.metadata.get(SEAL_NAME)
+    if seal_ is None:
+        if index.indexed or index.data_crc is not None:
+            raise DecodeError(
+                f"{what}: the file was closed, but its seal record {SEAL_NAME!r} is missing"
+            )
+        return []
+    if DIGEST_KEY not in seal_:
+        raise DecodeError(f"{what}: the seal record {SEAL_NAME!r} has no digest")
+    found = structure_of(index).summary()
+    labels = {
+        "frames": "frames",
+        "messages": "messages per channel",
+        "first_timestamp": "first frame time (ns)",
+        "last_timestamp": "last frame time (ns)",
+        "structure": "",
+    }
+    return [
+        f"{label}: sealed {seal_.get(key)!r}, found {found[key]!r}"
+        if key != "structure"
+        else "the messages are not those sealed, or not in the sealed order"
+        for key, label in labels.items()
+        if seal_.get(key) != found[key]
+    ]

@@ -36,14 +36,22 @@ def _load(path: Path) -> fmt.FileIndex:
     if index.profile != fmt.PROFILE or fmt.METADATA_NAME not in index.metadata:
         raise DecodeError(f"{str(path)!r} is not a pcdcodec recording")
     fmt.check_metadata(index, repr(str(path)))
+    problems = fmt.seal_problems(index, repr(str(path)))
+    if problems:
+        raise DecodeError(f"{str(path)!r} does not hold what was sealed: {'; '.join(problems)}")
     return index
 
 
+def _settings(index: fmt.FileIndex) -> dict[str, dict[str, str]]:
+    """The metadata records that must agree between parts (each part has its own seal)."""
+    return {name: data for name, data in index.metadata.items() if name != fmt.SEAL_NAME}
+
+
 def _check_same(first: fmt.FileIndex, other: fmt.FileIndex, name: str, first_name: str) -> None:
-    if other.metadata != first.metadata:
+    if _settings(other) != _settings(first):
         keys = sorted(
             k
-            for k in set(first.metadata) | set(other.metadata)
+            for k in set(_settings(first)) | set(_settings(other))
             if first.metadata.get(k) != other.metadata.get(k)
         )
         raise InputError(
@@ -115,7 +123,7 @@ def join(
                 out, chunk_size=0, compression=CompressionType.NONE, enable_data_crcs=True
             )
             writer.start(profile=fmt.PROFILE, library=_library(paths[0]))
-            for name, data in first.metadata.items():
+            for name, data in _settings(first).items():
                 writer.add_metadata(name, data)
             schema_ids = {
                 sid: writer.register_schema(name, encoding, data)
@@ -131,11 +139,18 @@ def join(
                 for cid, ch in first.channels.items()
             }
             # Sequence numbers continue across parts: the color packets (and the keyframe
-            # markers, which share their packet's number) and the depth frames count apart.
-            base = {fmt.TOPIC_COLOR: 0, fmt.TOPIC_DEPTH: 0}
+            # markers, which share their packet's number), the depth frames and the frame
+            # digests count apart.
+            base = {fmt.TOPIC_COLOR: 0, fmt.TOPIC_DEPTH: 0, fmt.TOPIC_FRAME_DIGEST: 0}
+            # Each part's color digests are checked as its packets are copied; the joined
+            # file gets its own (a part's last packets join the next part's first frame's).
+            integrity = fmt.integrity_version(first, repr(str(paths[0])))
+            sealer = fmt.Sealer()
             for n, (path, index) in enumerate(zip(paths, indexes, strict=True)):
                 channel_topic = {cid: ch.topic for cid, ch in index.channels.items()}
                 offsets = sorted({o for topic in index.offsets.values() for o in topic})
+                keyframes = set(index.times.get(fmt.TOPIC_KEYFRAMES, []))
+                check = fmt.Sealer()
                 with path.open("rb") as f:
                     size = fmt.file_size(f)
                     for offset in offsets:
@@ -145,12 +160,31 @@ def join(
                                 continue
                             counter = fmt.TOPIC_COLOR if topic == fmt.TOPIC_KEYFRAMES else topic
                             sequence = m.sequence + base.get(counter, 0)
+                            payload = m.data
+                            if topic == fmt.TOPIC_COLOR:
+                                key = m.log_time in keyframes
+                                check.packet(m.log_time, m.publish_time, key, m.data)
+                                sealer.packet(m.log_time, m.publish_time, key, m.data)
+                            elif topic == fmt.TOPIC_FRAME_DIGEST:
+                                payload = _rejoin(m.data, check, sealer, path, offset)
                             writer.add_message(
-                                topic_ids[topic], m.log_time, m.data, m.publish_time, sequence
+                                topic_ids[topic], m.log_time, payload, m.publish_time, sequence
                             )
+                            sealer.note(topic, m.log_time)
+                seal = index.metadata.get(fmt.SEAL_NAME)
+                tail = check.seal()
+                if seal is not None and any(
+                    seal.get(k) != tail[k] for k in ("tail_packets", "tail_digest")
+                ):
+                    raise DecodeError(
+                        f"{str(path)!r}: its last color packets do not match their digest in "
+                        "the seal"
+                    )
                 for topic in base:
                     base[topic] += len(index.times.get(topic, []))
                 frames += len(index.times.get(fmt.TOPIC_DEPTH, []))
+            if integrity:
+                writer.add_metadata(fmt.SEAL_NAME, fmt.seal(fmt.SEAL_NAME, sealer.seal()))
             writer.finish()  # type: ignore[no-untyped-call]
             out.flush()
             os.fsync(out.fileno())
@@ -159,6 +193,21 @@ def join(
         tmp.unlink(missing_ok=True)
         raise
     return frames
+
+
+def _rejoin(data: bytes, check: fmt.Sealer, sealer: fmt.Sealer, path: Path, offset: int) -> bytes:
+    """A part's frame digest message as the joined file needs it: the part's color group
+    checked, and replaced by the joined file's group (which may begin in the part before);
+    the depth and pose digests are kept as written."""
+    if len(data) != fmt.DIGEST_RECORD.size:
+        raise DecodeError(f"{str(path)!r}: the frame digest at byte offset {offset} is damaged")
+    count, color, depth, pose = fmt.DIGEST_RECORD.unpack(data)
+    if check.group() != (count, color):
+        raise DecodeError(
+            f"{str(path)!r}: the color packets before byte offset {offset} do not match their "
+            "digest there"
+        )
+    return fmt.DIGEST_RECORD.pack(*sealer.group(), depth, pose)
 
 
 def _library(path: Path) -> str:

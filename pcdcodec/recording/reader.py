@@ -102,6 +102,12 @@ class Recording:
                 f"{name!r} is damaged at byte offset {index.damaged_at}: {index.damage}{summary}; "
                 "`pcdcodec recover` copies the frames before the damage into a new file"
             )
+        if index.loose_messages:
+            raise DecodeError(
+                f"{name!r} holds {index.loose_messages} message(s) outside chunks (an unchunked "
+                "MCAP file): pcdcodec reads recordings whose messages sit in CRC-checked chunks, "
+                "as its writer makes them"
+            )
         meta = index.metadata.get(fmt.METADATA_NAME)
         if index.profile != fmt.PROFILE or meta is None:
             raise DecodeError(
@@ -109,6 +115,18 @@ class Recording:
                 f"(profile {index.profile!r}, no {fmt.METADATA_NAME!r} metadata)"
             )
         fmt.check_metadata(index, repr(name))
+        #: 1 for files with frame digests and a seal (``docs/format.md``), 0 for earlier ones.
+        self.integrity = fmt.integrity_version(index, repr(name))
+        problems = fmt.seal_problems(index, repr(name))
+        if problems:
+            raise DecodeError(
+                f"{name!r} does not hold what its writer sealed when closing it: "
+                + "; ".join(problems)
+                + "; `pcdcodec recover` copies the frames it can read into a new file"
+            )
+        self._seal: dict[str, str] | None = (
+            index.metadata.get(fmt.SEAL_NAME) if self.integrity else None
+        )
         where = f"{name!r}: the {fmt.METADATA_NAME!r} metadata at byte offset " + str(
             index.metadata_offsets.get(fmt.METADATA_NAME)
         )
@@ -194,6 +212,22 @@ class Recording:
         self._extradata: bytes | None = None
         self._keyframes: list[int] = []
         self._keyframe_set: set[int] = set()
+        # Frame digests: the digest messages' offsets in file order, and each color packet's
+        # group (the index of the first digest message after it; len(offsets) for the tail).
+        self._digest_times, self._digest_offsets = index.arrays(fmt.TOPIC_FRAME_DIGEST)
+        order = np.argsort(self._digest_offsets, kind="stable")
+        self._digest_times = self._digest_times[order]
+        self._digest_offsets = self._digest_offsets[order]
+        self._digest_of_time = {int(t): g for g, t in enumerate(self._digest_times.tolist())}
+        self._records: dict[int, tuple[int, bytes, bytes, bytes]] = {}
+        self._packet_group: npt.NDArray[np.int64] = np.zeros(0, np.int64)
+        self._groups_checked: set[int] = set()
+        self._packet_cache: dict[int, Any] = {}
+        if self.integrity and self._seal is None:
+            # Written before the writer stopped: a frame is complete with its digest message.
+            has = [i for i, t in enumerate(d_times.tolist()) if int(t) in self._digest_of_time]
+            keep_done = list(range(has[-1] + 1)) if has else []
+            d_times, d_offsets = d_times[keep_done], d_offsets[keep_done]
         if color_codec is not None:
             c_pts, c_offsets = index.arrays(fmt.TOPIC_COLOR)
             k_times, _ = index.arrays(fmt.TOPIC_KEYFRAMES)
@@ -207,6 +241,12 @@ class Recording:
             if channel is not None and channel.metadata.get("extradata"):
                 self._extradata = base64.b64decode(channel.metadata["extradata"])
             self._is_cdr = channel is not None and channel.encoding == "cdr"
+            self._packet_group = np.searchsorted(
+                self._digest_offsets, np.asarray(c_offsets, np.int64), side="right"
+            ).astype(np.int64)
+            # Packets after the last digest of a file without a seal have no digest yet: the
+            # writer stopped before their frame was complete.
+            unchecked = len(self._digest_offsets) if self.integrity and self._seal is None else -1
             # A frame exists when both its depth and a decodable color packet were written.
             first_key = self._packet_pts[self._keyframes[0]] if self._keyframes else None
             good = [
@@ -215,13 +255,23 @@ class Recording:
                 if t in self._packet_of_pts
                 and first_key is not None
                 and self._packet_of_pts[t] >= self._keyframes[0]
+                and self._packet_group[self._packet_of_pts[t]] != unchecked
             ]
             # Frames after the last complete one were in flight when the writer stopped. One
-            # missing its packet before that is damage: it stays, and reading it fails.
+            # missing its packet before that is damage: it stays, and reading it fails. In a
+            # sealed file none was in flight: every frame stays.
             keep = list(range(good[-1] + 1)) if good else []
+            if self._seal is not None:
+                keep = list(range(len(d_times)))
             d_times, d_offsets = d_times[keep], d_offsets[keep]
         self._times = d_times
         self._offsets = d_offsets
+        depth_messages = len(index.times.get(fmt.TOPIC_DEPTH, []))
+        if index.indexed and depth_messages and not len(d_times):
+            raise DecodeError(
+                f"{name!r} holds {depth_messages} depth message(s), but no frame has a "
+                "decodable color packet (no keyframe before them, or no packet at their time)"
+            )
         p_times, p_offsets = index.arrays(fmt.TOPIC_POSE)
         self._pose_at = {
             int(t): int(o) for t, o in zip(p_times.tolist(), p_offsets.tolist(), strict=True)
@@ -315,8 +365,43 @@ class Recording:
         """Whether frames were written with a pose."""
         return bool(self._pose_at)
 
+    def _check_pose(self, i: int, ts: int) -> None:
+        """The frame's pose messages (or their absence) must match its digest message."""
+        what = f"{str(self.path)!r}: frame {i} (t={ts} ns) pose"
+        record = self._frame_record(i, what)
+        if record is None:
+            return
+        parts = []
+        for topic, at in (
+            (fmt.TOPIC_POSE, self._pose_at),
+            (fmt.TOPIC_POSE_MATRIX, self._pose_matrix_at),
+        ):
+            offset = at.get(ts)
+            if offset is None:
+                continue
+            with self._lock:
+                messages = fmt.read_chunk_messages(self._file, offset, what=what)
+            channel = self.index.channel(topic)
+            data = next(
+                (
+                    bytes(m.data)
+                    for m in messages
+                    if channel is not None and m.channel_id == channel.id and m.log_time == ts
+                ),
+                None,
+            )
+            if data is None:
+                raise DecodeError(f"{what}: no {topic} message at byte offset {offset}")
+            parts.append(data)
+        if (fmt.data_digest(*parts) if parts else fmt.NO_POSE) != record[3]:
+            raise DecodeError(
+                f"{what} does not match the frame's digest: its pose messages were changed, "
+                "added or removed"
+            )
+
     def _pose(self, i: int) -> npt.NDArray[np.float64] | None:
         ts = int(self._times[i])
+        self._check_pose(i, ts)
         exact = self._pose_matrix_at.get(ts)
         if exact is not None:
             with self._lock:
@@ -394,7 +479,14 @@ class Recording:
         channel = self.index.channel(fmt.TOPIC_DEPTH)
         for m in messages:
             if channel is not None and m.channel_id == channel.id and m.log_time == ts:
-                return bytes(m.data)
+                data = bytes(m.data)
+                record = self._frame_record(i, what)
+                if record is not None and fmt.data_digest(data) != record[2]:
+                    raise DecodeError(
+                        f"{what} does not match the frame's digest: the depth message was "
+                        "changed, or belongs to another frame"
+                    )
+                return data
         raise DecodeError(f"{what}: no depth message with that time in the chunk there")
 
     def depth(self, i: int) -> npt.NDArray[Any]:
@@ -453,15 +545,30 @@ class Recording:
         n = len(self.packet_timestamps)
         if isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 0 <= j < n:
             raise IndexError(f"packet index {j!r} is out of range for {n} packets")
-        return self._packet(int(j))
+        j = int(j)
+        with self._lock:
+            self._check_packets(j, j, f"{str(self.path)!r}: color packet {j}")
+        return self._packet(j)
 
     def packets(self, start: int = 0) -> Iterator[Packet]:
         """The color packets from ``start`` on, in decode order, each read once: with
         :attr:`extradata`, what a decoder (or a muxer) needs to play the color stream."""
         for j in range(start, len(self.packet_timestamps)):
+            with self._lock:
+                self._check_packets(j, j, f"{str(self.path)!r}: color packet {j}")
             yield self._packet(j)
 
     def _packet(self, j: int) -> Packet:
+        m = self._packet_message(j)
+        data = CompressedVideo.decode(m.data).data if self._is_cdr else m.data
+        keyframe = j in self._keyframe_set
+        return Packet(data, int(m.log_time), int(m.publish_time), keyframe)
+
+    def _packet_message(self, j: int) -> Any:
+        """The MCAP message of color packet ``j``, as stored."""
+        cached = self._packet_cache.pop(j, None)
+        if cached is not None:
+            return cached
         offset = int(self._packet_offsets[j])
         pts = int(self._packet_pts[j])
         what = f"{str(self.path)!r}: color packet {j} (pts {pts}) at byte offset {offset}"
@@ -472,10 +579,98 @@ class Recording:
         channel = self.index.channel(fmt.TOPIC_COLOR)
         for m in messages:
             if channel is not None and m.channel_id == channel.id and m.log_time == pts:
-                data = CompressedVideo.decode(m.data).data if self._is_cdr else m.data
-                keyframe = j in self._keyframe_set
-                return Packet(data, pts, int(m.publish_time), keyframe)
+                return m
         raise DecodeError(f"{what}: no color message with that time in the chunk there")
+
+    def _check_packets(self, first: int, last: int, what: str) -> None:
+        """Check the digests of the groups holding color packets ``first`` … ``last``.
+
+        Files without color digests (written before them) are not checked. Raises
+        :class:`DecodeError` starting with ``what`` when a group's packets (their data, times,
+        keyframe flags, number or order) differ from its digest.
+        """
+        if not self.integrity or last < first:
+            return
+        groups = self._packet_group
+        for g in range(int(groups[first]), int(groups[last]) + 1):
+            if g in self._groups_checked:
+                continue
+            try:
+                problem = self._group_problem(g)
+            except DecodeError as exc:
+                raise DecodeError(f"{what}: {exc}") from exc
+            if problem:
+                raise DecodeError(f"{what}: {problem}")
+            self._groups_checked.add(g)
+
+    def _record(self, g: int) -> tuple[int, bytes, bytes, bytes]:
+        """Frame digest message ``g`` (in file order): packets, color, depth and pose digests."""
+        if g in self._records:
+            return self._records[g]
+        offset, ts = int(self._digest_offsets[g]), int(self._digest_times[g])
+        where = f"{str(self.path)!r}: the frame digest at byte offset {offset}"
+        with self._lock:
+            messages = fmt.read_chunk_messages(
+                self._file, offset, what=where, size=self.index.size or None
+            )
+        channel = self.index.channel(fmt.TOPIC_FRAME_DIGEST)
+        data = next(
+            (
+                bytes(m.data)
+                for m in messages
+                if channel is not None and m.channel_id == channel.id and m.log_time == ts
+            ),
+            None,
+        )
+        if data is None or len(data) != fmt.DIGEST_RECORD.size:
+            raise DecodeError(f"{where}: no frame digest message of {fmt.DIGEST_RECORD.size} bytes")
+        record: tuple[int, bytes, bytes, bytes] = fmt.DIGEST_RECORD.unpack(data)
+        self._records[g] = record
+        return record
+
+    def _frame_record(self, i: int, what: str) -> tuple[int, bytes, bytes, bytes] | None:
+        """The digest message of frame ``i``; ``None`` in files written without them."""
+        if not self.integrity:
+            return None
+        g = self._digest_of_time.get(int(self._times[i]))
+        if g is None:
+            raise DecodeError(f"{what}: the frame has no digest message")
+        return self._record(g)
+
+    def _group_problem(self, g: int) -> str:
+        """Why the color packets of digest group ``g`` differ from their digest, or ``""``."""
+        lo, hi = np.searchsorted(self._packet_group, [g, g + 1], side="left").tolist()
+        sealer = fmt.Sealer()
+        for j in range(lo, hi):
+            m = self._packet_message(j)
+            sealer.packet(int(m.log_time), int(m.publish_time), j in self._keyframe_set, m.data)
+            if len(self._packet_cache) < 64:  # decoding usually reads them next: once is enough
+                self._packet_cache[j] = m
+        count, digest = sealer.group()
+        if g < len(self._digest_offsets):
+            where = f"the frame digest at byte offset {int(self._digest_offsets[g])}"
+            want_count, want, _, _ = self._record(g)
+        elif self._seal is not None:
+            where = f"the seal's digest of the last {hi - lo} color packet(s)"
+            try:
+                want_count = int(self._seal.get("tail_packets", ""))
+                want = bytes.fromhex(self._seal.get("tail_digest", "").removeprefix("sha256:"))
+            except ValueError:
+                return "the seal's tail_packets/tail_digest are not a count and a digest"
+        else:
+            return f"the last {hi - lo} color packet(s) have no digest (the writer stopped first)"
+        if (count, digest) != (want_count, want):
+            found = (
+                f"the {count} color packet(s) from byte offset {int(self._packet_offsets[lo])}"
+                if hi > lo
+                else "no color packet"
+            )
+            return (
+                f"{found} do not match {where} "
+                f"({want_count} packet(s)): the color packets were changed, reordered, added or "
+                "removed"
+            )
+        return ""
 
     def _color(self, i: int) -> npt.NDArray[np.uint8] | None:
         if self.color_codec is None:
@@ -487,9 +682,11 @@ class Recording:
                 f"{str(self.path)!r}: frame {i} (t={ts} ns): no decodable color packet has its time"
             )
         with self._lock:
+            k = self._keyframes[bisect.bisect_right(self._keyframes, j) - 1]
+            # Every packet this frame's color comes from, checked before it is shown.
+            self._check_packets(k, j, f"{str(self.path)!r}: frame {i} (t={ts} ns)")
             if ts in self._decoded:
                 return self._decoded.pop(ts)
-            k = self._keyframes[bisect.bisect_right(self._keyframes, j) - 1]
             if self._decoder is None or self._next_packet > j or k > self._next_packet:
                 ch, cw = self.color_shape
                 self._decoder = self.color_codec.decoder(cw, ch, self._extradata)
@@ -593,7 +790,9 @@ class Recording:
 
         Besides decoding each frame (which checks every CRC on its way), the file is read from
         start to end without the summary, and what that finds (channels, messages, their times,
-        the data section's CRC, the metadata) is compared with what the index said.
+        the data section's CRC, the metadata) is compared with what the index said. In files
+        with frame digests and a seal, what the scan finds is compared with the seal too, and
+        every group of color packets with its digest (``docs/format.md``).
         """
         errors: list[str] = []
         index = self.index
@@ -605,6 +804,17 @@ class Recording:
                 "found by reading the whole file"
             )
         errors.extend(self._check_structure())
+        if self.integrity and self.color_codec is not None:
+            # Every group, also those no frame's color comes from (the end of the stream).
+            groups = len(self._digest_offsets) + (self._seal is not None)
+            with self._lock:
+                for g in range(groups):
+                    try:
+                        problem = self._group_problem(g)
+                    except PcdcodecError as exc:
+                        problem = str(exc)
+                    if problem:
+                        errors.append(problem)
         for i in range(len(self)):
             try:
                 self.frame(i)
@@ -674,10 +884,17 @@ class Recording:
         depth = np.asarray(sorted(scanned.times.get(fmt.TOPIC_DEPTH, [])), dtype=np.int64)
         if np.any(np.diff(depth) <= 0):
             errors.append("depth messages share timestamps")
+        if self.integrity and not scanned.damaged_chunks:  # (those are reported already)
+            try:
+                problems = fmt.seal_problems(scanned, "reading the whole file")
+            except PcdcodecError as exc:
+                problems = [str(exc)]
+            errors.extend(f"the file does not hold what was sealed: {p}" for p in problems)
         if self.color_codec is not None:
             pts = set(scanned.times.get(fmt.TOPIC_COLOR, []))
             orphans = [int(t) for t in depth.tolist() if t not in pts]
-            if orphans and orphans != depth.tolist()[-len(orphans) :]:  # a tail is lost packets
+            # At the end of an unfinished file they were in flight; a closed file has none.
+            if orphans and (index.indexed or orphans != depth.tolist()[-len(orphans) :]):
                 errors.append(
                     f"{len(orphans)} depth message(s) have no color packet, the first at "
                     f"t={orphans[0]} ns"

@@ -70,7 +70,18 @@ def _copy(f: IO[bytes], tmp: Path, src_path: Path, writer_class: Any, compressio
         raise DecodeError(f"could not be read ({type(exc).__name__}: {exc})") from exc
     if index.profile != fmt.PROFILE or fmt.METADATA_NAME not in index.metadata:
         raise DecodeError(f"{str(src_path)!r} is not a pcdcodec recording")
+    if index.loose_messages:
+        raise DecodeError(
+            f"{str(src_path)!r} holds {index.loose_messages} message(s) outside chunks (an "
+            "unchunked MCAP file), which carry no CRC of their own: nothing to recover from"
+        )
     fmt.check_metadata(index, repr(str(src_path)))
+    integrity = fmt.integrity_version(index, repr(str(src_path)))
+    offsets = sorted({o for topic in index.offsets.values() for o in topic})
+    in_flight: set[int] = set()
+    if integrity:
+        offsets = offsets[: _complete(f, index, offsets)]
+        in_flight = _in_flight(index, set(offsets))
     with tmp.open("wb") as out:
         writer = writer_class(
             out, chunk_size=0, compression=compression.NONE, enable_data_crcs=True
@@ -88,17 +99,100 @@ def _copy(f: IO[bytes], tmp: Path, src_path: Path, writer_class: Any, compressio
             )
             for cid, ch in index.channels.items()
         }
-        offsets = sorted({o for topic in index.offsets.values() for o in topic})
         seen: set[tuple[int, int]] = set()
+        sealer = fmt.Sealer()
+        keyframes = set(index.times.get(fmt.TOPIC_KEYFRAMES, []))
         for offset in offsets:
             for m in fmt.read_chunk_messages(f, offset, what="recover", size=index.size):
                 key = (m.channel_id, m.log_time)
                 if m.channel_id in channel_ids and key not in seen:
                     seen.add(key)
+                    topic = index.channels[m.channel_id].topic
+                    if m.log_time in in_flight and topic in _FRAME_TOPICS:
+                        continue
                     writer.add_message(
                         channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
                     )
+                    sealer.note(topic, m.log_time)
+                    if topic == fmt.TOPIC_COLOR:
+                        sealer.packet(m.log_time, m.publish_time, m.log_time in keyframes, m.data)
+                    elif topic == fmt.TOPIC_FRAME_DIGEST:
+                        sealer.group()  # copied as written: checked by _complete
+        if integrity:
+            writer.add_metadata(fmt.SEAL_NAME, fmt.seal(fmt.SEAL_NAME, sealer.seal()))
         writer.finish()
+
+
+#: A frame's own messages, left out when its color packet was never written.
+_FRAME_TOPICS = (fmt.TOPIC_DEPTH, fmt.TOPIC_POSE, fmt.TOPIC_POSE_MATRIX)
+
+
+def _in_flight(index: fmt.FileIndex, kept: set[int]) -> set[int]:
+    """The times of the frames at the end of the chunks ``kept`` whose color packet is not
+    among them: frames an encoder still held back (a lookahead) when the writer stopped."""
+    if index.channel(fmt.TOPIC_COLOR) is None:
+        return set()
+    pts = {
+        t
+        for t, o in zip(
+            index.times.get(fmt.TOPIC_COLOR, []),
+            index.offsets.get(fmt.TOPIC_COLOR, []),
+            strict=True,
+        )
+        if o in kept
+    }
+    depth = sorted(
+        (o, t)
+        for t, o in zip(
+            index.times.get(fmt.TOPIC_DEPTH, []),
+            index.offsets.get(fmt.TOPIC_DEPTH, []),
+            strict=True,
+        )
+        if o in kept
+    )
+    times = [t for _, t in depth]
+    good = [i for i, t in enumerate(times) if t in pts]
+    return set(times[good[-1] + 1 :] if good else times)
+
+
+def _complete(f: IO[bytes], index: fmt.FileIndex, offsets: list[int]) -> int:
+    """How many of the chunks at ``offsets`` (in file order) hold complete frames.
+
+    In a file with frame digests, a frame is complete once its digest message is written and
+    matches the color packets before it and the frame's depth; the chunks up to the last such
+    message are kept (the packets after it too when the file's seal vouches for them). A frame
+    that does not match its digest ends what is kept, like a damaged record.
+    """
+    depth: dict[int, bytes] = {}
+    keyframes = set(index.times.get(fmt.TOPIC_KEYFRAMES, []))
+    sealer = fmt.Sealer()
+    seen: set[tuple[int, int]] = set()
+    kept = 0
+    for k, offset in enumerate(offsets):
+        for m in fmt.read_chunk_messages(f, offset, what="recover", size=index.size):
+            info = index.channels.get(m.channel_id)
+            if info is None or (m.channel_id, m.log_time) in seen:
+                continue
+            seen.add((m.channel_id, m.log_time))
+            if info.topic == fmt.TOPIC_COLOR:
+                sealer.packet(m.log_time, m.publish_time, m.log_time in keyframes, m.data)
+            elif info.topic == fmt.TOPIC_DEPTH:
+                depth[m.log_time] = fmt.data_digest(m.data)
+            elif info.topic == fmt.TOPIC_FRAME_DIGEST:
+                data = bytes(m.data)
+                if len(data) != fmt.DIGEST_RECORD.size:
+                    return kept
+                count, color, depth_digest, _ = fmt.DIGEST_RECORD.unpack(data)
+                if sealer.group() != (count, color) or depth.pop(m.log_time, None) != depth_digest:
+                    return kept
+                kept = k + 1
+    seal = index.metadata.get(fmt.SEAL_NAME)
+    tail = sealer.seal()
+    if seal is not None and all(
+        seal.get(key) == tail[key] for key in ("tail_packets", "tail_digest")
+    ):
+        return len(offsets)
+    return kept
 
 
 def _schema_of(index: fmt.FileIndex, channel_id: int) -> int:

@@ -234,6 +234,9 @@ class RecordingWriter:
         # Frames count as complete once their depth and their color packet are both written.
         self._depth_written: deque[int] = deque()
         self._color_written: set[int] = set()
+        # The color packets of the open digest group: readable once its digest is written.
+        self._group_pts: list[int] = []
+        self._sealer = fmt.Sealer()
         self.frames_complete = 0
         self.frames_written = 0
         self.bytes_color = 0
@@ -278,6 +281,7 @@ class RecordingWriter:
                 if self.color_codec
                 else "",
                 "frame_id": self.frame_id,
+                fmt.INTEGRITY_KEY: str(fmt.INTEGRITY_VERSION),
                 **cameras,
             },
         }
@@ -348,11 +352,15 @@ class RecordingWriter:
                 "depth_scale": repr(self.depth_scale),
             },
         )
+        self._channels["digest"] = mcap.register_channel(
+            fmt.TOPIC_FRAME_DIGEST, fmt.ENCODING_FRAME_DIGEST, 0, {}
+        )
         sid = mcap.register_schema(CAMERA_CALIBRATION, "ros2msg", CAMERA_CALIBRATION_SCHEMA)
         cal = self._channels["cal"] = mcap.register_channel(fmt.TOPIC_CALIBRATION, "cdr", sid, {})
         mcap.add_message(
             cal, timestamp, _calibration(self.intrinsics, self.frame_id, timestamp), timestamp
         )
+        self._sealer.note(fmt.TOPIC_CALIBRATION, timestamp)
         if self.color_intrinsics is not None and self.depth_to_color is not None:
             color_frame = f"{self.frame_id}_color"
             ccal = mcap.register_channel(fmt.TOPIC_COLOR_CALIBRATION, "cdr", sid, {})
@@ -362,6 +370,7 @@ class RecordingWriter:
                 _calibration(self.color_intrinsics, color_frame, timestamp),
                 timestamp,
             )
+            self._sealer.note(fmt.TOPIC_COLOR_CALIBRATION, timestamp)
             # The color camera's pose in the depth camera's frame: the inverse of depth_to_color.
             tid = self._transform_schema()
             ext = mcap.register_channel(fmt.TOPIC_EXTRINSICS, "cdr", tid, {})
@@ -369,6 +378,7 @@ class RecordingWriter:
             mcap.add_message(
                 ext, timestamp, _transform(pose, timestamp, self.frame_id, color_frame), timestamp
             )
+            self._sealer.note(fmt.TOPIC_EXTRINSICS, timestamp)
         self._shape = (height, width)
 
     def _transform_schema(self) -> int:
@@ -691,6 +701,7 @@ class RecordingWriter:
                 mcap.add_message(
                     self._channels["key"], packet.pts, b"", max(packet.dts, 0), self._sequence
                 )
+                self._sealer.note(fmt.TOPIC_KEYFRAMES, packet.pts)
             if video_format:
                 data = CompressedVideo(
                     packet.pts, self.frame_id, packet.data, video_format
@@ -701,10 +712,11 @@ class RecordingWriter:
             # are unsigned, so those are stored as 0 (decoders only need the order).
             dts = max(packet.dts, 0)
             mcap.add_message(self._channels["color"], packet.pts, data, dts, self._sequence)
+            self._sealer.note(fmt.TOPIC_COLOR, packet.pts)
+            self._sealer.packet(packet.pts, dts, packet.keyframe, data)
             self._sequence += 1
             self.bytes_color += len(packet.data)
-            self._color_written.add(packet.pts)
-        self._count_complete()
+            self._group_pts.append(packet.pts)
 
     def _count_complete(self) -> None:
         while self._depth_written and (
@@ -721,8 +733,10 @@ class RecordingWriter:
         self._mcap.add_message(
             self._channels["depth"], timestamp, data, timestamp, self.frames_written
         )
+        self._sealer.note(fmt.TOPIC_DEPTH, timestamp)
         self.bytes_depth += len(data)
         pose = self._poses.pop(timestamp, None)
+        pose_digest = fmt.NO_POSE
         if pose is not None:
             if "pose" not in self._channels:
                 self._channels["pose"] = self._mcap.register_channel(
@@ -736,7 +750,19 @@ class RecordingWriter:
             # The quaternion is a rounding away from the matrix given; keep that exactly too.
             exact = np.ascontiguousarray(pose, dtype="<f8").tobytes()
             self._mcap.add_message(self._channels["pose_matrix"], timestamp, exact, timestamp)
+            self._sealer.note(fmt.TOPIC_POSE, timestamp)
+            self._sealer.note(fmt.TOPIC_POSE_MATRIX, timestamp)
+            pose_digest = fmt.data_digest(msg, exact)
             self.poses_written += 1
+        # Last of the frame: the digests of the color packets written since the previous
+        # frame's (its group), of its depth and of its pose; the frame is readable from here.
+        record = self._sealer.frame_record(data, pose_digest)
+        self._mcap.add_message(
+            self._channels["digest"], timestamp, record, timestamp, self.frames_written
+        )
+        self._sealer.note(fmt.TOPIC_FRAME_DIGEST, timestamp)
+        self._color_written.update(self._group_pts)
+        self._group_pts.clear()
         self.frames_written += 1
         self._depth_written.append(timestamp)
         self._count_complete()
@@ -786,6 +812,7 @@ class RecordingWriter:
         encoder = self._encoder
         if encoder is not None:
             attempt(lambda: self._write_packets(encoder.flush()))
+        attempt(self._seal)
         attempt(self._mcap.finish)
         attempt(self._file.close)
         if errors:
@@ -798,6 +825,14 @@ class RecordingWriter:
             raise errors[0]
         if self._writing != self._target:
             os.replace(self._writing, self._target)
+
+    def _seal(self) -> None:
+        """Write the seal: what the file holds, and the digest of the packets after the last
+        frame's digest (the encoder's flush)."""
+        self._mcap.add_metadata(fmt.SEAL_NAME, fmt.seal(fmt.SEAL_NAME, self._sealer.seal()))
+        self._color_written.update(self._group_pts)
+        self._group_pts.clear()
+        self._count_complete()
 
     def abort(self) -> None:
         """Stop without finishing: what was written stays readable, as after a crash."""

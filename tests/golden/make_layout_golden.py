@@ -1,10 +1,11 @@
 """Write the container-layout goldens: a tiny recording and its paper-layout export, as this
 version of pcdcodec writes them.
 
-``tests/test_container_golden.py`` reads both on every run and compares a fresh write's
-container structure (records, channels, metadata keys, stored codec configs) with them, so a
-change of the on-disk layout fails a test instead of slipping through under the same format
-version. Existing goldens are never rewritten: a deliberate change adds new ones beside them.
+``tests/test_container_golden.py`` reads them on every run and compares a fresh write's
+container structure (records, channels, metadata keys, stored codec configs) with the newest
+(``SEALED``: with color digests and a seal), so a change of the on-disk layout fails a test
+instead of slipping through unnoticed. Existing goldens are never rewritten: a deliberate
+change adds new ones beside them (``RECORDING`` is the layout before color digests).
 Run: ``python tests/golden/make_layout_golden.py``.
 """
 
@@ -15,6 +16,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 RECORDING = HERE / "recording" / "layout-ffv1-zstd.pcdc"
+SEALED = HERE / "recording" / "layout-sealed-ffv1-zstd.pcdc"
 PAPER = HERE / "paper" / "layout-ffv1"
 
 
@@ -41,12 +43,14 @@ def write_recording(path: Path) -> None:
 def main() -> int:
     from pcdcodec.recording.paper import export_paper
 
-    if RECORDING.exists() or PAPER.exists():
-        print(f"{RECORDING} or {PAPER} exists; goldens are never rewritten")
+    if SEALED.exists():
+        print(f"{SEALED} exists; goldens are never rewritten")
         return 1
-    write_recording(RECORDING)
-    export_paper(RECORDING, PAPER)
-    print(f"wrote {RECORDING} and {PAPER}")
+    write_recording(SEALED)
+    print(f"wrote {SEALED}")
+    if not PAPER.exists():
+        export_paper(SEALED, PAPER)
+        print(f"wrote {PAPER}")
     return 0
 
 
