@@ -56,6 +56,12 @@ COLOR_MODES: dict[int, tuple[tuple[int, int], tuple[int, int], tuple[int, int]]]
 }
 
 
+#: color track FOURCC -> what it holds (k4arecorder's MJPEG, NV12 and YUY2 color modes)
+_COLOR_FORMATS = {"MJPG": "mjpeg", "NV12": "nv12", "YUY2": "yuyv422"}
+#: bytes of a raw color image of width w and height h
+_RAW_BYTES = {"nv12": lambda w, h: w * h * 3 // 2, "yuyv422": lambda w, h: w * h * 2}
+
+
 def _is_azure_kinect(path: Path) -> bool:
     if not path.is_file() or read_magic(path, 4) != _EBML:
         return False
@@ -70,18 +76,58 @@ def _has_cluster(path: Path, limit: int = 1 << 24) -> bool:
         return _CLUSTER_ID in f.read(limit)
 
 
+def _field(value: Any, keys: tuple[str | int, ...], where: str) -> Any:
+    """``value[k0][k1]...``, or an :class:`~pcdcodec.InputError` naming the missing field."""
+    path = "calibration.json"
+    for k in keys:
+        path += f"[{k}]" if isinstance(k, int) else f".{k}"
+        ok = (
+            isinstance(value, dict) and k in value
+            if isinstance(k, str)
+            else (isinstance(value, list) and 0 <= k < len(value))
+        )
+        if not ok:
+            raise InputError(f"{where}: {path} is missing or not of the expected type")
+        value = value[k]
+    return value
+
+
+def _numbers(value: Any, n: int | None, field: str, where: str) -> list[float]:
+    """A list of ``n`` (or at least 1) finite numbers from the calibration, or an
+    :class:`~pcdcodec.InputError` naming ``field`` and what it holds."""
+    if not isinstance(value, list) or (len(value) != n if n is not None else not value):
+        got = f"{len(value)} values" if isinstance(value, list) else repr(value)[:60]
+        raise InputError(
+            f"{where}: calibration.json {field} holds {got}; expected a list of "
+            f"{n if n is not None else 'some'} numbers"
+        )
+    for i, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            raise InputError(
+                f"{where}: calibration.json {field}[{i}] is {v!r}; expected a finite number"
+            )
+    return [float(v) for v in value]
+
+
 def _camera(
     cal: dict[str, Any],
     mode: tuple[tuple[int, int], tuple[int, int], tuple[int, int]],
     what: str,
+    where: str,
 ) -> CameraIntrinsics:
-    params = cal["Intrinsics"]["ModelParameters"]
-    if len(params) < 14:
-        raise InputError(f"{what} calibration has {len(params)} model parameters, expected 14")
+    raw = _field(cal, ("Intrinsics", "ModelParameters"), where)
+    if not isinstance(raw, list) or len(raw) < 14:
+        got = f"{len(raw)}" if isinstance(raw, list) else repr(raw)[:60]
+        raise InputError(
+            f"{where}: {what} calibration has {got} model parameters, expected 14 numbers"
+        )
+    params = _numbers(raw[:14], 14, f"{what} Intrinsics.ModelParameters", where)
     (bw, bh), (ox, oy), (w, h) = mode
-    cx, cy, fx, fy = (float(v) for v in params[:4])
-    k1, k2, k3, k4, k5, k6 = (float(v) for v in params[4:10])
-    p2, p1 = float(params[12]), float(params[13])
+    cx, cy, fx, fy = params[:4]
+    if not (fx > 0 and fy > 0):
+        raise InputError(f"{where}: {what} calibration has focal lengths {fx}, {fy}; expected > 0")
+    k1, k2, k3, k4, k5, k6 = params[4:10]
+    p2, p1 = params[12], params[13]
     return CameraIntrinsics(
         w,
         h,
@@ -94,11 +140,32 @@ def _camera(
     )
 
 
-def _rt(cal: dict[str, Any]) -> npt.NDArray[np.float64]:
+def _rt(cal: dict[str, Any], what: str, where: str) -> npt.NDArray[np.float64]:
+    """The 4 × 4 transform from the depth camera to this camera (``Rt``: rotation row-major,
+    translation in metres)."""
+    rotation = _numbers(_field(cal, ("Rt", "Rotation"), where), 9, f"{what} Rt.Rotation", where)
+    translation = _numbers(
+        _field(cal, ("Rt", "Translation"), where), 3, f"{what} Rt.Translation", where
+    )
     m = np.eye(4)
-    m[:3, :3] = np.reshape(np.asarray(cal["Rt"]["Rotation"], dtype=np.float64), (3, 3))
-    m[:3, 3] = np.asarray(cal["Rt"]["Translation"], dtype=np.float64)
+    m[:3, :3] = np.reshape(rotation, (3, 3))
+    m[:3, 3] = translation
+    if not np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-3):
+        raise InputError(
+            f"{where}: calibration.json {what} Rt.Rotation {rotation} is not a rotation matrix"
+        )
     return m
+
+
+def _start_offset(tags: dict[str, Any], where: str) -> int:
+    """The ``K4A_START_OFFSET_NS`` tag: the device time of the file's time 0, in ns."""
+    text = str(tags.get("K4A_START_OFFSET_NS", "") or "0").strip()
+    if not text.isdigit() or len(text) > 18:
+        raise InputError(
+            f"{where}: tag K4A_START_OFFSET_NS is {text[:40]!r}; expected a whole number of "
+            "nanoseconds, 0 to 10^18"
+        )
+    return int(text)
 
 
 class AzureKinectSource(Source):
@@ -118,11 +185,18 @@ class AzureKinectSource(Source):
         *,
         max_frames: int | None = None,
         intrinsics: CameraIntrinsics | None = None,
+        strict: bool = False,
     ) -> None:
         import av
 
         self.path = Path(path)
         self.max_frames = max_frames
+        self.strict = strict
+        self._dropped = {"color": 0, "depth": 0}
+        #: why captures were dropped while reading: reason -> count
+        self.drop_reasons: dict[str, int] = {}
+        self._drop_pts: dict[str, list[int]] = {}
+        self._damaged: dict[int, str] = {}
         name = str(self.path)
         try:
             container = av.open(name)
@@ -141,6 +215,7 @@ class AzureKinectSource(Source):
             self.intrinsics = intrinsics
 
     def _read_header(self, container: Any, name: str) -> None:
+        where = repr(name)
         tags = dict(container.metadata)
         depth = color = None
         attachment = None
@@ -161,28 +236,43 @@ class AzureKinectSource(Source):
             )
         try:
             calibration = json.loads(bytes(attachment.data))
-            cameras = calibration["CalibrationInformation"]["Cameras"]
-            by_purpose = {c["Purpose"]: c for c in cameras}
-            depth_cal = by_purpose["CALIBRATION_CameraPurposeDepth"]
-        except (ValueError, KeyError, TypeError) as exc:
+        except (ValueError, TypeError, AttributeError) as exc:
+            raise InputError(f"{name!r}: calibration.json is not JSON: {exc}") from None
+        cameras = _field(calibration, ("CalibrationInformation", "Cameras"), where)
+        if not isinstance(cameras, list) or not all(isinstance(c, dict) for c in cameras):
             raise InputError(
-                f"{name!r}: calibration.json is not a k4a calibration: {exc}"
-            ) from None
+                f"{where}: calibration.json CalibrationInformation.Cameras is not a list of cameras"
+            )
+        by_purpose = {str(c.get("Purpose")): c for c in cameras}
+        depth_cal = by_purpose.get("CALIBRATION_CameraPurposeDepth")
+        if depth_cal is None:
+            raise InputError(
+                f"{where}: calibration.json has no camera of Purpose CALIBRATION_CameraPurposeDepth"
+            )
         depth_mode = str(dict(depth.metadata).get("K4A_DEPTH_MODE", ""))
         if depth_mode not in DEPTH_MODES:
             raise InputError(
                 f"{name!r} has depth mode {depth_mode!r}; expected one of {list(DEPTH_MODES)}"
             )
         mode = DEPTH_MODES[depth_mode]
-        if (depth.codec_context.width, depth.codec_context.height) != mode[2]:
+        depth_ctx = depth.codec_context
+        tag = str(getattr(depth_ctx, "codec_tag", "") or "") if depth_ctx is not None else ""
+        if depth_ctx is None or tag != "b16g":
+            raise InputError(
+                f"{name!r}: the DEPTH track holds {tag or 'no known codec'!r}; expected raw "
+                "16-bit big-endian depth (b16g)"
+            )
+        if (depth_ctx.width, depth_ctx.height) != mode[2]:
             raise InputError(
                 f"{name!r}: depth mode {depth_mode} is {mode[2][0]}x{mode[2][1]}, but its track "
-                f"is {depth.codec_context.width}x{depth.codec_context.height}"
+                f"is {depth_ctx.width}x{depth_ctx.height}"
             )
-        self.intrinsics: CameraIntrinsics | None = _camera(depth_cal, mode, "depth camera")
+        self.intrinsics: CameraIntrinsics | None = _camera(depth_cal, mode, "depth camera", where)
+        self._depth_shape = (mode[2][1], mode[2][0])
         self.depth_scale = 1000.0
         self._depth_index = depth.index
         self._color_index: int | None = None
+        self._color_format = ""
         self.metadata = {
             "source": "azure_kinect",
             "device": "Azure Kinect",
@@ -195,34 +285,107 @@ class AzureKinectSource(Source):
         ):
             if key in tags:
                 self.metadata[label] = str(tags[key])
-        self._start_ns = int(tags.get("K4A_START_OFFSET_NS", 0) or 0)
+        self._start_ns = _start_offset(tags, where)
         if color is not None:
             color_cal = by_purpose.get("CALIBRATION_CameraPurposePhotoVideo")
             if color_cal is None:
                 raise InputError(f"{name!r}: calibration.json has no color camera")
-            if color_cal["SensorWidth"] * 3 != color_cal["SensorHeight"] * 4:
+            sw, sh = (color_cal.get(k) for k in ("SensorWidth", "SensorHeight"))
+            if not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (sw, sh)):
                 raise InputError(
-                    f"{name!r}: color calibration of a {color_cal['SensorWidth']}x"
-                    f"{color_cal['SensorHeight']} sensor; only 4:3 calibrations are supported"
+                    f"{where}: calibration.json color camera SensorWidth/SensorHeight are "
+                    f"{sw!r}, {sh!r}; expected whole numbers of pixels"
                 )
-            h = int(color.codec_context.height)
-            if h not in COLOR_MODES or COLOR_MODES[h][2][0] != color.codec_context.width:
+            if sw * 3 != sh * 4:
+                raise InputError(
+                    f"{name!r}: color calibration of a {sw}x{sh} sensor; only 4:3 calibrations "
+                    "are supported"
+                )
+            ctx = color.codec_context
+            fmt = "" if ctx is None or ctx.codec is None else str(ctx.codec.name)
+            tag = str(getattr(ctx, "codec_tag", "") or "") if ctx is not None else ""
+            fmt = _COLOR_FORMATS.get(tag, fmt if fmt == "mjpeg" else "")
+            if not fmt:
+                raise InputError(
+                    f"{name!r}: the COLOR track holds {tag or 'no known codec'!r}; expected "
+                    f"one of {', '.join(sorted(_COLOR_FORMATS))} (its CodecPrivate is damaged "
+                    "or missing)"
+                )
+            w, h = int(ctx.width or 0), int(ctx.height or 0)
+            if h not in COLOR_MODES or COLOR_MODES[h][2][0] != w:
                 sizes = ", ".join(f"{m[2][0]}x{m[2][1]}" for m in COLOR_MODES.values())
                 raise InputError(
-                    f"{name!r}: color track is {color.codec_context.width}x{h}, not an Azure "
-                    f"Kinect color resolution ({sizes})"
+                    f"{name!r}: color track is {w}x{h}, not an Azure Kinect color resolution "
+                    f"({sizes})"
                 )
-            self.color_intrinsics = _camera(color_cal, COLOR_MODES[h], "color camera")
-            self.depth_to_color = _rt(color_cal) @ np.linalg.inv(_rt(depth_cal))
+            self.color_intrinsics = _camera(color_cal, COLOR_MODES[h], "color camera", where)
+            self.depth_to_color = _rt(color_cal, "color camera", where) @ np.linalg.inv(
+                _rt(depth_cal, "depth camera", where)
+            )
             self._color_index = color.index
+            self._color_format = fmt
             self.metadata["color_mode"] = str(dict(color.metadata).get("K4A_COLOR_MODE", ""))
         self.has_color = color is not None
         self._count = int(depth.frames or 0)
+
+    @property
+    def dropped(self) -> dict[str, int]:
+        """Images read but not made into frames so far, by stream (see :attr:`drop_reasons`)."""
+        return dict(self._dropped)
+
+    def describe(self) -> dict[str, Any]:
+        out = super().describe()
+        out["dropped"] = self.dropped
+        out["notes"] = [
+            f"dropped {n} capture(s): {reason}"
+            + (f" (first at pts {', '.join(map(str, self._drop_pts[reason]))})" if n else "")
+            for reason, n in self.drop_reasons.items()
+        ]
+        return out
 
     def __len__(self) -> int:
         if not self._count:
             raise TypeError("the depth track does not state its frame count")
         return self._count if self.max_frames is None else min(self._count, self.max_frames)
+
+    def _drop(self, reason: str, pts: int, color: int, depth: int) -> None:
+        self.drop_reasons[reason] = self.drop_reasons.get(reason, 0) + 1
+        first = self._drop_pts.setdefault(reason, [])
+        if len(first) < 3:
+            first.append(pts)
+        self._dropped["color"] += color
+        self._dropped["depth"] += depth
+
+    def _color(self, packet: Any, pts: int, where: str) -> npt.NDArray[np.uint8] | str:
+        """The RGB image of a color packet, or why it is damaged: an MJPEG image is checked
+        whole and of the camera's size before it is decoded, a raw one by its length."""
+        import av
+
+        from ._images import check_compressed
+
+        assert self.color_intrinsics is not None
+        h, w = self.color_intrinsics.shape
+        data = bytes(packet)
+        try:
+            if self._color_format == "mjpeg":
+                check_compressed(data, f"{where}: color packet at pts {pts}", (h, w))
+            elif len(data) != _RAW_BYTES[self._color_format](w, h):
+                return (
+                    f"color packet at pts {pts} holds {len(data)} bytes, expected "
+                    f"{_RAW_BYTES[self._color_format](w, h)} for {w}x{h} {self._color_format}"
+                )
+        except DecodeError as exc:
+            return str(exc)
+        try:
+            frames = list(packet.decode())
+            if len(frames) != 1:
+                return f"color packet at pts {pts} decodes to {len(frames)} images"
+            img = np.asarray(frames[0].to_ndarray(format="rgb24"), dtype=np.uint8)
+        except (av.error.FFmpegError, ValueError) as exc:
+            return f"color packet at pts {pts} does not decode: {exc}"
+        if img.shape != (h, w, 3):
+            return f"color packet at pts {pts} decodes to {img.shape}, expected {(h, w, 3)}"
+        return img
 
     def __iter__(self) -> Iterator[Any]:
         import av
@@ -230,22 +393,36 @@ class AzureKinectSource(Source):
         from ..datasets import RGBDFrame
 
         name = str(self.path)
-        container = av.open(name)
+        where = repr(name)
+        self._dropped = {"color": 0, "depth": 0}
+        self.drop_reasons = {}
+        self._drop_pts = {}
+        self._damaged = {}
+        try:
+            container = av.open(name)
+        except (av.error.FFmpegError, OSError) as exc:
+            raise DecodeError(f"{where} is not a readable Matroska file: {exc}") from exc
         try:
             depth_stream = container.streams[self._depth_index]
             streams = [depth_stream]
-            color_stream = None
+            has_color = self._color_index is not None
             if self._color_index is not None:
-                color_stream = container.streams[self._color_index]
-                streams.append(color_stream)
-            h, w = self.intrinsics.shape if self.intrinsics else (0, 0)
+                streams.append(container.streams[self._color_index])
+            h, w = self._depth_shape
             depths: dict[int, npt.NDArray[np.uint16]] = {}
             colors: dict[int, npt.NDArray[np.uint8]] = {}
             emitted = 0
             seen = 0
             tb = depth_stream.time_base
             tb_ns = float(tb * _NS) if tb is not None else 1000.0
-            for packet in container.demux(streams):
+            packets = container.demux(streams)
+            while True:
+                try:
+                    packet = next(packets)
+                except StopIteration:
+                    break
+                except (av.error.FFmpegError, OSError) as exc:
+                    raise DecodeError(f"{where}: the file is damaged: {exc}") from exc
                 if packet.size == 0 or packet.pts is None:
                     continue
                 seen += 1
@@ -253,37 +430,61 @@ class AzureKinectSource(Source):
                 if packet.stream.index == self._depth_index:
                     raw = bytes(packet)
                     if len(raw) != 2 * w * h:
-                        raise DecodeError(
-                            f"{name!r}: depth packet at pts {pts} holds {len(raw)} bytes, "
-                            f"expected {2 * w * h} for {w}x{h} 16-bit depth"
+                        self._fail(
+                            f"depth packet at pts {pts} holds {len(raw)} bytes, expected "
+                            f"{2 * w * h} for {w}x{h} 16-bit depth",
+                            "damaged depth",
+                            pts,
+                            0,
+                            1,
                         )
+                        continue
+                    if pts in depths:
+                        self._drop("two depth images with one timestamp", pts, 0, 1)
                     depths[pts] = np.frombuffer(raw, dtype=">u2").reshape(h, w).astype(np.uint16)
                 else:
-                    assert color_stream is not None
-                    try:
-                        frames: list[Any] = list(packet.decode())
-                    except av.error.FFmpegError as exc:
-                        raise DecodeError(
-                            f"{name!r}: color packet at pts {pts} does not decode: {exc}"
-                        ) from exc
-                    for f in frames:
-                        colors[pts] = np.asarray(f.to_ndarray(format="rgb24"), dtype=np.uint8)
-                for t in sorted(set(depths) & set(colors)) if color_stream else sorted(depths):
+                    img = self._color(packet, pts, where)
+                    if isinstance(img, str):
+                        self._fail(img, "damaged color", pts, 1, 0)
+                        continue
+                    if pts in colors:
+                        self._drop("two color images with one timestamp", pts, 1, 0)
+                    colors[pts] = img
+                for t in sorted(set(depths) & set(colors)) if has_color else sorted(depths):
                     ns = self._start_ns + round(t * tb_ns)
-                    yield RGBDFrame(colors.pop(t) if color_stream else None, depths.pop(t), ns)
+                    yield RGBDFrame(colors.pop(t) if has_color else None, depths.pop(t), ns)
                     emitted += 1
                     if self.max_frames is not None and emitted >= self.max_frames:
                         return
-                # A capture whose partner never came: keep only the newest few waiting.
-                for pending in (depths, colors):
-                    for old in sorted(pending)[:-4]:
-                        del pending[old]
+                # Images of one capture come together: one whose partner has not come after a
+                # few later captures never will. Keep the newest few waiting, count the rest.
+                self._evict(depths, colors, 4)
+            self._evict(depths, colors, 0)
             if seen == 0:
                 raise InputError(
                     f"{name!r} holds no captures (no clusters with color or depth data)"
                 )
         finally:
             container.close()
+
+    def _evict(self, depths: dict[int, Any], colors: dict[int, Any], keep: int) -> None:
+        for pending, kind in ((depths, "depth"), (colors, "color")):
+            for old in sorted(pending)[: max(0, len(pending) - keep)]:
+                del pending[old]
+                color, depth = int(kind == "color"), int(kind == "depth")
+                if old in self._damaged:  # the partner of a damaged image: counted there
+                    self._dropped["color"] += color
+                    self._dropped["depth"] += depth
+                    continue
+                other = "color" if kind == "depth" else "depth"
+                self._drop(f"a {kind} image without its {other} image", old, color, depth)
+
+    def _fail(self, why: str, reason: str, pts: int, color: int, depth: int) -> None:
+        """A damaged image: an error naming the file in strict mode, else a dropped capture."""
+        if self.strict:
+            raise DecodeError(f"{str(self.path)!r}: {why}")
+        self._damaged[pts] = why
+        self._drop(reason, pts, color, depth)
 
 
 def open_azure_kinect(path: str | Path, **options: Any) -> AzureKinectSource:
