@@ -70,6 +70,24 @@ def _is_azure_kinect(path: Path) -> bool:
     return b"K4A_" in head
 
 
+def _declared_tag(path: Path, name: bytes, limit: int = 1 << 20) -> bytes | None:
+    """The value of the first SimpleTag ``name`` before the first cluster, read from the bytes
+    (FFmpeg leaves out the tags of a track it cannot read), or ``None``."""
+    with path.open("rb") as f:
+        head = f.read(limit)
+    end = head.find(_CLUSTER_ID)
+    at = head.find(name, 0, end if end >= 0 else len(head))
+    if at < 0:
+        return None
+    i = at + len(name)
+    if head[i : i + 2] != b"\x44\x87" or i + 3 > len(head):  # TagString, one-byte size
+        return b""
+    size = head[i + 2]
+    if not size & 0x80:
+        return b""
+    return head[i + 3 : i + 3 + (size & 0x7F)]
+
+
 def _has_cluster(path: Path, limit: int = 1 << 24) -> bool:
     """Whether a Matroska Cluster element starts within the first ``limit`` bytes."""
     with path.open("rb") as f:
@@ -128,16 +146,19 @@ def _camera(
         raise InputError(f"{where}: {what} calibration has focal lengths {fx}, {fy}; expected > 0")
     k1, k2, k3, k4, k5, k6 = params[4:10]
     p2, p1 = params[12], params[13]
-    return CameraIntrinsics(
-        w,
-        h,
-        fx * bw,
-        fy * bh,
-        cx * bw - ox - 0.5,
-        cy * bh - oy - 0.5,
-        "rational_polynomial",
-        (k1, k2, p1, p2, k3, k4, k5, k6),
-    )
+    try:
+        return CameraIntrinsics(
+            w,
+            h,
+            fx * bw,
+            fy * bh,
+            cx * bw - ox - 0.5,
+            cy * bh - oy - 0.5,
+            "rational_polynomial",
+            (k1, k2, p1, p2, k3, k4, k5, k6),
+        )
+    except InputError as exc:
+        raise InputError(f"{where}: calibration.json {what} Intrinsics: {exc}") from None
 
 
 def _rt(cal: dict[str, Any], what: str, where: str) -> npt.NDArray[np.float64]:
@@ -150,7 +171,9 @@ def _rt(cal: dict[str, Any], what: str, where: str) -> npt.NDArray[np.float64]:
     m = np.eye(4)
     m[:3, :3] = np.reshape(rotation, (3, 3))
     m[:3, 3] = translation
-    if not np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-3):
+    with np.errstate(all="ignore"):
+        orthonormal = np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-3)
+    if not orthonormal:
         raise InputError(
             f"{where}: calibration.json {what} Rt.Rotation {rotation} is not a rotation matrix"
         )
@@ -200,6 +223,8 @@ class AzureKinectSource(Source):
         name = str(self.path)
         try:
             container = av.open(name)
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{name!r}: a tag or track name is not UTF-8 text: {exc}") from None
         except (av.error.FFmpegError, OSError) as exc:
             if _is_azure_kinect(self.path) and not _has_cluster(self.path):
                 raise InputError(
@@ -209,6 +234,8 @@ class AzureKinectSource(Source):
             raise InputError(f"{name!r} is not a readable Matroska file: {exc}") from exc
         try:
             self._read_header(container, name)
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{name!r}: a tag or track name is not UTF-8 text: {exc}") from None
         finally:
             container.close()
         if intrinsics is not None:
@@ -221,14 +248,35 @@ class AzureKinectSource(Source):
         attachment = None
         for s in container.streams:
             meta = dict(s.metadata)
-            if s.type == "video" and ("K4A_DEPTH_MODE" in meta or meta.get("title") == "DEPTH"):
+            # The K4A mode tags say what a track holds; the track name only without them.
+            tagged = "K4A_DEPTH_MODE" in meta or "K4A_COLOR_MODE" in meta
+            is_depth = "K4A_DEPTH_MODE" in meta or (not tagged and meta.get("title") == "DEPTH")
+            is_color = "K4A_COLOR_MODE" in meta or (not tagged and meta.get("title") == "COLOR")
+            if (is_depth and depth is not None) or (is_color and color is not None):
+                raise InputError(
+                    f"{name!r} has two {'DEPTH' if is_depth else 'COLOR'} tracks (tracks "
+                    f"{(depth if is_depth else color).index + 1} and {s.index + 1})"
+                )
+            if (is_depth or is_color) and s.type != "video":
+                # A camera track that does not read as video: refused, not left out.
+                raise InputError(
+                    f"{name!r}: the {'DEPTH' if is_depth else 'COLOR'} track (track "
+                    f"{s.index + 1}) does not read as video (it reads as {s.type}); its CodecID "
+                    "or CodecPrivate is damaged"
+                )
+            if is_depth:
                 depth = s
-            elif s.type == "video" and ("K4A_COLOR_MODE" in meta or meta.get("title") == "COLOR"):
+            elif is_color:
                 color = s
             elif s.type == "attachment" and meta.get("filename") == "calibration.json":
                 attachment = s
         if depth is None:
             raise InputError(f"{name!r} has no Azure Kinect DEPTH track")
+        if color is None and _declared_tag(self.path, b"K4A_COLOR_MODE") not in (None, b"OFF"):
+            raise InputError(
+                f"{name!r} declares a color mode (tag K4A_COLOR_MODE) but its COLOR track does "
+                "not read: its CodecID or CodecPrivate is damaged"
+            )
         if attachment is None:
             raise InputError(
                 f"{name!r} has no calibration.json attachment: the cameras' intrinsics and "
@@ -400,7 +448,7 @@ class AzureKinectSource(Source):
         self._damaged = {}
         try:
             container = av.open(name)
-        except (av.error.FFmpegError, OSError) as exc:
+        except (av.error.FFmpegError, OSError, UnicodeDecodeError) as exc:
             raise DecodeError(f"{where} is not a readable Matroska file: {exc}") from exc
         try:
             depth_stream = container.streams[self._depth_index]
