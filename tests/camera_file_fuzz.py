@@ -408,8 +408,9 @@ def make_clean_realsense(name: str, folder: Path) -> Clean:
         raise RuntimeError(f"{path} gives no frames")
     cams = [(c.width, c.height, 3) for c in camera[:2] if c is not None]
     data = path.read_bytes()
-    return Clean(name, "realsense", spec, data, frames, camera, _bound(cams, len(data)),
-                 _bag_regions(data))  # fmt: skip
+    return Clean(
+        name, "realsense", spec, data, frames, camera, _bound(cams, len(data)), _bag_regions(data)
+    )
 
 
 def _bag_regions(data: bytes) -> list[tuple[int, int, str]]:
@@ -452,8 +453,25 @@ def _rs_image_field(clean: Clean, rng: np.random.Generator) -> tuple[bytes, str,
         setattr(msg, fld, value)
         what = f"{rec.topic} at {rec.time}: {fld} {old} -> {value}"
     elif fld == "encoding":
-        value = _pick(rng, ["mono16", "16UC1", "MONO16", "z16", "rgb8", "bgr8", "rgba8",
-                            "bgra8", "mono8", "yuv422", "32FC1", "mjpeg", "", "rgb8\x00"])  # fmt: skip
+        value = _pick(
+            rng,
+            [
+                "mono16",
+                "16UC1",
+                "MONO16",
+                "z16",
+                "rgb8",
+                "bgr8",
+                "rgba8",
+                "bgra8",
+                "mono8",
+                "yuv422",
+                "32FC1",
+                "mjpeg",
+                "",
+                "rgb8\x00",
+            ],
+        )
         what = f"{rec.topic} at {rec.time}: encoding {msg.encoding!r} -> {value!r}"
         msg.encoding = value
         if kind == "Color" and value.lower() in ("bgr8", "bgra8", "rgba8"):
@@ -522,8 +540,19 @@ def _rs_camera_info(clean: Clean, rng: np.random.Generator) -> tuple[bytes, str,
         msg.D = rng.normal(0, 0.1, n)
         what = f"{rec.topic}: D of {n} values"
     else:
-        value = _pick(rng, ["plumb_bob", "Brown Conrady", "Inverse Brown Conrady", "equidistant",
-                            "Kannala Brandt4", "rational_polynomial", "", "unknown"])  # fmt: skip
+        value = _pick(
+            rng,
+            [
+                "plumb_bob",
+                "Brown Conrady",
+                "Inverse Brown Conrady",
+                "equidistant",
+                "Kannala Brandt4",
+                "rational_polynomial",
+                "",
+                "unknown",
+            ],
+        )
         msg.distortion_model = value
         what = f"{rec.topic}: distortion_model -> {value!r}"
     return _rs_bytes(spec, clean), what, allow
@@ -568,14 +597,23 @@ def _rs_tf(clean: Clean, rng: np.random.Generator) -> tuple[bytes, str, frozense
 def _rs_topics(clean: Clean, rng: np.random.Generator) -> tuple[bytes, str, frozenset[str]]:
     """Leave a topic out, or give its connection another message type."""
     spec = copy.deepcopy(clean.spec)
-    topics = sorted({r.topic for r in spec.records if "/option/" not in r.topic or "Units" in r.topic})
+    topics = sorted(
+        {r.topic for r in spec.records if "/option/" not in r.topic or "Units" in r.topic}
+    )
     topic = _pick(rng, topics)
     if rng.random() < 0.5:
         spec.records = [r for r in spec.records if r.topic != topic]
         # without color the frames lose their color: the file now declares no color stream
         return _rs_bytes(spec, clean), f"without {topic}", frozenset({"color", "camera"})
-    other = _pick(rng, ["sensor_msgs/msg/CompressedImage", "std_msgs/msg/Float32",
-                        "sensor_msgs/msg/CameraInfo", "std_msgs/msg/String"])  # fmt: skip
+    other = _pick(
+        rng,
+        [
+            "sensor_msgs/msg/CompressedImage",
+            "std_msgs/msg/Float32",
+            "sensor_msgs/msg/CameraInfo",
+            "std_msgs/msg/String",
+        ],
+    )
     return _rs_bytes(spec, clean, {topic: other}), f"{topic} typed {other}", frozenset()
 
 
@@ -606,8 +644,21 @@ RS_CLEANS = ("lz4", "uncompressed", "mjpeg", "real")
 #: a Matroska element: (ID with its marker bits, payload bytes or child elements, size override)
 El = list  # [id, bytes | list[El]] or [id, value, size_override]
 
-_MASTERS = {0x1A45DFA3, 0x18538067, 0x1549A966, 0x1654AE6B, 0xAE, 0xE0, 0x1941A469, 0x61A7,
-            0x1254C367, 0x7373, 0x63C0, 0x67C8, 0x1F43B675}  # fmt: skip
+_MASTERS = {
+    0x1A45DFA3,
+    0x18538067,
+    0x1549A966,
+    0x1654AE6B,
+    0xAE,
+    0xE0,
+    0x1941A469,
+    0x61A7,
+    0x1254C367,
+    0x7373,
+    0x63C0,
+    0x67C8,
+    0x1F43B675,
+}
 
 
 def _uint(v: int) -> bytes:
@@ -634,19 +685,29 @@ def _bih(w: int, h: int, bits: int, fourcc: bytes, image: int) -> bytes:
 
 
 def _track(num: int, uid: int, name: str, private: bytes, w: int, h: int) -> list[Any]:
-    return [0xAE, [
-        [0xD7, _uint(num)], [0x73C5, _uint(uid)], [0x83, b"\x01"],
-        [0x86, b"V_MS/VFW/FOURCC"], [0x536E, name.encode()], [0x63A2, private],
-        [0x23E383, _uint(33_333_333)], [0xE0, [[0xB0, _uint(w)], [0xBA, _uint(h)]]],
-    ]]  # fmt: skip
+    return [
+        0xAE,
+        [
+            [0xD7, _uint(num)],
+            [0x73C5, _uint(uid)],
+            [0x83, b"\x01"],
+            [0x86, b"V_MS/VFW/FOURCC"],
+            [0x536E, name.encode()],
+            [0x63A2, private],
+            [0x23E383, _uint(33_333_333)],
+            [0xE0, [[0xB0, _uint(w)], [0xBA, _uint(h)]]],
+        ],
+    ]
 
 
 def _tag(name: str, value: str, track_uid: int | None = None) -> list[Any]:
     targets: list[Any] = []
     if track_uid is not None:
         targets = [[0x63CA, b"TRACK"], [0x63C5, _uint(track_uid)]]
-    return [0x7373, [[0x63C0, targets], [0x67C8, [[0x45A3, name.encode()],
-                                                   [0x4487, value.encode()]]]]]  # fmt: skip
+    return [
+        0x7373,
+        [[0x63C0, targets], [0x67C8, [[0x45A3, name.encode()], [0x4487, value.encode()]]]],
+    ]
 
 
 def k4a_calibration() -> dict[str, Any]:
@@ -654,27 +715,74 @@ def k4a_calibration() -> dict[str, Any]:
 
     def cam(purpose: str, w: int, h: int, params: list[float], t: list[float]) -> dict[str, Any]:
         return {
-            "Intrinsics": {"ModelParameterCount": 14, "ModelParameters": params,
-                           "ModelType": "CALIBRATION_LensDistortionModelBrownConrady"},
-            "Location": purpose.split("Purpose")[1], "Purpose": purpose,
+            "Intrinsics": {
+                "ModelParameterCount": 14,
+                "ModelParameters": params,
+                "ModelType": "CALIBRATION_LensDistortionModelBrownConrady",
+            },
+            "Location": purpose.split("Purpose")[1],
+            "Purpose": purpose,
             "MetricRadius": 1.7,
-            "Rt": {"Rotation": [1.0, 0.0, 0.0, 0.0, 0.9999, -0.0141, 0.0, 0.0141, 0.9999],
-                   "Translation": t} if t[0] else
-                  {"Rotation": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], "Translation": t},
-            "SensorHeight": h, "SensorWidth": w, "Shutter": "CALIBRATION_ShutterTypeUndefined",
+            "Rt": {
+                "Rotation": [1.0, 0.0, 0.0, 0.0, 0.9999, -0.0141, 0.0, 0.0141, 0.9999],
+                "Translation": t,
+            }
+            if t[0]
+            else {"Rotation": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], "Translation": t},
+            "SensorHeight": h,
+            "SensorWidth": w,
+            "Shutter": "CALIBRATION_ShutterTypeUndefined",
             "ThermalAdjustmentParams": {"Params": [0.0] * 12},
-        }  # fmt: skip
+        }
 
     return {
         "CalibrationInformation": {
             "Cameras": [
-                cam("CALIBRATION_CameraPurposeDepth", 1024, 1024,
-                    [0.513, 0.517, 0.4928, 0.4929, 4.1, 2.6, 0.13, 4.4, 3.8, 0.69, 0.0, 0.0,
-                     -3e-5, 2e-5], [0.0, 0.0, 0.0]),
-                cam("CALIBRATION_CameraPurposePhotoVideo", 4096, 3072,
-                    [0.4998, 0.5066, 0.478, 0.6374, 0.5, -2.7, 1.6, 0.4, -2.5, 1.5, 0.0, 0.0,
-                     7e-4, -3e-4], [-0.032, -0.002, 0.004]),
-            ],  # fmt: skip
+                cam(
+                    "CALIBRATION_CameraPurposeDepth",
+                    1024,
+                    1024,
+                    [
+                        0.513,
+                        0.517,
+                        0.4928,
+                        0.4929,
+                        4.1,
+                        2.6,
+                        0.13,
+                        4.4,
+                        3.8,
+                        0.69,
+                        0.0,
+                        0.0,
+                        -3e-5,
+                        2e-5,
+                    ],
+                    [0.0, 0.0, 0.0],
+                ),
+                cam(
+                    "CALIBRATION_CameraPurposePhotoVideo",
+                    4096,
+                    3072,
+                    [
+                        0.4998,
+                        0.5066,
+                        0.478,
+                        0.6374,
+                        0.5,
+                        -2.7,
+                        1.6,
+                        0.4,
+                        -2.5,
+                        1.5,
+                        0.0,
+                        0.0,
+                        7e-4,
+                        -3e-4,
+                    ],
+                    [-0.032, -0.002, 0.004],
+                ),
+            ],
             "Metadata": {"SerialId": "000000000000", "Version": {"Major": 1, "Minor": 2}},
         }
     }
@@ -694,25 +802,57 @@ class MkvSpec:
         text = self.calibration_text
         if text is None:
             text = json.dumps(self.calibration)
-        ebml = [0x1A45DFA3, [
-            [0x4286, b"\x01"], [0x42F7, b"\x01"], [0x42F2, b"\x04"], [0x42F3, b"\x08"],
-            [0x4282, b"matroska"], [0x4287, b"\x04"], [0x4285, b"\x02"],
-        ]]  # fmt: skip
-        info = [0x1549A966, [[0x2AD7B1, _uint(1000)], [0x4D80, b"pcdcodec-tests"],
-                             [0x5741, b"k4arecord-1.4.1"], [0x7BA9, b"Azure Kinect"]]]  # fmt: skip
-        attach = [0x1941A469, [[0x61A7, [
-            [0x466E, b"calibration.json"], [0x4660, b"application/octet-stream"],
-            [0x465C, text.encode()], [0x46AE, _uint(0x1234567)],
-        ]]]]  # fmt: skip
+        ebml = [
+            0x1A45DFA3,
+            [
+                [0x4286, b"\x01"],
+                [0x42F7, b"\x01"],
+                [0x42F2, b"\x04"],
+                [0x42F3, b"\x08"],
+                [0x4282, b"matroska"],
+                [0x4287, b"\x04"],
+                [0x4285, b"\x02"],
+            ],
+        ]
+        info = [
+            0x1549A966,
+            [
+                [0x2AD7B1, _uint(1000)],
+                [0x4D80, b"pcdcodec-tests"],
+                [0x5741, b"k4arecord-1.4.1"],
+                [0x7BA9, b"Azure Kinect"],
+            ],
+        ]
+        attach = [
+            0x1941A469,
+            [
+                [
+                    0x61A7,
+                    [
+                        [0x466E, b"calibration.json"],
+                        [0x4660, b"application/octet-stream"],
+                        [0x465C, text.encode()],
+                        [0x46AE, _uint(0x1234567)],
+                    ],
+                ]
+            ],
+        ]
         uids = {el[1][1][1]: el for el in self.tracks}
         color_uid, depth_uid = list(uids)[:2]
         tags = []
         for k, v in self.tags.items():
-            uid = color_uid if k.startswith("K4A_COLOR_") else depth_uid if k.startswith(
-                "K4A_DEPTH_MODE") else None
+            uid = (
+                color_uid
+                if k.startswith("K4A_COLOR_")
+                else depth_uid
+                if k.startswith("K4A_DEPTH_MODE")
+                else None
+            )
             tags.append(_tag(k, v, None if uid is None else int.from_bytes(uid, "big")))
-        segment = [0x18538067, [info, [0x1654AE6B, self.tracks], attach,
-                                [0x1254C367, tags], *self.clusters]]  # fmt: skip
+        segment = [
+            0x18538067,
+            [info, [0x1654AE6B, self.tracks], attach, [0x1254C367, tags], *self.clusters],
+        ]
         return [ebml, segment]
 
     def to_bytes(self) -> bytes:
@@ -735,14 +875,25 @@ def mkv_spec(captures: int = 3) -> MkvSpec:
         ok, jpeg = cv2.imencode(".jpg", img.astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, 70])
         assert ok
         depth = rng.integers(0, 5000, (288, 320)).astype(">u2").tobytes()
-        clusters.append([0x1F43B675, [[0xE7, _uint(k * 33_333)], _block(1, 0, jpeg.tobytes()),
-                                      _block(2, 0, depth)]])  # fmt: skip
+        clusters.append(
+            [
+                0x1F43B675,
+                [[0xE7, _uint(k * 33_333)], _block(1, 0, jpeg.tobytes()), _block(2, 0, depth)],
+            ]
+        )
     tracks = [
-        _track(1, 0x0324_4080_9F71_DFD2, "COLOR", _bih(1280, 720, 24, b"MJPG", 1280 * 720 * 3),
-               1280, 720),
-        _track(2, 0x0651_47E6_D36F_4632, "DEPTH", _bih(320, 288, 16, b"b16g", 320 * 288 * 2),
-               320, 288),
-    ]  # fmt: skip
+        _track(
+            1,
+            0x0324_4080_9F71_DFD2,
+            "COLOR",
+            _bih(1280, 720, 24, b"MJPG", 1280 * 720 * 3),
+            1280,
+            720,
+        ),
+        _track(
+            2, 0x0651_47E6_D36F_4632, "DEPTH", _bih(320, 288, 16, b"b16g", 320 * 288 * 2), 320, 288
+        ),
+    ]
     tags = {
         "K4A_COLOR_MODE": "MJPG_720P",
         "K4A_DEPTH_MODE": "NFOV_2X2BINNED",
@@ -769,8 +920,22 @@ def make_clean_mkv(name: str, folder: Path) -> Clean:
     return Clean(name, "mkv", spec, data, frames, camera, _bound(cams, len(data)))
 
 
-_JSON_VALUES = [None, "x", "", 0, -1, 1e308, float("nan"), float("inf"), [], {}, [1.0], True,
-                [0.5] * 20, "0.5"]  # fmt: skip
+_JSON_VALUES = [
+    None,
+    "x",
+    "",
+    0,
+    -1,
+    1e308,
+    float("nan"),
+    float("inf"),
+    [],
+    {},
+    [1.0],
+    True,
+    [0.5] * 20,
+    "0.5",
+]
 
 
 def _json_paths(value: Any, path: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
@@ -791,13 +956,25 @@ def _mkv_calibration(clean: Clean, rng: np.random.Generator) -> tuple[bytes, str
     if op == "text":
         text = json.dumps(cal)
         cut = int(rng.integers(0, len(text)))
-        spec.calibration_text = _pick(rng, [text[:cut], text[:cut] + "}" + text[cut:], "", "null",
-                                            "[]", '{"CalibrationInformation": null}'])  # fmt: skip
+        spec.calibration_text = _pick(
+            rng,
+            [
+                text[:cut],
+                text[:cut] + "}" + text[cut:],
+                "",
+                "null",
+                "[]",
+                '{"CalibrationInformation": null}',
+            ],
+        )
         return spec.to_bytes(), "calibration text changed", frozenset({"camera"})
     paths = [p for p in _json_paths(cal) if p]
     # Aim at the fields the reader reads most of the time.
-    wanted = [p for p in paths if any(k in p for k in ("ModelParameters", "Rt", "Purpose",
-                                                        "SensorWidth", "SensorHeight"))]  # fmt: skip
+    wanted = [
+        p
+        for p in paths
+        if any(k in p for k in ("ModelParameters", "Rt", "Purpose", "SensorWidth", "SensorHeight"))
+    ]
     path = _pick(rng, wanted if wanted and rng.random() < 0.8 else paths)
     parent = cal
     for k in path[:-1]:
@@ -825,16 +1002,33 @@ def _mkv_calibration(clean: Clean, rng: np.random.Generator) -> tuple[bytes, str
 
 def _mkv_tags(clean: Clean, rng: np.random.Generator) -> tuple[bytes, str, frozenset[str]]:
     spec = copy.deepcopy(clean.spec)
-    key = _pick(rng, ["K4A_START_OFFSET_NS", "K4A_DEPTH_MODE", "K4A_COLOR_MODE",
-                      "K4A_DEVICE_SERIAL_NUMBER"])  # fmt: skip
+    key = _pick(
+        rng, ["K4A_START_OFFSET_NS", "K4A_DEPTH_MODE", "K4A_COLOR_MODE", "K4A_DEVICE_SERIAL_NUMBER"]
+    )
     values = {
-        "K4A_START_OFFSET_NS": ["", "-5", "abc", "1e9", "99999999999999999999", " 12", "0",
-                                "١٢", "12.5", "0x10"],
-        "K4A_DEPTH_MODE": ["NFOV_UNBINNED", "WFOV_2X2BINNED", "PASSIVE_IR", "", "nfov_2x2binned",
-                           "NFOV_2X2BINNED\x00"],
+        "K4A_START_OFFSET_NS": [
+            "",
+            "-5",
+            "abc",
+            "1e9",
+            "99999999999999999999",
+            " 12",
+            "0",
+            "١٢",
+            "12.5",
+            "0x10",
+        ],
+        "K4A_DEPTH_MODE": [
+            "NFOV_UNBINNED",
+            "WFOV_2X2BINNED",
+            "PASSIVE_IR",
+            "",
+            "nfov_2x2binned",
+            "NFOV_2X2BINNED\x00",
+        ],
         "K4A_COLOR_MODE": ["", "NV12_720P", "garbage"],
         "K4A_DEVICE_SERIAL_NUMBER": ["", "\x00" * 3, "x" * 300],
-    }[key]  # fmt: skip
+    }[key]
     if rng.random() < 0.2:
         spec.tags.pop(key)
         what = f"tag {key} removed"
@@ -851,12 +1045,31 @@ def _mkv_track(clean: Clean, rng: np.random.Generator) -> tuple[bytes, str, froz
     t = int(rng.integers(len(spec.tracks)))
     fields = spec.tracks[t][1]
     byid = {el[0]: el for el in fields}
-    what_field = _pick(rng, ["CodecPrivate", "CodecPrivate", "fourcc", "bih-size", "CodecID",
-                             "Name", "PixelWidth", "TrackNumber"])  # fmt: skip
+    what_field = _pick(
+        rng,
+        [
+            "CodecPrivate",
+            "CodecPrivate",
+            "fourcc",
+            "bih-size",
+            "CodecID",
+            "Name",
+            "PixelWidth",
+            "TrackNumber",
+        ],
+    )
     if what_field == "CodecPrivate":
         old = byid[0x63A2][1]
-        value = _pick(rng, [b"", old[:16], old[:39], old + b"\x00" * 8,
-                            rng.integers(0, 256, 40, dtype=np.uint8).tobytes()])  # fmt: skip
+        value = _pick(
+            rng,
+            [
+                b"",
+                old[:16],
+                old[:39],
+                old + b"\x00" * 8,
+                rng.integers(0, 256, 40, dtype=np.uint8).tobytes(),
+            ],
+        )
         byid[0x63A2][1] = value
         what = f"track {t} CodecPrivate of {len(value)} bytes"
     elif what_field == "fourcc":
@@ -908,13 +1121,31 @@ def _mkv_ebml(clean: Clean, rng: np.random.Generator) -> tuple[bytes, str, froze
     el = flat[i]
     length = len(serialize(el)) - len(_id_bytes(el[0])) - 8
     if rng.random() < 0.6:
-        size = int(_pick(rng, [0, 1, length - 1, length + 1, length // 2, length * 2, 2**31,
-                               2**56 - 2, -1]))  # fmt: skip
+        size = int(
+            _pick(
+                rng, [0, 1, length - 1, length + 1, length // 2, length * 2, 2**31, 2**56 - 2, -1]
+            )
+        )
         el[2:] = [size]
         what = f"element {i} (0x{el[0]:X}) size {length} -> {size}"
     else:
-        other = int(_pick(rng, [0xEC, 0xBF, 0x1F43B675, 0x1A45DFA3, 0xA3, 0x4286, 0x80, 0xFF,
-                                0x18538067, 0x1654AE6B]))  # fmt: skip
+        other = int(
+            _pick(
+                rng,
+                [
+                    0xEC,
+                    0xBF,
+                    0x1F43B675,
+                    0x1A45DFA3,
+                    0xA3,
+                    0x4286,
+                    0x80,
+                    0xFF,
+                    0x18538067,
+                    0x1654AE6B,
+                ],
+            )
+        )
         what = f"element {i} (0x{el[0]:X}) ID -> 0x{other:X}"
         el[0] = other
     # A damaged block structure may leave a capture with other pixels (JPEG has no checksum).
@@ -936,8 +1167,20 @@ def _mkv_block(clean: Clean, rng: np.random.Generator) -> tuple[bytes, str, froz
     c, j, el = _pick(rng, _blocks(spec))
     head, payload = el[1][:4], el[1][4:]
     track = head[0] & 0x7F
-    op = _pick(rng, ["cut", "cut", "extend", "drop", "duplicate", "timecode", "flip-entropy",
-                     "flip-header", "zero-tail"])  # fmt: skip
+    op = _pick(
+        rng,
+        [
+            "cut",
+            "cut",
+            "extend",
+            "drop",
+            "duplicate",
+            "timecode",
+            "flip-entropy",
+            "flip-header",
+            "zero-tail",
+        ],
+    )
     allow: frozenset[str] = frozenset()
     if op == "cut":
         n = int(rng.integers(0, len(payload)))
@@ -1003,7 +1246,9 @@ MKV_CLEANS = ("k4a", "real")
 def make_clean(name: str, folder: Path) -> Clean:
     """``rs-<variant>`` or ``mkv-<variant>``."""
     kind, variant = name.split("-", 1)
-    clean = make_clean_realsense(variant, folder) if kind == "rs" else make_clean_mkv(variant, folder)
+    clean = (
+        make_clean_realsense(variant, folder) if kind == "rs" else make_clean_mkv(variant, folder)
+    )
     clean.name = name
     return clean
 
