@@ -252,10 +252,11 @@ class AzureKinectSource(Source):
             tagged = "K4A_DEPTH_MODE" in meta or "K4A_COLOR_MODE" in meta
             is_depth = "K4A_DEPTH_MODE" in meta or (not tagged and meta.get("title") == "DEPTH")
             is_color = "K4A_COLOR_MODE" in meta or (not tagged and meta.get("title") == "COLOR")
-            if (is_depth and depth is not None) or (is_color and color is not None):
+            prior: Any = depth if is_depth else color if is_color else None
+            if prior is not None:
                 raise InputError(
                     f"{name!r} has two {'DEPTH' if is_depth else 'COLOR'} tracks (tracks "
-                    f"{(depth if is_depth else color).index + 1} and {s.index + 1})"
+                    f"{prior.index + 1} and {s.index + 1})"
                 )
             if (is_depth or is_color) and s.type != "video":
                 # A camera track that does not read as video: refused, not left out.
