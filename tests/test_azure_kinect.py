@@ -199,7 +199,7 @@ def test_truncated_mjpeg_is_dropped_and_reported(tmp_path: Path) -> None:
     assert len(frames) == 2
     assert src.dropped == {"color": 1, "depth": 1}
     assert src.drop_reasons == {"damaged color": 1}
-    assert "damaged color (first at pts 33333)" in notes[0]
+    assert "damaged color (first at pts 33333): color packet at pts 33333: the JPEG" in notes[0]
     with pytest.raises(DecodeError, match=r"color packet at pts 33333: the JPEG image is cut"):
         list(AzureKinectSource(path, strict=True))
 
@@ -319,3 +319,17 @@ def test_tags_that_are_not_text(tmp_path: Path) -> None:
     with pytest.raises(InputError, match=r"not UTF-8") as info:
         AzureKinectSource(path)
     assert str(path) in str(info.value)
+
+
+def test_cli_encode_prints_why_captures_were_dropped(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from pcdcodec.cli import main
+
+    path = _mkv(tmp_path, _cut_color(1))
+    out = tmp_path / "out.pcdc"
+    assert main(["encode", str(path), "-o", str(out), "--color", "ffv1", "-q"]) == 0
+    printed = capsys.readouterr().out
+    assert "wrote 2 frames" in printed
+    assert "dropped      1 color and 1 depth" in printed
+    assert "note         dropped 1 capture(s): damaged color (first at pts 33333)" in printed

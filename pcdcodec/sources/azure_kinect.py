@@ -220,6 +220,7 @@ class AzureKinectSource(Source):
         self.drop_reasons: dict[str, int] = {}
         self._drop_pts: dict[str, list[int]] = {}
         self._damaged: dict[int, str] = {}
+        self._drop_detail: dict[str, str] = {}
         name = str(self.path)
         try:
             container = av.open(name)
@@ -386,8 +387,9 @@ class AzureKinectSource(Source):
         out = super().describe()
         out["dropped"] = self.dropped
         out["notes"] = [
-            f"dropped {n} capture(s): {reason}"
-            + (f" (first at pts {', '.join(map(str, self._drop_pts[reason]))})" if n else "")
+            f"dropped {n} capture(s): {reason} (first at pts "
+            f"{', '.join(map(str, self._drop_pts[reason]))})"
+            + (f": {self._drop_detail[reason]}" if reason in self._drop_detail else "")
             for reason, n in self.drop_reasons.items()
         ]
         return out
@@ -447,6 +449,7 @@ class AzureKinectSource(Source):
         self.drop_reasons = {}
         self._drop_pts = {}
         self._damaged = {}
+        self._drop_detail = {}
         try:
             container = av.open(name)
         except (av.error.FFmpegError, OSError, UnicodeDecodeError) as exc:
@@ -533,6 +536,7 @@ class AzureKinectSource(Source):
         if self.strict:
             raise DecodeError(f"{str(self.path)!r}: {why}")
         self._damaged[pts] = why
+        self._drop_detail.setdefault(reason, why.replace(f"{str(self.path)!r}: ", ""))
         self._drop(reason, pts, color, depth)
 
 
