@@ -334,3 +334,19 @@ def test_mjpeg_color_is_checked_and_decoded(tmp_path: Path) -> None:
     cut_dir = tmp_path / "cut"
     cut_dir.mkdir()
     _read_error(_bag(cut_dir, cut, color_encoding="mjpeg"), r"Color_0/image/data at .*cut short")
+
+
+def test_depth_frames_without_color_are_counted(tmp_path: Path) -> None:
+    """``max_dt`` leaves out depth frames with no color frame near enough: counted, as the bag
+    readers count theirs, and in the encode summary."""
+
+    def change(spec: Any) -> None:
+        _image(spec, "Color", 2).header.stamp.sec = 5  # 4 s after its depth frame
+
+    path = _bag(tmp_path, change)
+    with RealSenseBagSource(path, max_dt=0.01) as src:
+        assert len(list(src)) == 2
+        assert src.dropped == {"color": 0, "depth": 1}
+    summary = pcdcodec.encode(path, tmp_path / "out.pcdc", color="ffv1", max_dt=0.01)
+    assert summary.frames == 2
+    assert summary.dropped == {"color": 0, "depth": 1}

@@ -178,6 +178,7 @@ class RealSenseBagSource(Source):
         self.max_dt = None if max_dt is None else round(max_dt * _NS)
         self.max_frames = max_frames
         self._index: FrameIndex | None = None
+        self._dropped = {"color": 0, "depth": 0}
         name = str(self.path)
         try:
             reader = Reader(self.path)
@@ -350,8 +351,22 @@ class RealSenseBagSource(Source):
                     is_depth = conn.topic == self.depth_topic
                     yield is_depth, *self._decode(conn, raw, is_depth)
 
-            for t, depth, rgb in self._pairs(images()):
+            self._dropped = {"color": 0, "depth": 0}
+            for t, depth, rgb in self._pairs(images(), self._dropped):
                 yield RGBDFrame(rgb, depth, t)
+
+    @property
+    def dropped(self) -> dict[str, int]:
+        """Depth images read but left out so far, for want of a color image (within ``max_dt``
+        when given), by stream, as the bag readers count them."""
+        return dict(self._dropped)
+
+    def describe(self) -> dict[str, Any]:
+        out = super().describe()
+        out["dropped"] = self.dropped
+        out["depth_topic"] = self.depth_topic
+        out["color_topic"] = self.color_topic
+        return out
 
     def _image_topics(self) -> set[str]:
         return _image_topics(self)
@@ -379,7 +394,9 @@ class RealSenseBagSource(Source):
         stamp = _stamp(msg, where)
         return stamp, _image(msg, f"{where} at {stamp} ns", is_depth, self._shapes[is_depth])
 
-    def _pairs(self, images: Iterator[tuple[bool, int, Any]]) -> Iterator[tuple[int, Any, Any]]:
+    def _pairs(
+        self, images: Iterator[tuple[bool, int, Any]], dropped: dict[str, int] | None = None
+    ) -> Iterator[tuple[int, Any, Any]]:
         """``(timestamp, depth, color)`` from ``(is_depth, stamp, item)`` in bag order: each depth
         frame with the nearer of the color frames read before and after it (the items are
         images when reading, message positions when indexing)."""
@@ -410,6 +427,8 @@ class RealSenseBagSource(Source):
                 t, depth = pending.popleft()
                 rgb = pick(t, after) if has_color else None
                 if rgb is None and has_color:
+                    if dropped is not None:
+                        dropped["depth"] += 1
                     continue
                 yield t, depth, rgb
                 emitted += 1
@@ -421,6 +440,8 @@ class RealSenseBagSource(Source):
             t, depth = pending.popleft()
             rgb = pick(t, None)
             if rgb is None and has_color:
+                if dropped is not None:
+                    dropped["depth"] += 1
                 continue
             yield t, depth, rgb
             emitted += 1
@@ -472,7 +493,9 @@ class RealSenseBagSource(Source):
         import itertools
 
         if start < 0 or (stop is not None and stop < 0):
-            raise InputError(f"frames start and stop must be at least 0, got {start}, {stop}")
+            raise InputError(
+                f"{str(self.path)!r}: frames start and stop must be at least 0, got {start}, {stop}"
+            )
         if start == 0:
             return itertools.islice(iter(self), stop)
         return self.frames_at(self.frame_index().slice(start, stop))
