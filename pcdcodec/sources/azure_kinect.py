@@ -197,9 +197,18 @@ class AzureKinectSource(Source):
 
     ``max_frames`` stops early; ``intrinsics`` replaces the calibrated depth camera.
     ``metadata`` holds the serial number, the depth and color modes and the firmware versions.
-    Raises :class:`~pcdcodec.InputError` for a file without a depth track, without the
-    ``calibration.json`` attachment, with an unknown depth mode or color resolution, or without
-    clusters (no captures).
+
+    A capture is a frame only when its color and depth images are both there and whole (each
+    MJPEG packet is checked whole and of the color camera's size before it is decoded). Other
+    captures are dropped and reported: :attr:`dropped` counts their images by stream,
+    :attr:`drop_reasons` the captures by reason, and :meth:`describe` gives both with the pts
+    of the first few. With ``strict=True`` a damaged image raises
+    :class:`~pcdcodec.DecodeError` naming the file and pts instead.
+
+    Raises :class:`~pcdcodec.InputError` naming the file for a file without a depth track,
+    without the ``calibration.json`` attachment or with a malformed one (naming the field),
+    with an unknown depth mode or color resolution, a bad ``K4A_START_OFFSET_NS`` tag, a
+    color track whose codec cannot be read, or without clusters (no captures).
     """
 
     def __init__(

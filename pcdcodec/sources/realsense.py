@@ -8,7 +8,7 @@ A librealsense recording is a ROS 1 bag with its own topic layout, read here wit
     /device_0/sensor_N/Depth_0/image/data            Image (mono16 / 16UC1)
     /device_0/sensor_N/Depth_0/info/camera_info      CameraInfo (K, D, "Brown Conrady", ...)
     /device_0/sensor_N/Depth_0/tf/0                  Transform: reference stream -> this stream
-    /device_0/sensor_M/Color_0/image/data            Image (rgb8, bgr8, rgba8, bgra8)
+    /device_0/sensor_M/Color_0/image/data            Image (rgb8, bgr8, rgba8, bgra8, mjpeg)
     /device_0/sensor_M/Color_0/info/camera_info
     /device_0/sensor_M/Color_0/tf/0
 
@@ -158,7 +158,17 @@ class RealSenseBagSource(Source):
     either, opening raises :class:`~pcdcodec.InputError`. ``max_dt`` (seconds) drops depth
     frames whose nearest color frame is farther away in time (default: keep every depth frame).
     ``max_frames`` stops early; ``intrinsics`` replaces the recorded depth camera. ``metadata``
-    holds the device name, serial number and firmware, and the topics read.
+    holds the device name, serial number and firmware, and the topics read. :attr:`dropped`
+    counts the depth frames left out for want of a color frame.
+
+    Color is read from rgb8, bgr8, rgba8, bgra8 and mjpeg Images (a JPEG is checked whole and of
+    the color camera's size before it is decoded). Every Image is checked against its camera
+    info (size), its step and its data length before its pixels are used. Errors are
+    :class:`~pcdcodec.PcdcodecError` naming the file, and the topic and stamp where there is
+    one: :class:`~pcdcodec.InputError` for what the bag declares (a missing camera info,
+    extrinsic or depth units, an encoding pcdcodec does not read, a topic of another message
+    type), :class:`~pcdcodec.DecodeError` for what it holds (an image of the wrong size or
+    length, a chunk that does not decompress).
     """
 
     def __init__(
