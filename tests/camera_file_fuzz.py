@@ -27,6 +27,7 @@ from __future__ import annotations
 import copy
 import json
 import os
+import resource
 import struct
 import tracemalloc
 from collections.abc import Callable
@@ -88,7 +89,11 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def classify(clean: Clean, path: Path, allow: frozenset[str]) -> Result:
-    """Read the mutant at ``path`` and say what happened (see the module docstring)."""
+    """Read the mutant at ``path`` and say what happened (see the module docstring).
+
+    Memory is watched twice: tracemalloc sees Python's and numpy's allocations, the process's
+    peak resident size also those of the libraries in C (FFmpeg, lz4)."""
+    rss_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     tracemalloc.start()
     try:
         try:
@@ -105,6 +110,9 @@ def classify(clean: Clean, path: Path, allow: frozenset[str]) -> Result:
         tracemalloc.stop()
     if peak > clean.bound:
         return Result("MEMORY", f"peak {peak / 2**20:.1f} MiB > {clean.bound / 2**20:.1f} MiB")
+    grown = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 - rss_before
+    if grown > clean.bound:
+        return Result("MEMORY", f"peak RSS grew {grown / 2**20:.1f} MiB")
     notes = []
     if camera != clean.camera:
         if "camera" not in allow:

@@ -46,3 +46,28 @@ def test_mutated_camera_files_give_right_frames_or_errors(
     # The mutations reach what the readers check: many are caught, some read the same.
     assert outcomes["detected"] >= CASES[name] // 5, outcomes
     assert outcomes["identical"] + outcomes["changed-as-declared"] >= CASES[name] // 10, outcomes
+
+
+def test_cli_info_never_shows_a_traceback_for_a_mutant(
+    cleans: dict[str, Clean], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from pcdcodec.cli import main
+
+    from .camera_file_fuzz import mutate
+
+    statuses: Counter[int] = Counter()
+    for name in ("rs-lz4", "mkv-k4a"):
+        for case in range(20):
+            data, what, _ = mutate(cleans[name], SEED + 1, case)
+            path = tmp_path / ("m.bag" if name.startswith("rs") else "m.mkv")
+            path.write_bytes(data)
+            status = main(["info", str(path)])
+            err = capsys.readouterr().err
+            statuses[status] += 1
+            assert status in (0, 1), what
+            assert "Traceback" not in err, what
+            if status == 1:
+                assert err.startswith("error: "), (what, err)
+                assert str(path) in err, (what, err)
+    assert statuses[0] > 0
+    assert statuses[1] > 0
