@@ -350,3 +350,21 @@ def test_depth_frames_without_color_are_counted(tmp_path: Path) -> None:
     summary = pcdcodec.encode(path, tmp_path / "out.pcdc", color="ffv1", max_dt=0.01)
     assert summary.frames == 2
     assert summary.dropped == {"color": 0, "depth": 1}
+
+
+def test_stamps_after_2_to_the_31_seconds_read_one_way(tmp_path: Path) -> None:
+    """ROS 1 seconds are unsigned: a stamp at or after 2^31 s gives the same timestamps when
+    iterating as through the frame index (rosbags reads the seconds as signed)."""
+
+    def change(spec: Any) -> None:
+        for r in spec.records:
+            if r.topic.endswith("/image/data"):
+                r.msg.header.stamp.sec = -(2**31) + 100  # the bytes of 2^31 + 100 unsigned
+
+    with RealSenseBagSource(_bag(tmp_path, change)) as src:
+        stamps = [f.timestamp_ns for f in src]
+        index = src.frame_index()
+        late = [f.timestamp_ns for f in src.frames(1)]
+    assert stamps[0] == (2**31 + 100) * 10**9 + 0
+    assert stamps == [int(t) for t in index.timestamps]
+    assert late == stamps[1:]

@@ -54,7 +54,9 @@ def _is_realsense(path: Path) -> bool:
 
 
 def _stamp(msg: Any, where: str) -> int:
-    sec, nsec = int(msg.header.stamp.sec), int(msg.header.stamp.nanosec)
+    """A header stamp in ns. ROS 1 seconds are unsigned 32-bit (rosbags gives them signed), read
+    here as the frame index reads them from the raw bytes, so both give one timeline."""
+    sec, nsec = int(msg.header.stamp.sec) % 2**32, int(msg.header.stamp.nanosec)
     if not 0 <= nsec < _NS:
         raise DecodeError(f"{where}: header stamp nanoseconds {nsec}; expected 0 to 999999999")
     return sec * _NS + nsec
