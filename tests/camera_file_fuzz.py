@@ -46,8 +46,9 @@ REAL_BAG = SHARED / "bags" / "realsense" / "single_depth_color_640x480.bag"
 REAL_MKV = SHARED / "bags" / "pyk4a_recording.mkv"
 
 OK_OUTCOMES = ("identical", "detected", "changed-as-declared", "reported-drops")
-#: what a mutation may legitimately change without an error
-ANY = frozenset({"depth", "color", "timestamps", "frames", "camera"})
+#: what a mutation may legitimately change without an error: bytes changed in a format without
+#: checksums may read as other pixels, stamps or cameras; frames lost must still be reported
+ANY = frozenset({"depth", "color", "timestamps", "camera"})
 
 
 @dataclass
@@ -74,12 +75,16 @@ class Clean:
 
 
 def read_all(path: Path) -> tuple[list[tuple[int, Any, Any]], tuple[Any, Any, float], Any]:
-    """Open ``path`` with :func:`pcdcodec.open_source` and read every frame."""
+    """Open ``path`` with :func:`pcdcodec.open_source` and read every frame; also what the
+    source reports: ``{"dropped": {...}, "damage": str | None}``."""
     with pcdcodec.open_source(path) as src:
         frames = [(f.timestamp_ns, f.depth, f.color) for f in src]
         camera = (src.intrinsics, src.color_intrinsics, src.depth_scale)
-        dropped = getattr(src, "dropped", {}) or {}
-    return frames, camera, dropped
+        report = {
+            "dropped": getattr(src, "dropped", {}) or {},
+            "damage": getattr(src, "damage", None),
+        }
+    return frames, camera, report
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -97,7 +102,7 @@ def classify(clean: Clean, path: Path, allow: frozenset[str]) -> Result:
     tracemalloc.start()
     try:
         try:
-            frames, camera, dropped = read_all(path)
+            frames, camera, report = read_all(path)
         except pcdcodec.PcdcodecError as exc:
             if str(path) not in str(exc):
                 return Result("ERROR-WITHOUT-FILE", f"{type(exc).__name__}: {exc}")
@@ -108,6 +113,7 @@ def classify(clean: Clean, path: Path, allow: frozenset[str]) -> Result:
             peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
+    dropped, damage = report["dropped"], report["damage"]
     if peak > clean.bound:
         return Result("MEMORY", f"peak {peak / 2**20:.1f} MiB > {clean.bound / 2**20:.1f} MiB")
     grown = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 - rss_before
@@ -118,13 +124,16 @@ def classify(clean: Clean, path: Path, allow: frozenset[str]) -> Result:
         if "camera" not in allow:
             return Result("WRONG-DATA", f"camera {camera} != {clean.camera}")
         notes.append("camera")
+    drops = sum(dropped.values()) if isinstance(dropped, dict) else 0
+    lost = len(clean.frames) - len(frames)
+    if lost > 0 and "frames" not in allow and drops < lost and not damage:
+        return Result("SILENT-LOSS", f"{len(frames)} of {len(clean.frames)} frames, {dropped}")
     want = {t: (d, c) for t, d, c in clean.frames}
     got_ts = [t for t, _, _ in frames]
     if got_ts != [t for t, _, _ in clean.frames] and "timestamps" not in allow:
         missing = [t for t in want if t not in got_ts]
         extra = [t for t in got_ts if t not in want]
-        drops = sum(dropped.values()) if isinstance(dropped, dict) else 0
-        if extra or (missing and "frames" not in allow and drops < len(missing)):
+        if extra or (missing and "frames" not in allow and drops < len(missing) and not damage):
             return Result(
                 "SILENT-LOSS" if not extra else "WRONG-DATA",
                 f"timestamps {got_ts} != {list(want)}, dropped {dropped}",
@@ -147,8 +156,8 @@ def classify(clean: Clean, path: Path, allow: frozenset[str]) -> Result:
             if not any(_same(c, wc) for _, _, wc in clean.frames) and "color" not in allow:
                 return Result("WRONG-DATA", f"color at {t} is none of the clean file's")
             notes.append("stamps")
-    if len(frames) < len(clean.frames) and isinstance(dropped, dict) and any(dropped.values()):
-        return Result("reported-drops", f"{len(frames)} frames, dropped {dropped}")
+    if len(frames) < len(clean.frames) and (damage or any(dropped.values())):
+        return Result("reported-drops", f"{len(frames)} frames, dropped {dropped}, {damage}")
     if not notes:
         return Result("identical")
     return Result("changed-as-declared", ", ".join(sorted(set(notes))))

@@ -333,3 +333,34 @@ def test_cli_encode_prints_why_captures_were_dropped(
     assert "wrote 2 frames" in printed
     assert "dropped      1 color and 1 depth" in printed
     assert "note         dropped 1 capture(s): damaged color (first at pts 33333)" in printed
+
+
+def test_file_cut_short_is_reported(tmp_path: Path) -> None:
+    """A recording cut in its last capture: FFmpeg stops at the cut without a word; the reader
+    compares the blocks the clusters hold with the packets read, and says what was lost."""
+    whole = _mkv(tmp_path)
+    data = whole.read_bytes()
+    cut = tmp_path / "cut.mkv"
+    cut.write_bytes(data[: data.rfind(b"\x1f\x43\xb6\x75") + 300])  # inside the last cluster
+    with AzureKinectSource(cut) as src:
+        assert len(list(src)) == 2
+        assert src.damage is not None
+        assert "cut short: its Segment declares" in src.damage
+        assert src.damage in src.describe()["notes"]
+    with pytest.raises(DecodeError, match=r"cut.mkv'?: the file is damaged: it is cut short"):
+        list(AzureKinectSource(cut, strict=True))
+
+
+def test_damaged_cluster_is_reported(tmp_path: Path) -> None:
+    """A cluster whose size says 1 byte: FFmpeg skips the rest of it silently."""
+
+    def change(spec: Any) -> None:
+        spec.clusters[1].append(None)  # size override slot
+        spec.clusters[1][2] = 1
+
+    path = _mkv(tmp_path, change)
+    with AzureKinectSource(path) as src:
+        frames = list(src)
+        assert len(frames) < 3
+        assert src.damage is not None
+        assert "the file is damaged" in src.damage

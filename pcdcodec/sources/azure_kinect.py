@@ -88,6 +88,88 @@ def _declared_tag(path: Path, name: bytes, limit: int = 1 << 20) -> bytes | None
     return head[i + 3 : i + 3 + (size & 0x7F)]
 
 
+#: elements that may stand at the top of a Matroska Segment
+_TOP_LEVEL = {0x114D9B74, 0x1549A966, 0x1654AE6B, 0x1F43B675, 0x1C53BB6B, 0x1941A469, 0x1043A770,
+              0x1254C367, 0xEC}  # fmt: skip
+_SEGMENT, _CLUSTER, _SIMPLE_BLOCK, _BLOCK_GROUP, _BLOCK = (
+    0x18538067, 0x1F43B675, 0xA3, 0xA0, 0xA1
+)  # fmt: skip
+
+
+def _element(f: Any, pos: int) -> tuple[int, int | None, int] | None:
+    """``(ID, size or None when unknown, body offset)`` of the EBML element at ``pos``, or
+    ``None`` when its head is cut short or is not a valid element head."""
+    f.seek(pos)
+    head = f.read(12)
+    if not head or head[0] == 0:
+        return None
+    n = 8 - head[0].bit_length() + 1  # ID length from its leading zeros
+    if n > 4 or len(head) < n + 1 or head[n] == 0:
+        return None
+    eid = int.from_bytes(head[:n], "big")
+    m = 8 - head[n].bit_length() + 1
+    if len(head) < n + m:
+        return None
+    size = int.from_bytes(head[n : n + m], "big") & ((1 << (7 * m)) - 1)
+    return eid, (None if size == (1 << (7 * m)) - 1 else size), pos + n + m
+
+
+def _walk_blocks(path: Path) -> tuple[int, str | None]:
+    """The number of blocks the Segment's clusters hold, and the first structural problem met
+    (an element cut short or overrunning its parent, a stray element), walked from the element
+    heads alone (bodies are skipped, so this reads a few bytes per block)."""
+    file_size = path.stat().st_size
+    with path.open("rb") as f:
+        first = _element(f, 0)
+        second = None if first is None or first[1] is None else _element(f, first[2] + first[1])
+        if second is None or second[0] != _SEGMENT:
+            return 0, "no Segment after the EBML header"
+        end = file_size if second[1] is None else second[2] + second[1]
+        problem = None
+        if end > file_size:
+            problem = f"it is cut short: its Segment declares {end} bytes, the file has {file_size}"
+            end = file_size
+        blocks = 0
+        pos = second[2]
+        while pos < end:
+            el = _element(f, pos)
+            if el is None or el[0] not in _TOP_LEVEL:
+                what = "a cut or damaged element" if el is None else f"element 0x{el[0]:X}"
+                return blocks, problem or f"byte {pos} holds {what}, not a top-level element"
+            eid, size, body = el
+            stop = end if size is None else body + size
+            if stop > end:
+                return blocks, problem or f"the element at byte {pos} runs past the Segment"
+            if eid != _CLUSTER:
+                if size is None:
+                    return blocks, problem or f"the element at byte {pos} has no size"
+                pos = stop
+                continue
+            p = body
+            while p < stop:
+                child = _element(f, p)
+                if child is None:
+                    return blocks, problem or f"byte {p} in a cluster holds no element"
+                cid, csize, cbody = child
+                if size is None and cid in _TOP_LEVEL:
+                    break  # a cluster of unknown size ends where the next top-level one starts
+                if csize is None or cbody + csize > stop:
+                    return blocks, problem or f"the element at byte {p} runs past its cluster"
+                if cid == _SIMPLE_BLOCK:
+                    blocks += 1
+                elif cid == _BLOCK_GROUP:
+                    q = cbody
+                    while q < cbody + csize:
+                        inner = _element(f, q)
+                        if inner is None or inner[1] is None:
+                            break
+                        blocks += inner[0] == _BLOCK
+                        q = inner[2] + inner[1]
+                p = cbody + csize
+            pos = p if size is None else stop
+    return blocks, problem
+
+
 def _has_cluster(path: Path, limit: int = 1 << 24) -> bool:
     """Whether a Matroska Cluster element starts within the first ``limit`` bytes."""
     with path.open("rb") as f:
@@ -230,6 +312,8 @@ class AzureKinectSource(Source):
         self._drop_pts: dict[str, list[int]] = {}
         self._damaged: dict[int, str] = {}
         self._drop_detail: dict[str, str] = {}
+        #: what reading found wrong with the file's structure, or ``None``
+        self.damage: str | None = None
         name = str(self.path)
         try:
             container = av.open(name)
@@ -400,7 +484,7 @@ class AzureKinectSource(Source):
             f"{', '.join(map(str, self._drop_pts[reason]))})"
             + (f": {self._drop_detail[reason]}" if reason in self._drop_detail else "")
             for reason, n in self.drop_reasons.items()
-        ]
+        ] + ([self.damage] if self.damage else [])
         return out
 
     def __len__(self) -> int:
@@ -459,6 +543,7 @@ class AzureKinectSource(Source):
         self._drop_pts = {}
         self._damaged = {}
         self._drop_detail = {}
+        self.damage = None
         try:
             container = av.open(name)
         except (av.error.FFmpegError, OSError, UnicodeDecodeError) as exc:
@@ -476,7 +561,10 @@ class AzureKinectSource(Source):
             seen = 0
             tb = depth_stream.time_base
             tb_ns = float(tb * _NS) if tb is not None else 1000.0
-            packets = container.demux(streams)
+            # Every track is demuxed, so that the packets can be counted against the blocks.
+            packets = container.demux()
+            wanted = {s.index for s in streams}
+            delivered = 0
             while True:
                 try:
                     packet = next(packets)
@@ -484,7 +572,10 @@ class AzureKinectSource(Source):
                     break
                 except (av.error.FFmpegError, OSError) as exc:
                     raise DecodeError(f"{where}: the file is damaged: {exc}") from exc
-                if packet.size == 0 or packet.pts is None:
+                if packet.size == 0:
+                    continue
+                delivered += 1
+                if packet.pts is None or packet.stream.index not in wanted:
                     continue
                 seen += 1
                 pts = int(packet.pts)
@@ -521,12 +612,29 @@ class AzureKinectSource(Source):
                 # few later captures never will. Keep the newest few waiting, count the rest.
                 self._evict(depths, colors, 4)
             self._evict(depths, colors, 0)
+            self._check_structure(delivered)
             if seen == 0:
                 raise InputError(
                     f"{name!r} holds no captures (no clusters with color or depth data)"
                 )
         finally:
             container.close()
+
+    def _check_structure(self, delivered: int) -> None:
+        """Compare the blocks the file's clusters hold with the packets the demuxer gave: FFmpeg
+        skips a damaged cluster, and stops at a cut, without a word. What it lost is reported
+        in :attr:`damage` and the notes (an error with ``strict``)."""
+        blocks, problem = _walk_blocks(self.path)
+        why = []
+        if problem:
+            why.append(problem)
+        if blocks > delivered:
+            why.append(f"{blocks - delivered} of its {blocks} blocks could not be read")
+        if not why:
+            return
+        self.damage = f"the file is damaged: {'; '.join(why)}: captures in it may be lost"
+        if self.strict:
+            raise DecodeError(f"{str(self.path)!r}: {self.damage}")
 
     def _evict(self, depths: dict[int, Any], colors: dict[int, Any], keep: int) -> None:
         for pending, kind in ((depths, "depth"), (colors, "color")):
