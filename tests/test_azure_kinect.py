@@ -29,6 +29,8 @@ def test_reads_depth_color_and_both_cameras() -> None:
         frames = list(src)
         intr, color = src.intrinsics, src.color_intrinsics
         d2c = src.depth_to_color
+        assert src.dropped == {"color": 0, "depth": 0}
+        assert src.damage is None  # its 4 blocks (IMU, color, depth, IR) all read
     assert intr is not None
     assert color is not None
     # The SDK's mode-specific rule: scale to the binned sensor, crop (192, 180), centre pixels.
