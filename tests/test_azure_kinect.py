@@ -366,3 +366,19 @@ def test_damaged_cluster_is_reported(tmp_path: Path) -> None:
         assert len(frames) < 3
         assert src.damage is not None
         assert "the file is damaged" in src.damage
+
+
+@pytest.mark.parametrize(
+    "new_id", [0x1654AE6B, 0x1549A966, 0x1941A469, 0x1254C367, 0x1C53BB6B, 0xEC]
+)
+def test_cluster_whose_id_became_another_element_is_reported(tmp_path: Path, new_id: int) -> None:
+    """A damaged Cluster ID that names another top-level element (a second Tracks, a Void...):
+    FFmpeg skips it as that element, and its capture would vanish without a word."""
+
+    def change(spec: Any) -> None:
+        spec.clusters[1][0] = new_id
+
+    with AzureKinectSource(_mkv(tmp_path, change)) as src:
+        assert len(list(src)) == 2
+        assert src.damage is not None
+        assert "the element at byte" in src.damage

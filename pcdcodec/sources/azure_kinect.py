@@ -114,6 +114,30 @@ def _element(f: Any, pos: int) -> tuple[int, int | None, int] | None:
     return eid, (None if size == (1 << (7 * m)) - 1 else size), pos + n + m
 
 
+#: top-level elements a Segment holds once, and the first child each other one must start with
+_ONCE = {0x1549A966: "Info", 0x1654AE6B: "Tracks", 0x1941A469: "Attachments"}
+_FIRST_CHILD = {0x1254C367: (0x7373, "Tags"), 0x1C53BB6B: (0xBB, "Cues")}
+_TIMESTAMP = 0xE7
+
+
+def _misplaced(f: Any, eid: int, body: int, size: int, seen: set[int]) -> str | None:
+    """Why a top-level element other than a Cluster cannot be what its ID says (a Cluster whose
+    ID was damaged into another top-level ID reads as that element, and its captures vanish),
+    or ``None``."""
+    if eid in _ONCE and eid in seen:
+        return f"is a second {_ONCE[eid]} element"
+    child = _element(f, body) if size else None
+    while child is not None and child[0] in (0xBF, 0xEC) and child[1] is not None:
+        # CRC-32 and Void elements may come first in any master element
+        nxt = child[2] + child[1]
+        child = _element(f, nxt) if nxt < body + size else None
+    if eid in _FIRST_CHILD and size and (child is None or child[0] != _FIRST_CHILD[eid][0]):
+        return f"is a {_FIRST_CHILD[eid][1]} element that does not hold what one holds"
+    if eid == 0xEC and child is not None and child[0] == _TIMESTAMP:
+        return "is a Void element that holds a cluster's timestamp"
+    return None
+
+
 def _walk_blocks(path: Path) -> tuple[int, str | None]:
     """The number of blocks the Segment's clusters hold, and the first structural problem met
     (an element cut short or overrunning its parent, a stray element), walked from the element
@@ -130,6 +154,7 @@ def _walk_blocks(path: Path) -> tuple[int, str | None]:
             problem = f"it is cut short: its Segment declares {end} bytes, the file has {file_size}"
             end = file_size
         blocks = 0
+        seen: set[int] = set()
         pos = second[2]
         while pos < end:
             el = _element(f, pos)
@@ -143,6 +168,10 @@ def _walk_blocks(path: Path) -> tuple[int, str | None]:
             if eid != _CLUSTER:
                 if size is None:
                     return blocks, problem or f"the element at byte {pos} has no size"
+                odd = _misplaced(f, eid, body, size, seen)
+                if odd:
+                    return blocks, problem or f"the element at byte {pos} {odd}"
+                seen.add(eid)
                 pos = stop
                 continue
             p = body
