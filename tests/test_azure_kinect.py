@@ -382,3 +382,31 @@ def test_cluster_whose_id_became_another_element_is_reported(tmp_path: Path, new
         assert len(list(src)) == 2
         assert src.damage is not None
         assert "the element at byte" in src.damage
+
+
+@pytest.mark.parametrize(("fourcc", "bits", "nbytes"), [(b"YUY2", 16, 2), (b"NV12", 12, 1.5)])
+def test_raw_color_is_read_and_its_length_checked(
+    tmp_path: Path, fourcc: bytes, bits: int, nbytes: float
+) -> None:
+    """The raw color modes (YUY2, NV12): mid grey reads as mid grey; a packet of another length
+    is a damaged image, dropped and reported."""
+    from .camera_file_fuzz import _bih
+
+    size = int(1280 * 720 * nbytes)
+
+    def change(spec: Any) -> None:
+        next(el for el in spec.tracks[0][1] if el[0] == 0x63A2)[1] = _bih(
+            1280, 720, bits, fourcc, size
+        )
+        for k, cluster in enumerate(spec.clusters):
+            block = next(b for b in cluster[1] if b[0] == 0xA3)
+            payload = bytes([128]) * (size - (k == 2))  # the last one a byte short
+            block[1] = block[1][:4] + payload
+
+    with AzureKinectSource(_mkv(tmp_path, change)) as src:
+        frames = list(src)
+        assert src.drop_reasons == {"damaged color": 1}
+    assert len(frames) == 2
+    assert frames[0].color is not None
+    assert frames[0].color.shape == (720, 1280, 3)
+    assert np.abs(frames[0].color.astype(int) - 128).max() <= 2
