@@ -2,20 +2,22 @@
 
 from __future__ import annotations
 
+import itertools
 import zlib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 import pcdcodec
-from pcdcodec import InputError
+from pcdcodec import InputError, PcdcodecError
 from pcdcodec.sources.realsense import RealSenseBagSource
 
 from .conftest import SHARED_DATA
 
 BAG = SHARED_DATA / "bags" / "realsense" / "single_depth_color_640x480.bag"
-pytestmark = pytest.mark.skipif(not BAG.exists(), reason=f"{BAG} is not present")
+needs_bag = pytest.mark.skipif(not BAG.exists(), reason=f"{BAG} is not present")
 
 # What librealsense itself (pyrealsense2 2.59 playback of this bag) reports: the depth-to-color
 # extrinsic (rotation column-major), and CRC-32s of the depth and color of its frameset, which
@@ -36,6 +38,7 @@ RS_DEPTH_CRC, RS_COLOR_CRC = 1410488731, 444443446
 RS_ALIGNED_PIXELS, RS_ALIGNED_SUM = 300_874, 405_735_239
 
 
+@needs_bag
 def test_open_source_picks_the_realsense_reader() -> None:
     with pcdcodec.open_source(BAG) as src:
         assert isinstance(src, RealSenseBagSource)
@@ -61,6 +64,7 @@ def test_open_source_picks_the_realsense_reader() -> None:
         assert len(list(strict)) == 0  # the color frame is 101 ms from the nearest depth frame
 
 
+@needs_bag
 def test_registration_close_to_librealsense_align() -> None:
     with pcdcodec.open_source(BAG) as src:
         frame = list(src)[1]
@@ -76,6 +80,7 @@ def test_registration_close_to_librealsense_align() -> None:
     assert abs(int(aligned.sum(dtype=np.int64)) - RS_ALIGNED_SUM) < 0.002 * RS_ALIGNED_SUM
 
 
+@needs_bag
 def test_recording_keeps_both_cameras_and_exact_depth(tmp_path: Path) -> None:
     out = tmp_path / "rs.pcdc"
     with pcdcodec.open_source(BAG) as src:
@@ -118,6 +123,7 @@ def _copy_without(src: Path, dst: Path, drop: str) -> None:
                 writer.write(conns[c.id], t, raw)
 
 
+@needs_bag
 def test_bag_without_depth_units(tmp_path: Path) -> None:
     broken = tmp_path / "no_units.bag"
     _copy_without(BAG, broken, "Depth Units")
@@ -131,6 +137,7 @@ def test_bag_without_depth_units(tmp_path: Path) -> None:
         pcdcodec.open_source(no_tf)
 
 
+@needs_bag
 def test_exported_bag_gives_each_camera_its_own_info(tmp_path: Path) -> None:
     """A two-camera recording exported as a bag: the color CameraInfo is the color camera's
     (not the depth camera's), and the colored cloud is made through the color camera."""
@@ -157,3 +164,207 @@ def test_exported_bag_gives_each_camera_its_own_info(tmp_path: Path) -> None:
     assert infos["/camera/color/camera_info"] == [float(v) for v in color_cam.K.ravel()]
     assert infos["/camera/color/camera_info"] != infos["/camera/depth/camera_info"]
     assert clouds == 2
+
+
+# -- small RealSense-style bags, built with librealsense's topics (tests/camera_file_fuzz.py) --
+
+
+def _bag(tmp_path: Path, change: Any = None, **options: Any) -> Path:
+    """A 3-frame bag (depth 8x6 mono16, color 10x8 rgb8), ``change(spec)`` applied first."""
+    from .camera_file_fuzz import rs_spec, write_bag
+
+    spec = rs_spec(**options)
+    if change is not None:
+        change(spec)
+    path = tmp_path / "small.bag"
+    write_bag(spec, path)
+    return path
+
+
+def _image(spec: Any, kind: str, k: int = 0) -> Any:
+    return [r for r in spec.records if r.topic.endswith(f"{kind}_0/image/data")][k].msg
+
+
+def test_small_bag_reads_exactly(tmp_path: Path) -> None:
+    from .camera_file_fuzz import rs_spec
+
+    spec = rs_spec()
+    with RealSenseBagSource(_bag(tmp_path)) as src:
+        frames = list(src)
+    assert len(frames) == 3
+    for k, f in enumerate(frames):
+        depth, color = _image(spec, "Depth", k), _image(spec, "Color", k)
+        assert np.array_equal(f.depth, np.asarray(depth.data).view("<u2").reshape(6, 8))
+        assert np.array_equal(f.color, np.asarray(color.data).reshape(8, 10, 3))
+
+
+def _set(kind: str, k: int = 1, **fields: Any) -> Any:
+    def change(spec: Any) -> None:
+        for key, value in fields.items():
+            setattr(_image(spec, kind, k), key, value)
+
+    return change
+
+
+def _read_error(path: Path, match: str) -> str:
+    with pytest.raises(PcdcodecError, match=match) as info, pcdcodec.open_source(path) as src:
+        list(src)
+    assert str(path) in str(info.value)
+    return str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("kind", "fields", "match"),
+    [
+        ("Depth", {"step": 2}, r"step 2 bytes; expected at least 16"),  # was ValueError
+        ("Depth", {"step": 7}, r"step 7 bytes; expected at least 16"),  # was ValueError
+        ("Depth", {"width": 9}, r"image is 9x6, but its camera info says 8x6"),
+        ("Depth", {"height": 5}, r"image is 8x5, but its camera info says 8x6"),
+        ("Color", {"height": 7}, r"image is 10x7, but its camera info says 10x8"),  # wrong color
+        ("Depth", {"encoding": "rgb8"}, r"depth image has encoding 'rgb8'; expected mono16"),
+        ("Color", {"encoding": "rgba8"}, r"step 30 bytes; expected at least 40"),
+        ("Color", {"encoding": "yuv422"}, r"color image has encoding 'yuv422'.*rgb8, bgr8"),
+        ("Depth", {"data": np.zeros(95, np.uint8)}, r"holds 95 bytes; expected height 6 x step"),
+    ],
+)
+def test_image_layout_is_checked_against_its_camera(
+    tmp_path: Path, kind: str, fields: dict[str, Any], match: str
+) -> None:
+    message = _read_error(_bag(tmp_path, _set(kind, **fields)), match)
+    assert f"{kind}_0/image/data at " in message  # the topic and the stamp
+
+
+def test_padded_rows_read_the_same_pixels(tmp_path: Path) -> None:
+    def pad(spec: Any) -> None:
+        msg = _image(spec, "Depth", 1)
+        rows = np.asarray(msg.data).reshape(6, 16)
+        msg.data = np.concatenate([rows, np.full((6, 4), 255, np.uint8)], axis=1).reshape(-1)
+        msg.step = 20
+
+    padded = tmp_path / "padded"
+    padded.mkdir()
+    with RealSenseBagSource(_bag(tmp_path)) as a, RealSenseBagSource(_bag(padded, pad)) as b:
+        for x, y in zip(a, b, strict=True):
+            assert np.array_equal(x.depth, y.depth)
+
+
+def test_lz4_chunk_damage_is_an_error_naming_the_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A byte changed inside an lz4 chunk: rosbags raises RuntimeError (LZ4F_decompress
+    failed) or AssertionError; the reader and ``pcdcodec info`` say what is wrong instead."""
+    from pcdcodec.cli import main
+
+    from .camera_file_fuzz import _bag_regions
+
+    path = _bag(tmp_path)
+    data = bytearray(path.read_bytes())
+    regions = _bag_regions(bytes(data))
+    chunks = [
+        data_span
+        for head, data_span in itertools.pairwise(regions)
+        if b"compression=lz4" in data[head[0] : head[1]]
+    ]
+    data[chunks[0][0] + 70] ^= 0x5A  # rosbags: LZ4F_decompress failed
+    bad = tmp_path / "bad.bag"
+    bad.write_bytes(bytes(data))
+    _read_error(bad, "the bag is damaged")
+    assert main(["info", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert str(bad) in err
+
+
+def test_stamp_nanoseconds_out_of_range(tmp_path: Path) -> None:
+    def change(spec: Any) -> None:
+        _image(spec, "Depth", 1).header.stamp.nanosec = 1_500_000_000
+
+    _read_error(_bag(tmp_path, change), r"nanoseconds 1500000000; expected 0 to 999999999")
+
+
+@pytest.mark.parametrize("units", [float("inf"), -float("inf")])
+def test_depth_units_must_give_a_finite_scale(tmp_path: Path, units: float) -> None:
+    def change(spec: Any) -> None:
+        next(r for r in spec.records if "Depth Units" in r.topic).msg.data = units
+
+    with pytest.raises(InputError, match=r"records Depth Units .*finite") as info:
+        RealSenseBagSource(_bag(tmp_path, change))
+    assert str(tmp_path) in str(info.value)
+
+
+def test_zero_quaternion_names_the_file(tmp_path: Path) -> None:
+    def change(spec: Any) -> None:
+        rotation = next(r for r in spec.records if r.topic.endswith("Color_0/tf/0")).msg.rotation
+        rotation.w = 0.0
+
+    with pytest.raises(InputError, match=r"Color_0/tf/0: quaternion .* zero length") as info:
+        RealSenseBagSource(_bag(tmp_path, change))
+    assert str(tmp_path) in str(info.value)
+
+
+def test_topic_of_another_type_is_refused(tmp_path: Path) -> None:
+    from .camera_file_fuzz import rs_spec, write_bag
+
+    path = tmp_path / "typed.bag"
+    units = "/device_0/sensor_0/option/Depth Units/value"
+    write_bag(rs_spec(), path, {units: "sensor_msgs/msg/CameraInfo"})  # was SerdeError
+    with pytest.raises(InputError, match=r"holds sensor_msgs/msg/CameraInfo; expected .*Float32"):
+        RealSenseBagSource(path)
+
+
+def test_mjpeg_color_is_checked_and_decoded(tmp_path: Path) -> None:
+    import cv2
+
+    from .camera_file_fuzz import rs_spec
+
+    spec = rs_spec(color_encoding="mjpeg")
+    path = _bag(tmp_path, color_encoding="mjpeg")
+    with RealSenseBagSource(path) as src:
+        frames = list(src)
+    assert len(frames) == 3
+    for k, f in enumerate(frames):
+        jpeg = np.asarray(_image(spec, "Color", k).data)
+        want = cv2.imdecode(jpeg, cv2.IMREAD_COLOR)[..., ::-1]
+        assert np.array_equal(f.color, want)
+
+    def cut(spec: Any) -> None:
+        msg = _image(spec, "Color", 1)
+        msg.data = np.asarray(msg.data)[: len(msg.data) // 2].copy()
+
+    cut_dir = tmp_path / "cut"
+    cut_dir.mkdir()
+    _read_error(_bag(cut_dir, cut, color_encoding="mjpeg"), r"Color_0/image/data at .*cut short")
+
+
+def test_depth_frames_without_color_are_counted(tmp_path: Path) -> None:
+    """``max_dt`` leaves out depth frames with no color frame near enough: counted, as the bag
+    readers count theirs, and in the encode summary."""
+
+    def change(spec: Any) -> None:
+        _image(spec, "Color", 2).header.stamp.sec = 5  # 4 s after its depth frame
+
+    path = _bag(tmp_path, change)
+    with RealSenseBagSource(path, max_dt=0.01) as src:
+        assert len(list(src)) == 2
+        assert src.dropped == {"color": 0, "depth": 1}
+    summary = pcdcodec.encode(path, tmp_path / "out.pcdc", color="ffv1", max_dt=0.01)
+    assert summary.frames == 2
+    assert summary.dropped == {"color": 0, "depth": 1}
+
+
+def test_stamps_after_2_to_the_31_seconds_read_one_way(tmp_path: Path) -> None:
+    """ROS 1 seconds are unsigned: a stamp at or after 2^31 s gives the same timestamps when
+    iterating as through the frame index (rosbags reads the seconds as signed)."""
+
+    def change(spec: Any) -> None:
+        for r in spec.records:
+            if r.topic.endswith("/image/data"):
+                r.msg.header.stamp.sec = -(2**31) + 100  # the bytes of 2^31 + 100 unsigned
+
+    with RealSenseBagSource(_bag(tmp_path, change)) as src:
+        stamps = [f.timestamp_ns for f in src]
+        index = src.frame_index()
+        late = [f.timestamp_ns for f in src.frames(1)]
+    assert stamps[0] == (2**31 + 100) * 10**9 + 0
+    assert stamps == [int(t) for t in index.timestamps]
+    assert late == stamps[1:]

@@ -56,6 +56,12 @@ COLOR_MODES: dict[int, tuple[tuple[int, int], tuple[int, int], tuple[int, int]]]
 }
 
 
+#: color track FOURCC -> what it holds (k4arecorder's MJPEG, NV12 and YUY2 color modes)
+_COLOR_FORMATS = {"MJPG": "mjpeg", "NV12": "nv12", "YUY2": "yuyv422"}
+#: bytes of a raw color image of width w and height h
+_RAW_BYTES = {"nv12": lambda w, h: w * h * 3 // 2, "yuyv422": lambda w, h: w * h * 2}
+
+
 def _is_azure_kinect(path: Path) -> bool:
     if not path.is_file() or read_magic(path, 4) != _EBML:
         return False
@@ -64,41 +70,236 @@ def _is_azure_kinect(path: Path) -> bool:
     return b"K4A_" in head
 
 
+def _declared_tag(path: Path, name: bytes, limit: int = 1 << 20) -> bytes | None:
+    """The value of the first SimpleTag ``name`` before the first cluster, read from the bytes
+    (FFmpeg leaves out the tags of a track it cannot read), or ``None``."""
+    with path.open("rb") as f:
+        head = f.read(limit)
+    end = head.find(_CLUSTER_ID)
+    at = head.find(name, 0, end if end >= 0 else len(head))
+    if at < 0:
+        return None
+    i = at + len(name)
+    if head[i : i + 2] != b"\x44\x87" or i + 3 > len(head):  # TagString, one-byte size
+        return b""
+    size = head[i + 2]
+    if not size & 0x80:
+        return b""
+    return head[i + 3 : i + 3 + (size & 0x7F)]
+
+
+#: elements that may stand at the top of a Matroska Segment
+_TOP_LEVEL = {0x114D9B74, 0x1549A966, 0x1654AE6B, 0x1F43B675, 0x1C53BB6B, 0x1941A469, 0x1043A770,
+              0x1254C367, 0xEC}  # fmt: skip
+_SEGMENT, _CLUSTER, _SIMPLE_BLOCK, _BLOCK_GROUP, _BLOCK = (
+    0x18538067, 0x1F43B675, 0xA3, 0xA0, 0xA1
+)  # fmt: skip
+
+
+def _element(f: Any, pos: int) -> tuple[int, int | None, int] | None:
+    """``(ID, size or None when unknown, body offset)`` of the EBML element at ``pos``, or
+    ``None`` when its head is cut short or is not a valid element head."""
+    f.seek(pos)
+    head = f.read(12)
+    if not head or head[0] == 0:
+        return None
+    n = 8 - head[0].bit_length() + 1  # ID length from its leading zeros
+    if n > 4 or len(head) < n + 1 or head[n] == 0:
+        return None
+    eid = int.from_bytes(head[:n], "big")
+    m = 8 - head[n].bit_length() + 1
+    if len(head) < n + m:
+        return None
+    size = int.from_bytes(head[n : n + m], "big") & ((1 << (7 * m)) - 1)
+    return eid, (None if size == (1 << (7 * m)) - 1 else size), pos + n + m
+
+
+#: top-level elements a Segment holds once, and the first child each other one must start with
+_ONCE = {0x1549A966: "Info", 0x1654AE6B: "Tracks", 0x1941A469: "Attachments"}
+_FIRST_CHILD = {0x1254C367: (0x7373, "Tags"), 0x1C53BB6B: (0xBB, "Cues")}
+_TIMESTAMP = 0xE7
+
+
+def _misplaced(f: Any, eid: int, body: int, size: int, seen: set[int]) -> str | None:
+    """Why a top-level element other than a Cluster cannot be what its ID says (a Cluster whose
+    ID was damaged into another top-level ID reads as that element, and its captures vanish),
+    or ``None``."""
+    if eid in _ONCE and eid in seen:
+        return f"is a second {_ONCE[eid]} element"
+    child = _element(f, body) if size else None
+    while child is not None and child[0] in (0xBF, 0xEC) and child[1] is not None:
+        # CRC-32 and Void elements may come first in any master element
+        nxt = child[2] + child[1]
+        child = _element(f, nxt) if nxt < body + size else None
+    if eid in _FIRST_CHILD and size and (child is None or child[0] != _FIRST_CHILD[eid][0]):
+        return f"is a {_FIRST_CHILD[eid][1]} element that does not hold what one holds"
+    if eid == 0xEC and child is not None and child[0] == _TIMESTAMP:
+        return "is a Void element that holds a cluster's timestamp"
+    return None
+
+
+def _walk_blocks(path: Path) -> tuple[int, str | None]:
+    """The number of blocks the Segment's clusters hold, and the first structural problem met
+    (an element cut short or overrunning its parent, a stray element), walked from the element
+    heads alone (bodies are skipped, so this reads a few bytes per block)."""
+    file_size = path.stat().st_size
+    with path.open("rb") as f:
+        first = _element(f, 0)
+        second = None if first is None or first[1] is None else _element(f, first[2] + first[1])
+        if second is None or second[0] != _SEGMENT:
+            return 0, "no Segment after the EBML header"
+        end = file_size if second[1] is None else second[2] + second[1]
+        problem = None
+        if end > file_size:
+            problem = f"it is cut short: its Segment declares {end} bytes, the file has {file_size}"
+            end = file_size
+        blocks = 0
+        seen: set[int] = set()
+        pos = second[2]
+        while pos < end:
+            el = _element(f, pos)
+            if el is None or el[0] not in _TOP_LEVEL:
+                what = "a cut or damaged element" if el is None else f"element 0x{el[0]:X}"
+                return blocks, problem or f"byte {pos} holds {what}, not a top-level element"
+            eid, size, body = el
+            stop = end if size is None else body + size
+            if stop > end:
+                return blocks, problem or f"the element at byte {pos} runs past the Segment"
+            if eid != _CLUSTER:
+                if size is None:
+                    return blocks, problem or f"the element at byte {pos} has no size"
+                odd = _misplaced(f, eid, body, size, seen)
+                if odd:
+                    return blocks, problem or f"the element at byte {pos} {odd}"
+                seen.add(eid)
+                pos = stop
+                continue
+            p = body
+            while p < stop:
+                child = _element(f, p)
+                if child is None:
+                    return blocks, problem or f"byte {p} in a cluster holds no element"
+                cid, csize, cbody = child
+                if size is None and cid in _TOP_LEVEL:
+                    break  # a cluster of unknown size ends where the next top-level one starts
+                if csize is None or cbody + csize > stop:
+                    return blocks, problem or f"the element at byte {p} runs past its cluster"
+                if cid == _SIMPLE_BLOCK:
+                    blocks += 1
+                elif cid == _BLOCK_GROUP:
+                    q = cbody
+                    while q < cbody + csize:
+                        inner = _element(f, q)
+                        if inner is None or inner[1] is None:
+                            break
+                        blocks += inner[0] == _BLOCK
+                        q = inner[2] + inner[1]
+                p = cbody + csize
+            pos = p if size is None else stop
+    return blocks, problem
+
+
 def _has_cluster(path: Path, limit: int = 1 << 24) -> bool:
     """Whether a Matroska Cluster element starts within the first ``limit`` bytes."""
     with path.open("rb") as f:
         return _CLUSTER_ID in f.read(limit)
 
 
+def _field(value: Any, keys: tuple[str | int, ...], where: str) -> Any:
+    """``value[k0][k1]...``, or an :class:`~pcdcodec.InputError` naming the missing field."""
+    path = "calibration.json"
+    for k in keys:
+        path += f"[{k}]" if isinstance(k, int) else f".{k}"
+        ok = (
+            isinstance(value, dict) and k in value
+            if isinstance(k, str)
+            else (isinstance(value, list) and 0 <= k < len(value))
+        )
+        if not ok:
+            raise InputError(f"{where}: {path} is missing or not of the expected type")
+        value = value[k]
+    return value
+
+
+def _numbers(value: Any, n: int | None, field: str, where: str) -> list[float]:
+    """A list of ``n`` (or at least 1) finite numbers from the calibration, or an
+    :class:`~pcdcodec.InputError` naming ``field`` and what it holds."""
+    if not isinstance(value, list) or (len(value) != n if n is not None else not value):
+        got = f"{len(value)} values" if isinstance(value, list) else repr(value)[:60]
+        raise InputError(
+            f"{where}: calibration.json {field} holds {got}; expected a list of "
+            f"{n if n is not None else 'some'} numbers"
+        )
+    for i, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            raise InputError(
+                f"{where}: calibration.json {field}[{i}] is {v!r}; expected a finite number"
+            )
+    return [float(v) for v in value]
+
+
 def _camera(
     cal: dict[str, Any],
     mode: tuple[tuple[int, int], tuple[int, int], tuple[int, int]],
     what: str,
+    where: str,
 ) -> CameraIntrinsics:
-    params = cal["Intrinsics"]["ModelParameters"]
-    if len(params) < 14:
-        raise InputError(f"{what} calibration has {len(params)} model parameters, expected 14")
+    raw = _field(cal, ("Intrinsics", "ModelParameters"), where)
+    if not isinstance(raw, list) or len(raw) < 14:
+        got = f"{len(raw)}" if isinstance(raw, list) else repr(raw)[:60]
+        raise InputError(
+            f"{where}: {what} calibration has {got} model parameters, expected 14 numbers"
+        )
+    params = _numbers(raw[:14], 14, f"{what} Intrinsics.ModelParameters", where)
     (bw, bh), (ox, oy), (w, h) = mode
-    cx, cy, fx, fy = (float(v) for v in params[:4])
-    k1, k2, k3, k4, k5, k6 = (float(v) for v in params[4:10])
-    p2, p1 = float(params[12]), float(params[13])
-    return CameraIntrinsics(
-        w,
-        h,
-        fx * bw,
-        fy * bh,
-        cx * bw - ox - 0.5,
-        cy * bh - oy - 0.5,
-        "rational_polynomial",
-        (k1, k2, p1, p2, k3, k4, k5, k6),
+    cx, cy, fx, fy = params[:4]
+    if not (fx > 0 and fy > 0):
+        raise InputError(f"{where}: {what} calibration has focal lengths {fx}, {fy}; expected > 0")
+    k1, k2, k3, k4, k5, k6 = params[4:10]
+    p2, p1 = params[12], params[13]
+    try:
+        return CameraIntrinsics(
+            w,
+            h,
+            fx * bw,
+            fy * bh,
+            cx * bw - ox - 0.5,
+            cy * bh - oy - 0.5,
+            "rational_polynomial",
+            (k1, k2, p1, p2, k3, k4, k5, k6),
+        )
+    except InputError as exc:
+        raise InputError(f"{where}: calibration.json {what} Intrinsics: {exc}") from None
+
+
+def _rt(cal: dict[str, Any], what: str, where: str) -> npt.NDArray[np.float64]:
+    """The 4 × 4 transform from the depth camera to this camera (``Rt``: rotation row-major,
+    translation in metres)."""
+    rotation = _numbers(_field(cal, ("Rt", "Rotation"), where), 9, f"{what} Rt.Rotation", where)
+    translation = _numbers(
+        _field(cal, ("Rt", "Translation"), where), 3, f"{what} Rt.Translation", where
     )
-
-
-def _rt(cal: dict[str, Any]) -> npt.NDArray[np.float64]:
     m = np.eye(4)
-    m[:3, :3] = np.reshape(np.asarray(cal["Rt"]["Rotation"], dtype=np.float64), (3, 3))
-    m[:3, 3] = np.asarray(cal["Rt"]["Translation"], dtype=np.float64)
+    m[:3, :3] = np.reshape(rotation, (3, 3))
+    m[:3, 3] = translation
+    with np.errstate(all="ignore"):
+        orthonormal = np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-3)
+    if not orthonormal:
+        raise InputError(
+            f"{where}: calibration.json {what} Rt.Rotation {rotation} is not a rotation matrix"
+        )
     return m
+
+
+def _start_offset(tags: dict[str, Any], where: str) -> int:
+    """The ``K4A_START_OFFSET_NS`` tag: the device time of the file's time 0, in ns."""
+    text = str(tags.get("K4A_START_OFFSET_NS", "") or "0").strip()
+    if not text.isdigit() or len(text) > 18:
+        raise InputError(
+            f"{where}: tag K4A_START_OFFSET_NS is {text[:40]!r}; expected a whole number of "
+            "nanoseconds, 0 to 10^18"
+        )
+    return int(text)
 
 
 class AzureKinectSource(Source):
@@ -107,9 +308,18 @@ class AzureKinectSource(Source):
 
     ``max_frames`` stops early; ``intrinsics`` replaces the calibrated depth camera.
     ``metadata`` holds the serial number, the depth and color modes and the firmware versions.
-    Raises :class:`~pcdcodec.InputError` for a file without a depth track, without the
-    ``calibration.json`` attachment, with an unknown depth mode or color resolution, or without
-    clusters (no captures).
+
+    A capture is a frame only when its color and depth images are both there and whole (each
+    MJPEG packet is checked whole and of the color camera's size before it is decoded). Other
+    captures are dropped and reported: :attr:`dropped` counts their images by stream,
+    :attr:`drop_reasons` the captures by reason, and :meth:`describe` gives both with the pts
+    of the first few. With ``strict=True`` a damaged image raises
+    :class:`~pcdcodec.DecodeError` naming the file and pts instead.
+
+    Raises :class:`~pcdcodec.InputError` naming the file for a file without a depth track,
+    without the ``calibration.json`` attachment or with a malformed one (naming the field),
+    with an unknown depth mode or color resolution, a bad ``K4A_START_OFFSET_NS`` tag, a
+    color track whose codec cannot be read, or without clusters (no captures).
     """
 
     def __init__(
@@ -118,14 +328,26 @@ class AzureKinectSource(Source):
         *,
         max_frames: int | None = None,
         intrinsics: CameraIntrinsics | None = None,
+        strict: bool = False,
     ) -> None:
         import av
 
         self.path = Path(path)
         self.max_frames = max_frames
+        self.strict = strict
+        self._dropped = {"color": 0, "depth": 0}
+        #: why captures were dropped while reading: reason -> count
+        self.drop_reasons: dict[str, int] = {}
+        self._drop_pts: dict[str, list[int]] = {}
+        self._damaged: dict[int, str] = {}
+        self._drop_detail: dict[str, str] = {}
+        #: what reading found wrong with the file's structure, or ``None``
+        self.damage: str | None = None
         name = str(self.path)
         try:
             container = av.open(name)
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{name!r}: a tag or track name is not UTF-8 text: {exc}") from None
         except (av.error.FFmpegError, OSError) as exc:
             if _is_azure_kinect(self.path) and not _has_cluster(self.path):
                 raise InputError(
@@ -135,25 +357,50 @@ class AzureKinectSource(Source):
             raise InputError(f"{name!r} is not a readable Matroska file: {exc}") from exc
         try:
             self._read_header(container, name)
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{name!r}: a tag or track name is not UTF-8 text: {exc}") from None
         finally:
             container.close()
         if intrinsics is not None:
             self.intrinsics = intrinsics
 
     def _read_header(self, container: Any, name: str) -> None:
+        where = repr(name)
         tags = dict(container.metadata)
         depth = color = None
         attachment = None
         for s in container.streams:
             meta = dict(s.metadata)
-            if s.type == "video" and ("K4A_DEPTH_MODE" in meta or meta.get("title") == "DEPTH"):
+            # The K4A mode tags say what a track holds; the track name only without them.
+            tagged = "K4A_DEPTH_MODE" in meta or "K4A_COLOR_MODE" in meta
+            is_depth = "K4A_DEPTH_MODE" in meta or (not tagged and meta.get("title") == "DEPTH")
+            is_color = "K4A_COLOR_MODE" in meta or (not tagged and meta.get("title") == "COLOR")
+            prior: Any = depth if is_depth else color if is_color else None
+            if prior is not None:
+                raise InputError(
+                    f"{name!r} has two {'DEPTH' if is_depth else 'COLOR'} tracks (tracks "
+                    f"{prior.index + 1} and {s.index + 1})"
+                )
+            if (is_depth or is_color) and s.type != "video":
+                # A camera track that does not read as video: refused, not left out.
+                raise InputError(
+                    f"{name!r}: the {'DEPTH' if is_depth else 'COLOR'} track (track "
+                    f"{s.index + 1}) does not read as video (it reads as {s.type}); its CodecID "
+                    "or CodecPrivate is damaged"
+                )
+            if is_depth:
                 depth = s
-            elif s.type == "video" and ("K4A_COLOR_MODE" in meta or meta.get("title") == "COLOR"):
+            elif is_color:
                 color = s
             elif s.type == "attachment" and meta.get("filename") == "calibration.json":
                 attachment = s
         if depth is None:
             raise InputError(f"{name!r} has no Azure Kinect DEPTH track")
+        if color is None and _declared_tag(self.path, b"K4A_COLOR_MODE") not in (None, b"OFF"):
+            raise InputError(
+                f"{name!r} declares a color mode (tag K4A_COLOR_MODE) but its COLOR track does "
+                "not read: its CodecID or CodecPrivate is damaged"
+            )
         if attachment is None:
             raise InputError(
                 f"{name!r} has no calibration.json attachment: the cameras' intrinsics and "
@@ -161,28 +408,43 @@ class AzureKinectSource(Source):
             )
         try:
             calibration = json.loads(bytes(attachment.data))
-            cameras = calibration["CalibrationInformation"]["Cameras"]
-            by_purpose = {c["Purpose"]: c for c in cameras}
-            depth_cal = by_purpose["CALIBRATION_CameraPurposeDepth"]
-        except (ValueError, KeyError, TypeError) as exc:
+        except (ValueError, TypeError, AttributeError) as exc:
+            raise InputError(f"{name!r}: calibration.json is not JSON: {exc}") from None
+        cameras = _field(calibration, ("CalibrationInformation", "Cameras"), where)
+        if not isinstance(cameras, list) or not all(isinstance(c, dict) for c in cameras):
             raise InputError(
-                f"{name!r}: calibration.json is not a k4a calibration: {exc}"
-            ) from None
+                f"{where}: calibration.json CalibrationInformation.Cameras is not a list of cameras"
+            )
+        by_purpose = {str(c.get("Purpose")): c for c in cameras}
+        depth_cal = by_purpose.get("CALIBRATION_CameraPurposeDepth")
+        if depth_cal is None:
+            raise InputError(
+                f"{where}: calibration.json has no camera of Purpose CALIBRATION_CameraPurposeDepth"
+            )
         depth_mode = str(dict(depth.metadata).get("K4A_DEPTH_MODE", ""))
         if depth_mode not in DEPTH_MODES:
             raise InputError(
                 f"{name!r} has depth mode {depth_mode!r}; expected one of {list(DEPTH_MODES)}"
             )
         mode = DEPTH_MODES[depth_mode]
-        if (depth.codec_context.width, depth.codec_context.height) != mode[2]:
+        depth_ctx = depth.codec_context
+        tag = str(getattr(depth_ctx, "codec_tag", "") or "") if depth_ctx is not None else ""
+        if depth_ctx is None or tag != "b16g":
+            raise InputError(
+                f"{name!r}: the DEPTH track holds {tag or 'no known codec'!r}; expected raw "
+                "16-bit big-endian depth (b16g)"
+            )
+        if (depth_ctx.width, depth_ctx.height) != mode[2]:
             raise InputError(
                 f"{name!r}: depth mode {depth_mode} is {mode[2][0]}x{mode[2][1]}, but its track "
-                f"is {depth.codec_context.width}x{depth.codec_context.height}"
+                f"is {depth_ctx.width}x{depth_ctx.height}"
             )
-        self.intrinsics: CameraIntrinsics | None = _camera(depth_cal, mode, "depth camera")
+        self.intrinsics: CameraIntrinsics | None = _camera(depth_cal, mode, "depth camera", where)
+        self._depth_shape = (mode[2][1], mode[2][0])
         self.depth_scale = 1000.0
         self._depth_index = depth.index
         self._color_index: int | None = None
+        self._color_format = ""
         self.metadata = {
             "source": "azure_kinect",
             "device": "Azure Kinect",
@@ -195,34 +457,108 @@ class AzureKinectSource(Source):
         ):
             if key in tags:
                 self.metadata[label] = str(tags[key])
-        self._start_ns = int(tags.get("K4A_START_OFFSET_NS", 0) or 0)
+        self._start_ns = _start_offset(tags, where)
         if color is not None:
             color_cal = by_purpose.get("CALIBRATION_CameraPurposePhotoVideo")
             if color_cal is None:
                 raise InputError(f"{name!r}: calibration.json has no color camera")
-            if color_cal["SensorWidth"] * 3 != color_cal["SensorHeight"] * 4:
+            sw, sh = (color_cal.get(k) for k in ("SensorWidth", "SensorHeight"))
+            if not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (sw, sh)):
                 raise InputError(
-                    f"{name!r}: color calibration of a {color_cal['SensorWidth']}x"
-                    f"{color_cal['SensorHeight']} sensor; only 4:3 calibrations are supported"
+                    f"{where}: calibration.json color camera SensorWidth/SensorHeight are "
+                    f"{sw!r}, {sh!r}; expected whole numbers of pixels"
                 )
-            h = int(color.codec_context.height)
-            if h not in COLOR_MODES or COLOR_MODES[h][2][0] != color.codec_context.width:
+            if sw * 3 != sh * 4:
+                raise InputError(
+                    f"{name!r}: color calibration of a {sw}x{sh} sensor; only 4:3 calibrations "
+                    "are supported"
+                )
+            ctx = color.codec_context
+            fmt = "" if ctx is None or ctx.codec is None else str(ctx.codec.name)
+            tag = str(getattr(ctx, "codec_tag", "") or "") if ctx is not None else ""
+            fmt = _COLOR_FORMATS.get(tag, fmt if fmt == "mjpeg" else "")
+            if not fmt:
+                raise InputError(
+                    f"{name!r}: the COLOR track holds {tag or 'no known codec'!r}; expected "
+                    f"one of {', '.join(sorted(_COLOR_FORMATS))} (its CodecPrivate is damaged "
+                    "or missing)"
+                )
+            w, h = int(ctx.width or 0), int(ctx.height or 0)
+            if h not in COLOR_MODES or COLOR_MODES[h][2][0] != w:
                 sizes = ", ".join(f"{m[2][0]}x{m[2][1]}" for m in COLOR_MODES.values())
                 raise InputError(
-                    f"{name!r}: color track is {color.codec_context.width}x{h}, not an Azure "
-                    f"Kinect color resolution ({sizes})"
+                    f"{name!r}: color track is {w}x{h}, not an Azure Kinect color resolution "
+                    f"({sizes})"
                 )
-            self.color_intrinsics = _camera(color_cal, COLOR_MODES[h], "color camera")
-            self.depth_to_color = _rt(color_cal) @ np.linalg.inv(_rt(depth_cal))
+            self.color_intrinsics = _camera(color_cal, COLOR_MODES[h], "color camera", where)
+            self.depth_to_color = _rt(color_cal, "color camera", where) @ np.linalg.inv(
+                _rt(depth_cal, "depth camera", where)
+            )
             self._color_index = color.index
+            self._color_format = fmt
             self.metadata["color_mode"] = str(dict(color.metadata).get("K4A_COLOR_MODE", ""))
         self.has_color = color is not None
         self._count = int(depth.frames or 0)
+
+    @property
+    def dropped(self) -> dict[str, int]:
+        """Images read but not made into frames so far, by stream (see :attr:`drop_reasons`)."""
+        return dict(self._dropped)
+
+    def describe(self) -> dict[str, Any]:
+        out = super().describe()
+        out["dropped"] = self.dropped
+        out["notes"] = [
+            f"dropped {n} capture(s): {reason} (first at pts "
+            f"{', '.join(map(str, self._drop_pts[reason]))})"
+            + (f": {self._drop_detail[reason]}" if reason in self._drop_detail else "")
+            for reason, n in self.drop_reasons.items()
+        ] + ([self.damage] if self.damage else [])
+        return out
 
     def __len__(self) -> int:
         if not self._count:
             raise TypeError("the depth track does not state its frame count")
         return self._count if self.max_frames is None else min(self._count, self.max_frames)
+
+    def _drop(self, reason: str, pts: int, color: int, depth: int) -> None:
+        self.drop_reasons[reason] = self.drop_reasons.get(reason, 0) + 1
+        first = self._drop_pts.setdefault(reason, [])
+        if len(first) < 3:
+            first.append(pts)
+        self._dropped["color"] += color
+        self._dropped["depth"] += depth
+
+    def _color(self, packet: Any, pts: int, where: str) -> npt.NDArray[np.uint8] | str:
+        """The RGB image of a color packet, or why it is damaged: an MJPEG image is checked
+        whole and of the camera's size before it is decoded, a raw one by its length."""
+        import av
+
+        from ._images import check_compressed
+
+        assert self.color_intrinsics is not None
+        h, w = self.color_intrinsics.shape
+        data = bytes(packet)
+        try:
+            if self._color_format == "mjpeg":
+                check_compressed(data, f"{where}: color packet at pts {pts}", (h, w))
+            elif len(data) != _RAW_BYTES[self._color_format](w, h):
+                return (
+                    f"color packet at pts {pts} holds {len(data)} bytes, expected "
+                    f"{_RAW_BYTES[self._color_format](w, h)} for {w}x{h} {self._color_format}"
+                )
+        except DecodeError as exc:
+            return str(exc)
+        try:
+            frames = list(packet.decode())
+            if len(frames) != 1:
+                return f"color packet at pts {pts} decodes to {len(frames)} images"
+            img = np.asarray(frames[0].to_ndarray(format="rgb24"), dtype=np.uint8)
+        except (av.error.FFmpegError, ValueError) as exc:
+            return f"color packet at pts {pts} does not decode: {exc}"
+        if img.shape != (h, w, 3):
+            return f"color packet at pts {pts} decodes to {img.shape}, expected {(h, w, 3)}"
+        return img
 
     def __iter__(self) -> Iterator[Any]:
         import av
@@ -230,60 +566,124 @@ class AzureKinectSource(Source):
         from ..datasets import RGBDFrame
 
         name = str(self.path)
-        container = av.open(name)
+        where = repr(name)
+        self._dropped = {"color": 0, "depth": 0}
+        self.drop_reasons = {}
+        self._drop_pts = {}
+        self._damaged = {}
+        self._drop_detail = {}
+        self.damage = None
+        try:
+            container = av.open(name)
+        except (av.error.FFmpegError, OSError, UnicodeDecodeError) as exc:
+            raise DecodeError(f"{where} is not a readable Matroska file: {exc}") from exc
         try:
             depth_stream = container.streams[self._depth_index]
             streams = [depth_stream]
-            color_stream = None
+            has_color = self._color_index is not None
             if self._color_index is not None:
-                color_stream = container.streams[self._color_index]
-                streams.append(color_stream)
-            h, w = self.intrinsics.shape if self.intrinsics else (0, 0)
+                streams.append(container.streams[self._color_index])
+            h, w = self._depth_shape
             depths: dict[int, npt.NDArray[np.uint16]] = {}
             colors: dict[int, npt.NDArray[np.uint8]] = {}
             emitted = 0
             seen = 0
             tb = depth_stream.time_base
             tb_ns = float(tb * _NS) if tb is not None else 1000.0
-            for packet in container.demux(streams):
-                if packet.size == 0 or packet.pts is None:
+            # Every track is demuxed, so that the packets can be counted against the blocks.
+            packets = container.demux()
+            wanted = {s.index for s in streams}
+            delivered = 0
+            while True:
+                try:
+                    packet = next(packets)
+                except StopIteration:
+                    break
+                except (av.error.FFmpegError, OSError) as exc:
+                    raise DecodeError(f"{where}: the file is damaged: {exc}") from exc
+                if packet.size == 0:
+                    continue
+                delivered += 1
+                if packet.pts is None or packet.stream.index not in wanted:
                     continue
                 seen += 1
                 pts = int(packet.pts)
                 if packet.stream.index == self._depth_index:
                     raw = bytes(packet)
                     if len(raw) != 2 * w * h:
-                        raise DecodeError(
-                            f"{name!r}: depth packet at pts {pts} holds {len(raw)} bytes, "
-                            f"expected {2 * w * h} for {w}x{h} 16-bit depth"
+                        self._fail(
+                            f"depth packet at pts {pts} holds {len(raw)} bytes, expected "
+                            f"{2 * w * h} for {w}x{h} 16-bit depth",
+                            "damaged depth",
+                            pts,
+                            0,
+                            1,
                         )
+                        continue
+                    if pts in depths:
+                        self._drop("two depth images with one timestamp", pts, 0, 1)
                     depths[pts] = np.frombuffer(raw, dtype=">u2").reshape(h, w).astype(np.uint16)
                 else:
-                    assert color_stream is not None
-                    try:
-                        frames: list[Any] = list(packet.decode())
-                    except av.error.FFmpegError as exc:
-                        raise DecodeError(
-                            f"{name!r}: color packet at pts {pts} does not decode: {exc}"
-                        ) from exc
-                    for f in frames:
-                        colors[pts] = np.asarray(f.to_ndarray(format="rgb24"), dtype=np.uint8)
-                for t in sorted(set(depths) & set(colors)) if color_stream else sorted(depths):
+                    img = self._color(packet, pts, where)
+                    if isinstance(img, str):
+                        self._fail(img, "damaged color", pts, 1, 0)
+                        continue
+                    if pts in colors:
+                        self._drop("two color images with one timestamp", pts, 1, 0)
+                    colors[pts] = img
+                for t in sorted(set(depths) & set(colors)) if has_color else sorted(depths):
                     ns = self._start_ns + round(t * tb_ns)
-                    yield RGBDFrame(colors.pop(t) if color_stream else None, depths.pop(t), ns)
+                    yield RGBDFrame(colors.pop(t) if has_color else None, depths.pop(t), ns)
                     emitted += 1
                     if self.max_frames is not None and emitted >= self.max_frames:
                         return
-                # A capture whose partner never came: keep only the newest few waiting.
-                for pending in (depths, colors):
-                    for old in sorted(pending)[:-4]:
-                        del pending[old]
+                # Images of one capture come together: one whose partner has not come after a
+                # few later captures never will. Keep the newest few waiting, count the rest.
+                self._evict(depths, colors, 4)
+            self._evict(depths, colors, 0)
+            self._check_structure(delivered)
             if seen == 0:
                 raise InputError(
                     f"{name!r} holds no captures (no clusters with color or depth data)"
                 )
         finally:
             container.close()
+
+    def _check_structure(self, delivered: int) -> None:
+        """Compare the blocks the file's clusters hold with the packets the demuxer gave: FFmpeg
+        skips a damaged cluster, and stops at a cut, without a word. What it lost is reported
+        in :attr:`damage` and the notes (an error with ``strict``)."""
+        blocks, problem = _walk_blocks(self.path)
+        why = []
+        if problem:
+            why.append(problem)
+        if blocks > delivered:
+            why.append(f"{blocks - delivered} of its {blocks} blocks could not be read")
+        if not why:
+            return
+        self.damage = f"the file is damaged: {'; '.join(why)}: captures in it may be lost"
+        if self.strict:
+            raise DecodeError(f"{str(self.path)!r}: {self.damage}")
+
+    def _evict(self, depths: dict[int, Any], colors: dict[int, Any], keep: int) -> None:
+        for pending, kind in ((depths, "depth"), (colors, "color")):
+            for old in sorted(pending)[: max(0, len(pending) - keep)]:
+                del pending[old]
+                color, depth = int(kind == "color"), int(kind == "depth")
+                if old in self._damaged:  # the partner of a damaged image: counted there
+                    self._dropped["color"] += color
+                    self._dropped["depth"] += depth
+                    continue
+                other = "color" if kind == "depth" else "depth"
+                self._drop(f"a {kind} image without its {other} image", old, color, depth)
+
+    def _fail(self, why: str, reason: str, pts: int, color: int, depth: int) -> None:
+        """A damaged image: an error naming the file in strict mode, else a dropped capture."""
+        if self.strict:
+            raise DecodeError(f"{str(self.path)!r}: {why}")
+        self._damaged[pts] = why
+        self._drop_detail.setdefault(reason, why.replace(f"{str(self.path)!r}: ", ""))
+        self._drop(reason, pts, color, depth)
 
 
 def open_azure_kinect(path: str | Path, **options: Any) -> AzureKinectSource:

@@ -8,7 +8,7 @@ A librealsense recording is a ROS 1 bag with its own topic layout, read here wit
     /device_0/sensor_N/Depth_0/image/data            Image (mono16 / 16UC1)
     /device_0/sensor_N/Depth_0/info/camera_info      CameraInfo (K, D, "Brown Conrady", ...)
     /device_0/sensor_N/Depth_0/tf/0                  Transform: reference stream -> this stream
-    /device_0/sensor_M/Color_0/image/data            Image (rgb8, bgr8, rgba8, bgra8)
+    /device_0/sensor_M/Color_0/image/data            Image (rgb8, bgr8, rgba8, bgra8, mjpeg)
     /device_0/sensor_M/Color_0/info/camera_info
     /device_0/sensor_M/Color_0/tf/0
 
@@ -23,6 +23,7 @@ from __future__ import annotations
 import re
 from collections import deque
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..camera import CameraIntrinsics
-from ..errors import DecodeError, InputError
+from ..errors import DecodeError, InputError, PcdcodecError
 from .base import FrameIndex, Source, read_magic, register_source
 
 __all__ = ["RealSenseBagSource", "open_realsense"]
@@ -52,31 +53,104 @@ def _is_realsense(path: Path) -> bool:
         return False
 
 
-def _stamp(msg: Any) -> int:
-    return int(msg.header.stamp.sec) * _NS + int(msg.header.stamp.nanosec)
+def _stamp(msg: Any, where: str) -> int:
+    """A header stamp in ns. ROS 1 seconds are unsigned 32-bit (rosbags gives them signed), read
+    here as the frame index reads them from the raw bytes, so both give one timeline."""
+    sec, nsec = int(msg.header.stamp.sec) % 2**32, int(msg.header.stamp.nanosec)
+    if not 0 <= nsec < _NS:
+        raise DecodeError(f"{where}: header stamp nanoseconds {nsec}; expected 0 to 999999999")
+    return sec * _NS + nsec
 
 
-def _image(msg: Any, what: str) -> npt.NDArray[Any]:
+_DEPTH_ENCODINGS = ("mono16", "16uc1", "z16")
+#: color encodings librealsense records that we read: bytes a pixel, or 0 for a compressed image
+_COLOR_ENCODINGS = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "mjpeg": 0, "jpeg": 0}
+
+
+def _image(msg: Any, where: str, is_depth: bool, shape: tuple[int, int]) -> npt.NDArray[Any]:
+    """The pixels of an Image message, after checking its encoding, size and layout against
+    ``shape`` (the camera's ``(height, width)``) and its data length, before allocating.
+    ``where`` names the file, topic and stamp in errors."""
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
-    data = np.asarray(msg.data, dtype=np.uint8)
     enc = str(msg.encoding).lower()
-    if data.size < h * step:
-        raise DecodeError(f"{what}: {data.size} bytes, expected height {h} x step {step}")
-    rows = data[: h * step].reshape(h, step)
-    if enc in ("mono16", "16uc1", "z16"):
+    if is_depth:
+        if enc not in _DEPTH_ENCODINGS:
+            raise InputError(
+                f"{where}: depth image has encoding {msg.encoding!r}; expected mono16 or 16UC1"
+            )
+        pixel = 2
+    else:
+        if enc not in _COLOR_ENCODINGS:
+            raise InputError(
+                f"{where}: color image has encoding {msg.encoding!r}; pcdcodec reads "
+                "rgb8, bgr8, rgba8, bgra8 and mjpeg (record color as RGB8 or BGR8)"
+            )
+        pixel = _COLOR_ENCODINGS[enc]
+    if (h, w) != shape:
+        raise DecodeError(
+            f"{where}: image is {w}x{h}, but its camera info says {shape[1]}x{shape[0]}"
+        )
+    data = msg.data
+    if pixel == 0:
+        return _jpeg(bytes(data), where, shape)
+    if step < w * pixel:
+        raise DecodeError(
+            f"{where}: {msg.encoding} image {w} pixels wide has step {step} bytes; expected at "
+            f"least {w * pixel}"
+        )
+    if len(data) != h * step:
+        raise DecodeError(
+            f"{where}: image holds {len(data)} bytes; expected height {h} x step {step} = "
+            f"{h * step}"
+        )
+    rows = np.asarray(data, dtype=np.uint8).reshape(h, step)
+    if is_depth:
         dt = np.dtype(">u2" if msg.is_bigendian else "<u2")
         depth: npt.NDArray[np.uint16] = rows[:, : 2 * w].copy().view(dt).reshape(h, w)
         return depth.astype(np.uint16)
-    channels = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4}.get(enc)
-    if channels is None:
-        raise InputError(
-            f"{what} has encoding {msg.encoding!r}; expected mono16/16UC1 depth or "
-            "rgb8/bgr8/rgba8/bgra8 color"
-        )
-    img = rows[:, : channels * w].reshape(h, w, channels)[..., :3]
+    img = rows[:, : pixel * w].reshape(h, w, pixel)[..., :3]
     if enc.startswith("bgr"):
         img = img[..., ::-1]
     return np.ascontiguousarray(img)
+
+
+def _jpeg(data: bytes, where: str, shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
+    """An MJPEG color image, checked whole and of the camera's size before it is decoded."""
+    import cv2
+
+    from ._images import check_compressed
+
+    header = check_compressed(data, where, shape)
+    if header.format != "jpeg" or header.channels != 3:
+        raise DecodeError(
+            f"{where}: mjpeg color image is a {header.format.upper()} of {header.channels} "
+            "channels; expected a 3-channel JPEG"
+        )
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    if img is None or img.shape != (*shape, 3):
+        raise DecodeError(f"{where}: mjpeg color image does not decode")
+    return np.ascontiguousarray(img[..., ::-1])
+
+
+def _checked(items: Iterator[Any], where: str) -> Iterator[Any]:
+    """``items`` with any error of the bag library while reading turned into a
+    :class:`~pcdcodec.DecodeError` naming ``where`` (a damaged chunk: lz4 or bz2 that does not
+    decompress, a record cut short)."""
+    while True:
+        try:
+            item = next(items)
+        except StopIteration:
+            return
+        except PcdcodecError:
+            raise
+        except Exception as exc:
+            text = str(exc) or type(exc).__name__
+            raise DecodeError(f"{where}: the bag is damaged: {text}") from exc
+        yield item
+
+
+def _image_topics(source: Any) -> set[str]:
+    return {t for t in (source.depth_topic, source.color_topic) if t}
 
 
 class RealSenseBagSource(Source):
@@ -86,7 +160,17 @@ class RealSenseBagSource(Source):
     either, opening raises :class:`~pcdcodec.InputError`. ``max_dt`` (seconds) drops depth
     frames whose nearest color frame is farther away in time (default: keep every depth frame).
     ``max_frames`` stops early; ``intrinsics`` replaces the recorded depth camera. ``metadata``
-    holds the device name, serial number and firmware, and the topics read.
+    holds the device name, serial number and firmware, and the topics read. :attr:`dropped`
+    counts the depth frames left out for want of a color frame.
+
+    Color is read from rgb8, bgr8, rgba8, bgra8 and mjpeg Images (a JPEG is checked whole and of
+    the color camera's size before it is decoded). Every Image is checked against its camera
+    info (size), its step and its data length before its pixels are used. Errors are
+    :class:`~pcdcodec.PcdcodecError` naming the file, and the topic and stamp where there is
+    one: :class:`~pcdcodec.InputError` for what the bag declares (a missing camera info,
+    extrinsic or depth units, an encoding pcdcodec does not read, a topic of another message
+    type), :class:`~pcdcodec.DecodeError` for what it holds (an image of the wrong size or
+    length, a chunk that does not decompress).
     """
 
     def __init__(
@@ -106,6 +190,7 @@ class RealSenseBagSource(Source):
         self.max_dt = None if max_dt is None else round(max_dt * _NS)
         self.max_frames = max_frames
         self._index: FrameIndex | None = None
+        self._dropped = {"color": 0, "depth": 0}
         name = str(self.path)
         try:
             reader = Reader(self.path)
@@ -118,6 +203,20 @@ class RealSenseBagSource(Source):
             reader.close()
         if intrinsics is not None:
             self.intrinsics = intrinsics
+
+    def _deserialize(self, raw: bytes, conn: Any) -> Any:
+        """A message of ``conn``, or a :class:`~pcdcodec.DecodeError` naming the file and topic."""
+        try:
+            return self._typestore.deserialize_ros1(raw, conn.msgtype)
+        except Exception as exc:
+            raise DecodeError(
+                f"{str(self.path)!r}: a message on {conn.topic} does not read as "
+                f"{conn.msgtype}: {exc or type(exc).__name__}"
+            ) from None
+
+    def _messages(self, reader: Any, conns: list[Any], **window: Any) -> Iterator[Any]:
+        """``reader.messages`` of ``conns``, with the bag library's errors as ours."""
+        return _checked(reader.messages(connections=conns, **window), repr(str(self.path)))
 
     # -- header ------------------------------------------------------------------------
 
@@ -149,9 +248,21 @@ class RealSenseBagSource(Source):
             wanted |= {f"{color[0]}/info/camera_info", f"{color[0]}/tf/0"}
         found: dict[str, Any] = {}
         info: dict[str, str] = {}
-        conns = [c for c in reader.connections if c.topic in wanted]
-        for conn, _, raw in reader.messages(connections=conns):
-            msg: Any = self._typestore.deserialize_ros1(raw, conn.msgtype)
+        types = {
+            "image/data": "sensor_msgs/msg/Image",
+            "camera_info": "sensor_msgs/msg/CameraInfo",
+            "tf/0": "geometry_msgs/msg/Transform",
+            "value": "std_msgs/msg/Float32",
+            "info": "diagnostic_msgs/msg/KeyValue",
+        }
+        conns = [c for c in reader.connections if c.topic in wanted | _image_topics(self)]
+        for c in conns:
+            want = next(t for end, t in types.items() if c.topic.endswith("/" + end))
+            if c.msgtype != want:
+                raise InputError(f"{name!r}: topic {c.topic} holds {c.msgtype}; expected {want}")
+        conns = [c for c in conns if c.topic in wanted]
+        for conn, _, raw in self._messages(reader, conns):
+            msg: Any = self._deserialize(raw, conn)
             if conn.topic == f"{device}/info":
                 info[str(msg.key)] = str(msg.value)
             else:
@@ -186,11 +297,19 @@ class RealSenseBagSource(Source):
                     "color camera relative to the depth camera"
                 )
             t, q = msg.translation, msg.rotation
-            return rigid_from_quaternion([t.x, t.y, t.z], [q.x, q.y, q.z, q.w])
+            values = [t.x, t.y, t.z, q.x, q.y, q.z, q.w]
+            if not np.all(np.isfinite(values)):
+                raise InputError(f"{name!r}: the extrinsic {prefix}/tf/0 holds {values}")
+            try:
+                return rigid_from_quaternion(values[:3], values[3:])
+            except InputError as exc:
+                raise InputError(f"{name!r}: the extrinsic {prefix}/tf/0: {exc}") from None
 
         self.intrinsics: CameraIntrinsics | None = camera(depth_prefix)
+        self._shapes = {True: self.intrinsics.shape, False: (0, 0)}
         if color is not None:
             self.color_intrinsics = camera(color[0])
+            self._shapes[False] = self.color_intrinsics.shape
             self.depth_to_color = tf(color[0]) @ np.linalg.inv(tf(depth_prefix))
         if depth_scale is None:
             units = found.get(units_topic)
@@ -201,8 +320,11 @@ class RealSenseBagSource(Source):
                 )
             # The option is a float32: its shortest decimal form is the value that was set.
             metres = float(str(np.float32(units.data)))
-            if not metres > 0:
-                raise InputError(f"{name!r} records Depth Units {metres!r}; expected > 0 metres")
+            if not (metres > 0 and np.isfinite(1.0 / metres)) or metres == float("inf"):
+                raise InputError(
+                    f"{name!r} records Depth Units {metres!r} ({units_topic}); expected a "
+                    "finite number of metres > 0"
+                )
             depth_scale = 1.0 / metres
         self.depth_scale = float(depth_scale)
         self.metadata = {
@@ -230,28 +352,63 @@ class RealSenseBagSource(Source):
         return n if self.max_frames is None else min(n, self.max_frames)
 
     def __iter__(self) -> Iterator[Any]:
-        from rosbags.rosbag1 import Reader
 
         from ..datasets import RGBDFrame
 
-        with Reader(self.path) as reader:
+        with self._reader() as reader:
             conns = [c for c in reader.connections if c.topic in self._image_topics()]
 
             def images() -> Iterator[tuple[bool, int, Any]]:
-                for conn, _, raw in reader.messages(connections=conns):
-                    msg = self._typestore.deserialize_ros1(raw, conn.msgtype)
-                    stamp = _stamp(msg)
+                for conn, _, raw in self._messages(reader, conns):
                     is_depth = conn.topic == self.depth_topic
-                    what = f"{'depth' if is_depth else 'color'} frame at {stamp} ns"
-                    yield is_depth, stamp, _image(msg, what)
+                    yield is_depth, *self._decode(conn, raw, is_depth)
 
-            for t, depth, rgb in self._pairs(images()):
+            self._dropped = {"color": 0, "depth": 0}
+            for t, depth, rgb in self._pairs(images(), self._dropped):
                 yield RGBDFrame(rgb, depth, t)
 
-    def _image_topics(self) -> set[str | None]:
-        return {self.depth_topic, self.color_topic}
+    @property
+    def dropped(self) -> dict[str, int]:
+        """Depth images read but left out so far, for want of a color image (within ``max_dt``
+        when given), by stream, as the bag readers count them."""
+        return dict(self._dropped)
 
-    def _pairs(self, images: Iterator[tuple[bool, int, Any]]) -> Iterator[tuple[int, Any, Any]]:
+    def describe(self) -> dict[str, Any]:
+        out = super().describe()
+        out["dropped"] = self.dropped
+        out["depth_topic"] = self.depth_topic
+        out["color_topic"] = self.color_topic
+        return out
+
+    def _image_topics(self) -> set[str]:
+        return _image_topics(self)
+
+    @contextmanager
+    def _reader(self) -> Iterator[Any]:
+        """An open reader of the bag; a file that no longer opens raises
+        :class:`~pcdcodec.DecodeError` naming it."""
+        from rosbags.rosbag1 import Reader
+
+        reader = Reader(self.path)
+        try:
+            reader.open()
+        except Exception as exc:
+            raise DecodeError(f"{str(self.path)!r} is not a readable ROS 1 bag: {exc}") from exc
+        try:
+            yield reader
+        finally:
+            reader.close()
+
+    def _decode(self, conn: Any, raw: bytes, is_depth: bool) -> tuple[int, Any]:
+        """The stamp (ns) and pixels of an image message, checked against its camera."""
+        msg = self._deserialize(raw, conn)
+        where = f"{str(self.path)!r}: {conn.topic}"
+        stamp = _stamp(msg, where)
+        return stamp, _image(msg, f"{where} at {stamp} ns", is_depth, self._shapes[is_depth])
+
+    def _pairs(
+        self, images: Iterator[tuple[bool, int, Any]], dropped: dict[str, int] | None = None
+    ) -> Iterator[tuple[int, Any, Any]]:
         """``(timestamp, depth, color)`` from ``(is_depth, stamp, item)`` in bag order: each depth
         frame with the nearer of the color frames read before and after it (the items are
         images when reading, message positions when indexing)."""
@@ -282,6 +439,8 @@ class RealSenseBagSource(Source):
                 t, depth = pending.popleft()
                 rgb = pick(t, after) if has_color else None
                 if rgb is None and has_color:
+                    if dropped is not None:
+                        dropped["depth"] += 1
                     continue
                 yield t, depth, rgb
                 emitted += 1
@@ -293,6 +452,8 @@ class RealSenseBagSource(Source):
             t, depth = pending.popleft()
             rgb = pick(t, None)
             if rgb is None and has_color:
+                if dropped is not None:
+                    dropped["depth"] += 1
                 continue
             yield t, depth, rgb
             emitted += 1
@@ -305,13 +466,12 @@ class RealSenseBagSource(Source):
         """Every frame's timestamp and the depth and color messages it is made of, from one
         pass that reads each image message's header stamp but decodes no image (see
         :meth:`pcdcodec.sources.rosbag.RosbagSource.frame_index` for the columns). Kept."""
-        from rosbags.rosbag1 import Reader
 
         from . import _bagindex
 
         if self._index is not None:
             return self._index
-        with Reader(self.path) as reader:
+        with self._reader() as reader:
             conns = [c for c in reader.connections if c.topic in self._image_topics()]
 
             def positions() -> Iterator[tuple[bool, int, Any]]:
@@ -320,16 +480,22 @@ class RealSenseBagSource(Source):
                     for conn, t, ns in fast:
                         yield conn.topic == self.depth_topic, ns, (t, ns)
                     return
-                for conn, t, raw in reader.messages(connections=conns):
+                for conn, t, raw in self._messages(reader, conns):
                     stamp = _bagindex.ros1_stamp(raw)
                     if stamp is None:
-                        stamp = _stamp(self._typestore.deserialize_ros1(raw, conn.msgtype))
+                        where = f"{str(self.path)!r}: {conn.topic}"
+                        stamp = _stamp(self._deserialize(raw, conn), where)
                     yield conn.topic == self.depth_topic, stamp, (t, stamp)
 
-            rows = [
-                (t, d[0], d[1], *(c if c is not None else (-1, -1)))
-                for t, d, c in self._pairs(positions())
-            ]
+            try:
+                rows = [
+                    (t, d[0], d[1], *(c if c is not None else (-1, -1)))
+                    for t, d, c in self._pairs(positions())
+                ]
+            except PcdcodecError:
+                raise
+            except Exception as exc:
+                raise DecodeError(f"{str(self.path)!r}: the bag is damaged: {exc}") from exc
         self._index = FrameIndex(np.array(rows, dtype=np.int64).reshape(-1, 5), 0)
         return self._index
 
@@ -339,7 +505,9 @@ class RealSenseBagSource(Source):
         import itertools
 
         if start < 0 or (stop is not None and stop < 0):
-            raise InputError(f"frames start and stop must be at least 0, got {start}, {stop}")
+            raise InputError(
+                f"{str(self.path)!r}: frames start and stop must be at least 0, got {start}, {stop}"
+            )
         if start == 0:
             return itertools.islice(iter(self), stop)
         return self.frames_at(self.frame_index().slice(start, stop))
@@ -349,7 +517,6 @@ class RealSenseBagSource(Source):
         first and last message are read (the bag's chunk index skips to them), and only the
         listed ones decoded. Raises :class:`~pcdcodec.DecodeError` when a listed message is
         missing (the index is another bag's)."""
-        from rosbags.rosbag1 import Reader
 
         from ..datasets import RGBDFrame
         from . import _bagindex
@@ -359,20 +526,19 @@ class RealSenseBagSource(Source):
             return
         color = self.color_topic is not None
         lo, hi = _bagindex.window(rows, color)
-        with Reader(self.path) as reader:
+        with self._reader() as reader:
             conns = [c for c in reader.connections if c.topic in self._image_topics()]
 
             def messages() -> Iterator[tuple[bool, int, int, Any]]:
-                for conn, t, raw in reader.messages(connections=conns, start=lo, stop=hi):
+                for conn, t, raw in self._messages(reader, conns, start=lo, stop=hi):
                     stamp = _bagindex.ros1_stamp(raw)
                     if stamp is None:
-                        stamp = _stamp(self._typestore.deserialize_ros1(raw, conn.msgtype))
+                        where = f"{str(self.path)!r}: {conn.topic}"
+                        stamp = _stamp(self._deserialize(raw, conn), where)
                     yield conn.topic == self.depth_topic, t, stamp, (conn, raw)
 
             def decode(is_depth: bool, item: tuple[Any, bytes]) -> Any:
-                msg = self._typestore.deserialize_ros1(item[1], item[0].msgtype)
-                stamp = _stamp(msg)
-                return _image(msg, f"{'depth' if is_depth else 'color'} frame at {stamp} ns")
+                return self._decode(item[0], item[1], is_depth)[1]
 
             where = repr(str(self.path))
             for t, depth, rgb in _bagindex.read_rows(
