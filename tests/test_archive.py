@@ -790,3 +790,33 @@ def test_archive_input_options_and_cli_words(
     assert "camera=" not in text
     with pytest.raises(pcdcodec.InputError, match="not one of the inputs"):
         archive([a], tmp_path / "o3", input_options={tmp_path / "zz": {}}, progress=False)
+
+
+def test_cli_archive_input_camera_bare_matrix_for_a_bag(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--input-camera BAG=K.txt`` with a bare 3x3 matrix: the bag's depth gives the size, as
+    a folder's does (it used to fail with "intrinsics dict must be a mapping, got str")."""
+    from pcdcodec.cli import main
+
+    from .test_rosbag import _image, _small, _store, write_bag
+
+    store = _store(False)
+    frames = _small(2)
+    messages = [
+        ("/cam/depth/image_raw", 10**9 + i, _image(store, False, 10**9 + i, d, "16UC1"))
+        for i, (_, d) in enumerate(frames)
+    ]
+    (tmp_path / "in").mkdir()
+    bag = write_bag(tmp_path / "in" / "cam.bag", messages, store=store)
+    k = tmp_path / "K.txt"
+    k.write_text("150 0 80\n0 151 60\n0 0 1\n")
+    out = tmp_path / "out"
+    args = ["archive", str(bag), "-o", str(out), "--workers", "1", "--threads", "-q"]
+    assert main([*args, "--input-camera", f"{bag}={k},depth_scale=5000", "--json"]) == 0
+    item = json.loads(capsys.readouterr().out)["items"][0]
+    assert item["error"] is None
+    with pcdcodec.open(out / "cam.pcdc") as rec:
+        cam = rec.intrinsics
+        assert (cam.width, cam.height, cam.fx, cam.fy) == (160, 120, 150, 151)
+        assert rec.depth_scale == 5000

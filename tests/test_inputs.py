@@ -312,3 +312,21 @@ def test_no_pairs_error_says_what_was_looked_for(tmp_path: Path) -> None:
     (tmp_path / "other" / "a.png").write_bytes(b"")
     with pytest.raises(pcdcodec.InputError, match=r"not an RGB-D folder.*\.npy"):
         load_folder(tmp_path / "other")
+
+
+def test_camera_recordings_take_an_intrinsics_file(tmp_path: Path) -> None:
+    """``intrinsics=`` as a file for a RealSense .bag: read, a bare matrix at the recorded depth
+    camera's size (it used to be kept as the path string)."""
+    from .test_rosbag import RS_BAG
+
+    if not RS_BAG.is_file():
+        pytest.skip(f"{RS_BAG} is not present")
+    k = tmp_path / "K.txt"
+    k.write_text("400 0 320\n0 401 240\n0 0 1\n")
+    with pcdcodec.open_source(RS_BAG, intrinsics=str(k)) as src:
+        cam = src.intrinsics
+        assert isinstance(cam, pcdcodec.CameraIntrinsics)
+        assert (cam.width, cam.height, cam.fx, cam.fy) == (640, 480, 400.0, 401.0)
+        assert src.intrinsics_origin == "given"
+    with pytest.raises(pcdcodec.InputError, match="does not exist"):
+        pcdcodec.open_source(RS_BAG, intrinsics=str(tmp_path / "none.txt"))

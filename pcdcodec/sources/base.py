@@ -255,6 +255,23 @@ class CameraDefaults:
     depth_scale_origin: str | None = None
 
 
+def given_intrinsics(value: Any, width: int | None, height: int | None) -> CameraIntrinsics:
+    """A reader's ``intrinsics`` option as a camera: a :class:`~pcdcodec.CameraIntrinsics`, a
+    dict of its :meth:`~pcdcodec.CameraIntrinsics.to_dict` keys, or an intrinsics file (see
+    :func:`~pcdcodec.camera.read_intrinsics`), whose bare 3 x 3 matrix takes the depth
+    images' ``width`` x ``height`` (pixels), as a folder's does.
+
+    Raises :class:`~pcdcodec.InputError` for a file that cannot be read or a bad dict.
+    """
+    from ..camera import CameraIntrinsics, read_intrinsics
+
+    if isinstance(value, CameraIntrinsics):
+        return value
+    if isinstance(value, (str, os.PathLike)):
+        return read_intrinsics(value, width, height)
+    return CameraIntrinsics.from_dict(value)
+
+
 def _camera_text(camera: CameraIntrinsics) -> str:
     return (
         f"{camera.width}x{camera.height} fx={camera.fx:g} fy={camera.fy:g} "
