@@ -183,8 +183,17 @@ def _read_depth(path: Path) -> npt.NDArray[Any]:
     return img
 
 
-def _read_list(path: Path, columns: int) -> list[list[str]]:
-    rows = []
+_DECIMAL_SECONDS = re.compile(r"\d+(?:\.\d*)?")
+
+
+def _read_list(path: Path, columns: int) -> list[tuple[int, list[str]]]:
+    """A TUM list's rows, ``timestamp`` first, each with its time in int ns.
+
+    Raises :class:`~pcdcodec.InputError` naming the file and line for a row of too few
+    columns, a time that is not decimal seconds, or a time not after the row before's (the
+    rows are frames in time order; equal or earlier times are not times).
+    """
+    rows: list[tuple[int, list[str]]] = []
     for lineno, line in enumerate(path.read_text().splitlines(), 1):
         line = line.strip()
         if not line or line.startswith("#"):
@@ -192,7 +201,19 @@ def _read_list(path: Path, columns: int) -> list[list[str]]:
         parts = line.split()
         if len(parts) < columns:
             raise InputError(f"{path}:{lineno}: expected {columns} columns, got {line!r}")
-        rows.append(parts[:columns])
+        if not _DECIMAL_SECONDS.fullmatch(parts[0]):
+            raise InputError(
+                f"{path}:{lineno}: timestamp {parts[0]!r} is not seconds (a decimal number "
+                "such as 1305031229.528748)"
+            )
+        t = _seconds_to_ns(parts[0])
+        if rows and t <= rows[-1][0]:
+            raise InputError(
+                f"{path}:{lineno}: timestamp {parts[0]} is not after the line before's; the "
+                "listed times must increase (files whose listed times are not times need "
+                "depth_pattern= and color_pattern=, to pair them by name)"
+            )
+        rows.append((t, parts[:columns]))
     return rows
 
 
@@ -208,13 +229,13 @@ Pair = tuple[int, Path | None, Path]
 def _tum_pairs(root: Path, max_dt_ns: int) -> list[Pair]:
     assoc = root / "associations.txt"
     if assoc.exists():
-        return [(_seconds_to_ns(r[0]), root / r[1], root / r[3]) for r in _read_list(assoc, 4)]
-    depth = [(_seconds_to_ns(t), root / p) for t, p in _read_list(root / "depth.txt", 2)]
+        return [(t, root / r[1], root / r[3]) for t, r in _read_list(assoc, 4)]
+    depth = [(t, root / r[1]) for t, r in _read_list(root / "depth.txt", 2)]
     if not (root / "rgb.txt").exists():
         return [(t, None, d) for t, d in depth]  # depth only
     from .sync import associate
 
-    rgb = [(_seconds_to_ns(t), root / p) for t, p in _read_list(root / "rgb.txt", 2)]
+    rgb = [(t, root / r[1]) for t, r in _read_list(root / "rgb.txt", 2)]
     pairs = associate([t for t, _ in rgb], [t for t, _ in depth], max_difference=max_dt_ns)
     return [(rgb[i][0], rgb[i][1], depth[j][1]) for i, j in pairs]
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -330,3 +331,36 @@ def test_camera_recordings_take_an_intrinsics_file(tmp_path: Path) -> None:
         assert src.intrinsics_origin == "given"
     with pytest.raises(pcdcodec.InputError, match="does not exist"):
         pcdcodec.open_source(RS_BAG, intrinsics=str(tmp_path / "none.txt"))
+
+
+@pytest.mark.parametrize(
+    ("listing", "stamp", "expected"),
+    [
+        ("rgb.txt", "12x.5", r"rgb\.txt:\d+: timestamp '12x\.5' is not seconds"),
+        ("depth.txt", "-1.5", r"depth\.txt:\d+: timestamp '-1\.5' is not seconds"),
+        ("depth.txt", "0.000001", r"depth\.txt:\d+: timestamp 0\.000001 is not after"),
+    ],
+)
+def test_tum_lists_with_bad_times_are_refused_naming_the_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], listing: str, stamp: str, expected: str
+) -> None:
+    """A TUM list's time that is not decimal seconds (it raised ValueError), or that does not
+    increase (an error naming no file, from the pairing), names the list and its line."""
+    from pcdcodec.cli import main
+    from pcdcodec.datasets import write_folder
+
+    root = tmp_path / "seq"
+    write_folder(load_sample(max_frames=3), root, depth_scale=5000.0)
+    path = root / listing
+    lines = path.read_text().splitlines()
+    data = [i for i, line in enumerate(lines) if line and not line.startswith("#")]
+    i = data[-1]  # the last frame: a later one with an earlier time
+    lines[i] = " ".join([stamp, *lines[i].split()[1:]])
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(pcdcodec.InputError, match=expected):
+        pcdcodec.open_source(root, depth_scale=5000.0)
+    assert main(["info", str(root), "--depth-scale", "5000"]) == 1
+    err = capsys.readouterr().err
+    assert re.search(expected, err), err
+    if "not after" in expected:
+        assert "--depth-pattern and --color-pattern" in err
