@@ -998,8 +998,15 @@ def _camera_defaults(camera: Any, common: dict[str, Any]) -> Any:
             "the default camera must be a preset name, a pcdcodec.CameraIntrinsics or a "
             f"CameraDefaults, got {type(intrinsics).__name__}"
         )
-    if scale is not None and (isinstance(scale, bool) or not float(scale) > 0):
-        raise InputError(f"depth_scale must be a positive number of units per metre, got {scale!r}")
+    if scale is not None:
+        try:
+            value = None if isinstance(scale, bool) else float(scale)
+        except (TypeError, ValueError):
+            value = None
+        if value is None or not (math.isfinite(value) and value > 0):
+            raise InputError(
+                f"depth_scale must be a positive finite number of units per metre, got {scale!r}"
+            )
     if intrinsics is None and scale is None:
         return None
     return CameraDefaults(intrinsics, None if scale is None else float(scale), origin)

@@ -820,3 +820,12 @@ def test_cli_archive_input_camera_bare_matrix_for_a_bag(
         cam = rec.intrinsics
         assert (cam.width, cam.height, cam.fx, cam.fy) == (160, 120, 150, 151)
         assert rec.depth_scale == 5000
+
+
+@pytest.mark.parametrize("scale", ["x", [1000], float("inf"), float("nan"), 0, True])
+def test_archive_default_depth_scale_must_be_a_positive_number(tmp_path: Path, scale: Any) -> None:
+    """A default depth scale that is no number raised ValueError/TypeError; an infinite one was
+    taken (and compared with every input's)."""
+    a = make_input(tmp_path / "a", 0, 2)
+    with pytest.raises(pcdcodec.InputError, match="depth_scale must be a positive finite number"):
+        archive([a], tmp_path / "out", source_options={"depth_scale": scale}, progress=False)
