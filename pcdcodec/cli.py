@@ -724,7 +724,23 @@ def _archive_defaults(args: argparse.Namespace) -> Any:
         intrinsics, origin = preset.intrinsics, f"--camera {args.camera}"
         scale = scale if scale is not None else preset.depth_scale
     elif args.intrinsics is not None:
-        intrinsics, origin = read_intrinsics(args.intrinsics), f"--intrinsics {args.intrinsics}"
+        try:
+            intrinsics = read_intrinsics(args.intrinsics)
+        except InputError:
+            try:
+                read_intrinsics(args.intrinsics, 1 << 30, 1 << 30)  # read with a size: bare
+                bare = True
+            except InputError:
+                bare = False
+            if not bare:
+                raise
+            raise InputError(
+                f"--intrinsics {args.intrinsics!r} is a camera matrix without the image size, "
+                "which inputs of any size would take: give a file with the size (ROS "
+                "CameraInfo YAML, Open3D intrinsic JSON, camera.json), or give the matrix to "
+                f"each input with --input-camera INPUT={args.intrinsics}"
+            ) from None
+        origin = f"--intrinsics {args.intrinsics}"
     if intrinsics is None and scale is None:
         return None
     scale_origin = "--depth-scale" if args.depth_scale is not None else None

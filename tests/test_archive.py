@@ -829,3 +829,25 @@ def test_archive_default_depth_scale_must_be_a_positive_number(tmp_path: Path, s
     a = make_input(tmp_path / "a", 0, 2)
     with pytest.raises(pcdcodec.InputError, match="depth_scale must be a positive finite number"):
         archive([a], tmp_path / "out", source_options={"depth_scale": scale}, progress=False)
+
+
+def test_cli_archive_intrinsics_bare_matrix_says_what_to_do(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``archive --intrinsics K.txt`` with a bare matrix: the error names the flag and the ways
+    that work, not "give width and height", which no archive flag can."""
+    from pcdcodec.cli import main
+
+    a = make_input(tmp_path / "a", 0, 2)
+    k = tmp_path / "K.txt"
+    k.write_text("500 0 320\n0 500 240\n0 0 1\n")
+    args = ["archive", str(a), "-o", str(tmp_path / "out"), "-q", "--intrinsics", str(k)]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "give width and height" not in err
+    assert f"--intrinsics {str(k)!r} is a camera matrix without the image size" in err
+    assert f"--input-camera INPUT={k}" in err
+    # A file that is no camera keeps its own error.
+    k.write_text("not a camera\n")
+    assert main(args) == 1
+    assert "without the image size" not in capsys.readouterr().err
