@@ -33,6 +33,7 @@ raises :class:`~pcdcodec.InputError` asking for ``depth_scale``.
 
 from __future__ import annotations
 
+import fnmatch
 import itertools
 import json
 import os
@@ -320,15 +321,29 @@ def _flat_files(root: Path) -> tuple[list[Path] | None, list[Path]] | None:
 
 
 def _glob_key(pattern: str) -> re.Pattern[str]:
-    """A regex whose groups are what the wildcards of a glob pattern match."""
+    """A regex whose groups are what the wildcards of a glob pattern match (``*``, ``?`` and
+    ``[...]`` classes, ``[!...]`` negated; a ``[`` without its ``]`` is itself)."""
     parts = []
-    for ch in pattern:
+    i = 0
+    while i < len(pattern):
+        ch = pattern[i]
         if ch == "*":
             parts.append("(.*)")
         elif ch == "?":
             parts.append("(.)")
+        elif ch == "[":
+            start = i + 2 if pattern[i + 1 : i + 2] == "!" else i + 1
+            end = pattern.find("]", start + 1)  # a "]" first in the class is one of its chars
+            if end < 0:
+                parts.append(re.escape(ch))
+            else:
+                # fnmatch's own regex for the class, "(?s:[...])\\Z", as a group
+                regex = fnmatch.translate(pattern[i : end + 1])
+                parts.append("(" + regex.removeprefix("(?s:").removesuffix(")\\Z") + ")")
+                i = end
         else:
             parts.append(re.escape(ch))
+        i += 1
     return re.compile("".join(parts) + r"\Z")
 
 

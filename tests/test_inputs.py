@@ -364,3 +364,30 @@ def test_tum_lists_with_bad_times_are_refused_naming_the_line(
     assert re.search(expected, err), err
     if "not after" in expected:
         assert "--depth-pattern and --color-pattern" in err
+
+
+def test_name_patterns_with_character_classes(tmp_path: Path) -> None:
+    """``[...]`` in a name pattern is a glob wildcard, paired by what it matches (files the glob
+    found were dropped as matching nothing: "holds no file matching")."""
+    from pcdcodec.datasets import write_folder
+
+    root = tmp_path / "seq"
+    write_folder(load_sample(max_frames=4), root, depth_scale=5000.0)
+    (root / "rgb.txt").unlink()
+    (root / "depth.txt").unlink()
+    depth_names = sorted(p.name for p in (root / "depth").iterdir())
+    src = pcdcodec.open_source(
+        root,
+        depth_pattern="depth/00000[0-2].png",
+        color_pattern="rgb/00000[!3-9].png",
+        depth_scale=5000.0,
+        intrinsics=pcdcodec.camera.camera_preset("tum-ros").intrinsics,
+    )
+    with src:
+        frames = list(src)
+    assert depth_names[:4] == ["000000.png", "000001.png", "000002.png", "000003.png"]
+    assert len(frames) == 3
+    seq = load_sample(max_frames=3)
+    for got, want in zip(frames, seq, strict=True):
+        assert (got.depth == want.depth).all()
+        assert (got.color == want.color).all()
