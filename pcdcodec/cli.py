@@ -113,6 +113,10 @@ _CLI_WORDS = (
     ),
     ("(color=False)", "(--depth-only)"),
     ("need depth_pattern= and color_pattern=", "need --depth-pattern and --color-pattern"),
+    ("color_pattern needs depth_pattern", "--color-pattern needs --depth-pattern"),
+    ("matching depth_pattern", "matching --depth-pattern"),
+    ("matching color_pattern", "matching --color-pattern"),
+    ("or no color_pattern for depth only", "or no --color-pattern for depth only"),
     (
         "pass camera= (for every input that lacks one) or input_options= (for this input)",
         "pass --camera NAME or --intrinsics FILE (for every input that lacks one) or "

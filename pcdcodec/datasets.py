@@ -289,8 +289,10 @@ def _pair_by_key(
     colors: dict[str, Path] | None,
     depths: dict[str, Path],
     what: str,
+    rule: str = "a color file of the same name but for its kind (or give a depth-only folder)",
 ) -> tuple[list[Path] | None, list[Path]]:
-    """Depth files and their color files, matched by key and sorted by depth file name."""
+    """Depth files and their color files, matched by key and sorted by depth file name;
+    ``rule`` says, in the error for a file without its partner, what a partner is."""
     keys = sorted(depths, key=lambda k: depths[k].name)
     if colors is None:
         return None, [depths[k] for k in keys]
@@ -299,8 +301,7 @@ def _pair_by_key(
     if alone:
         raise InputError(
             f"{str(root)!r}: {len(alone)} file(s) have no partner among the {what}, such as "
-            f"{alone[0]!r}; every depth file needs a color file of the same name but for its "
-            "kind (or give a depth-only folder)"
+            f"{alone[0]!r}; every depth file needs {rule}"
         )
     return [colors[k] for k in keys], [depths[k] for k in keys]
 
@@ -371,7 +372,13 @@ def _pattern_files(
     if colors is not None and not colors:
         raise InputError(f"{str(root)!r} holds no file matching color_pattern {color_pattern!r}")
     return _pair_by_key(
-        root, colors, depths, f"files matching {depth_pattern!r} and {color_pattern!r}"
+        root,
+        colors,
+        depths,
+        f"files matching {depth_pattern!r} and {color_pattern!r}",
+        "a color file whose wildcards match the same text (with 'depth/d*.png' and "
+        "'rgb/c*.png', depth/d001.png pairs with rgb/c001.png), or no color_pattern for "
+        "depth only",
     )
 
 

@@ -391,3 +391,30 @@ def test_name_patterns_with_character_classes(tmp_path: Path) -> None:
     for got, want in zip(frames, seq, strict=True):
         assert (got.depth == want.depth).all()
         assert (got.color == want.color).all()
+
+
+def test_name_patterns_without_partners_say_how_patterns_pair(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Patterns whose wildcards match other text: the error says what pairs them (it spoke of
+    "the same name but for its kind", the flat layout's rule)."""
+    from pcdcodec.datasets import write_folder
+
+    root = tmp_path / "seq"
+    write_folder(load_sample(max_frames=2), root, depth_scale=5000.0)
+    for p in (root / "rgb").iterdir():
+        p.rename(p.with_name("rgb" + p.name))
+    with pytest.raises(pcdcodec.InputError, match="no partner") as err:
+        pcdcodec.open_source(
+            root, depth_pattern="depth/*.png", color_pattern="rgb/*.png", depth_scale=5000.0
+        )
+    assert "whose wildcards match the same text" in str(err.value)
+    assert "same name but for its kind" not in str(err.value)
+    # The command line names its flags.
+    from pcdcodec.cli import main
+
+    flags = ["--depth-pattern", "depth/*.png", "--depth-scale", "5000"]
+    assert main(["info", str(root), *flags, "--color-pattern", "rgb/*.png"]) == 1
+    assert "or no --color-pattern for depth only" in capsys.readouterr().err
+    assert main(["info", str(root), *flags, "--color-pattern", "rgb/*.jpg"]) == 1
+    assert "holds no file matching --color-pattern 'rgb/*.jpg'" in capsys.readouterr().err
