@@ -467,10 +467,11 @@ def read_camera_json(path: str | os.PathLike[str]) -> dict[str, Any]:
 
     A ``camera.json`` holding only ``depth_scale`` beside another intrinsics file is fine: the
     camera then comes from that file. Returns a dict: ``"camera"`` (the depth camera's keys
-    given, as a dict; empty when none), ``"depth_scale"`` (float or ``None``), ``"color"`` and
-    ``"depth_to_color"`` (as given, or ``None``). Raises :class:`~pcdcodec.InputError` for a
-    file that is not a JSON object, unknown keys, an incomplete camera or a bad depth scale,
-    naming the file.
+    given, as a dict; empty when none), ``"depth_scale"`` (float or ``None``), ``"color"`` (as
+    given, or ``None``) and ``"depth_to_color"`` (a 4 × 4 float64 array, or ``None``).
+    Raises :class:`~pcdcodec.InputError` for a file that is not a JSON object, unknown keys,
+    an incomplete camera, a color camera without its size, a depth_to_color that is not 16
+    numbers or a bad depth scale, naming the file.
     """
     p = Path(path)
     try:
@@ -501,6 +502,22 @@ def read_camera_json(path: str | os.PathLike[str]) -> dict[str, Any]:
             f"{str(p)!r}: color must be a dict of the color camera's keys (width, height, fx, "
             f"fy, cx, cy), got {data['color']!r}"
         )
+    color = data.get("color")
+    if color is not None:
+        unsized = [k for k in ("width", "height") if k not in color]
+        if unsized:
+            raise InputError(
+                f"{str(p)!r}: color gives no {' or '.join(unsized)}; the color camera needs "
+                "its image size (width and height, pixels)"
+            )
+    d2c = data.get("depth_to_color")
+    if d2c is not None:
+        if isinstance(d2c, str):  # in camera.json the matrix itself, not a file name
+            raise InputError(
+                f"{str(p)!r}: depth_to_color must be a 4x4 matrix (16 numbers, row-major), "
+                f"got {d2c!r}"
+            )
+        d2c = _as_transform(d2c, f"{str(p)!r}: depth_to_color")
     scale = data.get("depth_scale")
     if scale is not None:
         if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not scale > 0:
@@ -512,8 +529,8 @@ def read_camera_json(path: str | os.PathLike[str]) -> dict[str, Any]:
     return {
         "camera": {k: data[k] for k in data if k not in ("depth_scale", "color", "depth_to_color")},
         "depth_scale": scale,
-        "color": data.get("color"),
-        "depth_to_color": data.get("depth_to_color"),
+        "color": color,
+        "depth_to_color": d2c,
     }
 
 
