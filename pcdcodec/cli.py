@@ -114,6 +114,7 @@ _CLI_WORDS = (
     ("(color=False)", "(--depth-only)"),
     ("need depth_pattern= and color_pattern=", "need --depth-pattern and --color-pattern"),
     ("color_pattern needs depth_pattern", "--color-pattern needs --depth-pattern"),
+    ("with depth_pattern= and color_pattern=", "with --depth-pattern and --color-pattern"),
     ("matching depth_pattern", "matching --depth-pattern"),
     ("matching color_pattern", "matching --color-pattern"),
     ("or no color_pattern for depth only", "or no --color-pattern for depth only"),

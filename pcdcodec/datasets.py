@@ -310,12 +310,21 @@ def _flat_files(root: Path) -> tuple[list[Path] | None, list[Path]] | None:
     """The flat layout's files (files named *depth* and *rgb*/*color*), or None if none."""
     depths: dict[str, Path] = {}
     colors: dict[str, Path] = {}
+
+    def add(found: dict[str, Path], key: str, p: Path) -> None:
+        if key in found:  # frame_1_depth.png and frame_1_depth.tiff: which one is the frame?
+            raise InputError(
+                f"{str(root)!r}: {found[key].name!r} and {p.name!r} are the same frame's "
+                "files; keep one, or pick files with depth_pattern= and color_pattern="
+            )
+        found[key] = p
+
     for p in _files(root, _DEPTH_SUFFIXES + _IMAGE_SUFFIXES):
         key = _flat_key(_FLAT_DEPTH, p)
         if key is not None and p.suffix.lower() in _DEPTH_SUFFIXES:
-            depths[key] = p
+            add(depths, key, p)
         elif p.suffix.lower() in _IMAGE_SUFFIXES and (key := _flat_key(_FLAT_COLOR, p)):
-            colors[key] = p
+            add(colors, key, p)
     if not depths:
         return None
     return _pair_by_key(root, colors or None, depths, "*depth* and *rgb*/*color* files")

@@ -418,3 +418,24 @@ def test_name_patterns_without_partners_say_how_patterns_pair(
     assert "or no --color-pattern for depth only" in capsys.readouterr().err
     assert main(["info", str(root), *flags, "--color-pattern", "rgb/*.jpg"]) == 1
     assert "holds no file matching --color-pattern 'rgb/*.jpg'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kind", ["depth", "rgb"])
+def test_flat_folder_with_two_files_for_one_frame_is_refused(tmp_path: Path, kind: str) -> None:
+    """frame_1_depth.png beside frame_1_depth.tiff: one of them was kept silently (the last
+    in name order), the other's data lost."""
+    import imagecodecs
+
+    root = tmp_path / "pcl"
+    root.mkdir()
+    for i, (color, depth) in enumerate(_sample_pairs()[:2]):
+        (root / f"frame_{i:06d}_depth.tiff").write_bytes(imagecodecs.tiff_encode(depth))
+        (root / f"frame_{i:06d}_rgb.tiff").write_bytes(imagecodecs.tiff_encode(color))
+    other = _sample_pairs()[2]
+    data = other[1] if kind == "depth" else other[0]
+    (root / f"frame_000001_{kind}.png").write_bytes(imagecodecs.png_encode(data))
+    with pytest.raises(
+        pcdcodec.InputError,
+        match=rf"'frame_000001_{kind}\.png' and 'frame_000001_{kind}\.tiff' are the same frame's",
+    ):
+        pcdcodec.open_source(root, depth_scale=5000.0)
