@@ -426,6 +426,8 @@ def _cmd_decode(args: argparse.Namespace) -> int:
             args.output,
             intrinsics=rec.intrinsics,
             depth_scale=rec.depth_scale,
+            color_intrinsics=rec.color_intrinsics,
+            depth_to_color=rec.depth_to_color,
             clouds=clouds,
             overwrite=args.overwrite,
             progress=bar.update,

@@ -935,12 +935,17 @@ def write_folder(
     clouds: tuple[str, ...] = (),
     overwrite: bool = False,
     progress: Any = None,
+    color_intrinsics: CameraIntrinsics | None = None,
+    depth_to_color: Any = None,
 ) -> int:
     """Write frames as a TUM RGB-D folder that :func:`load_folder` reads back.
 
     ``rgb/NNNNNN.png`` (8-bit RGB), ``depth/NNNNNN.png`` (16-bit depth units; float32 depth as
-    ``.tiff`` metres), ``rgb.txt`` and ``depth.txt`` with the timestamps in seconds, and
-    ``camera.json`` (intrinsics and depth scale) when ``intrinsics`` is given. ``clouds`` names
+    ``.tiff`` metres), ``rgb.txt`` and ``depth.txt`` with the timestamps in seconds (no
+    ``rgb/`` and ``rgb.txt`` when no frame has color: a depth-only folder), and
+    ``camera.json`` (intrinsics and depth scale) when ``intrinsics`` is given, with the color
+    camera of color not registered to depth (``color_intrinsics``, and ``depth_to_color``,
+    the 4 × 4 transform in metres) as ``color`` and ``depth_to_color``. ``clouds`` names
     point-cloud formats to write per frame into ``clouds/`` (``"ply"``, ``"pcd"``; the frames
     need a projector, as frames of a recording have). The folder is written beside its target
     and moved into place when complete; an existing non-empty folder needs ``overwrite``.
@@ -993,10 +998,19 @@ def write_folder(
             count = i + 1
             if progress is not None:
                 progress(count)
-        (tmp / "rgb.txt").write_text("\n".join(rgb_list) + "\n")
+        if len(rgb_list) > 2:
+            (tmp / "rgb.txt").write_text("\n".join(rgb_list) + "\n")
+        else:  # no color: depth.txt alone reads back as a depth-only folder
+            (tmp / "rgb").rmdir()
         (tmp / "depth.txt").write_text("\n".join(depth_list) + "\n")
         if intrinsics is not None:
-            camera = {**intrinsics.to_dict(), "depth_scale": depth_scale}
+            camera: dict[str, Any] = {**intrinsics.to_dict(), "depth_scale": depth_scale}
+            if color_intrinsics is not None:
+                camera["color"] = color_intrinsics.to_dict()
+                if depth_to_color is not None:
+                    camera["depth_to_color"] = _as_transform(
+                        depth_to_color, "depth_to_color"
+                    ).tolist()
             (tmp / "camera.json").write_text(json.dumps(camera, indent=2) + "\n")
         if not out.exists():
             os.replace(tmp, out)
