@@ -851,3 +851,33 @@ def test_cli_archive_intrinsics_bare_matrix_says_what_to_do(
     k.write_text("not a camera\n")
     assert main(args) == 1
     assert "without the image size" not in capsys.readouterr().err
+
+
+def test_a_folder_of_bags_with_a_depth_named_image_is_searched(tmp_path: Path) -> None:
+    """runs/ holding bags and a depth_preview.png: the bags are the inputs. The folder was
+    taken as a one-frame depth-only image folder, and the bags in it were never archived."""
+    import imagecodecs
+
+    from pcdcodec.archive import find_inputs
+    from pcdcodec.sources.base import detect_kind
+
+    from .test_rosbag import _image, _small, _store, write_bag
+
+    store = _store(False)
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    frames = _small(1)
+    for name in ("a.bag", "b.bag"):
+        msg = _image(store, False, 10**9, frames[0][1], "16UC1")
+        write_bag(runs / name, [("/cam/depth/image_raw", 10**9, msg)], store=store)
+    (runs / "depth_preview.png").write_bytes(imagecodecs.png_encode(frames[0][1]))
+    assert detect_kind(runs) is None
+    found = find_inputs([runs])
+    assert [(p.name, out) for p, out in found] == [
+        ("a.bag", "runs/a.pcdc"),
+        ("b.bag", "runs/b.pcdc"),
+    ]
+    # Without the bags it is a flat depth-only folder, as before.
+    for name in ("a.bag", "b.bag"):
+        (runs / name).unlink()
+    assert detect_kind(runs) == "folder"

@@ -12,18 +12,27 @@ __all__: list[str] = []
 
 
 def _has_flat_depth(path: Path) -> bool:
-    """Whether the folder holds a depth file of the flat layout (``*depth*.png``, ...)."""
-    from ..datasets import _DEPTH_SUFFIXES, _FLAT_DEPTH
+    """Whether the folder holds a depth file of the flat layout (``*depth*.png``, ...) and no
+    file another reader takes: a folder of bags beside a ``depth_preview.png`` is a folder of
+    recordings, to be searched, not one frame of depth."""
+    from ..datasets import _DEPTH_SUFFIXES, _FLAT_DEPTH, _IMAGE_SUFFIXES
+    from .base import detect_kind
 
+    found = False
     try:
         with os.scandir(path) as entries:
             for e in entries:
                 stem, ext = os.path.splitext(e.name)
-                if ext.lower() in _DEPTH_SUFFIXES and _FLAT_DEPTH.match(stem) and e.is_file():
-                    return True
+                ext = ext.lower()
+                if ext in _DEPTH_SUFFIXES + _IMAGE_SUFFIXES:
+                    found = found or (
+                        ext in _DEPTH_SUFFIXES and bool(_FLAT_DEPTH.match(stem)) and e.is_file()
+                    )
+                elif e.is_file() and detect_kind(e.path) is not None:
+                    return False
     except OSError:
         return False
-    return False
+    return found
 
 
 def _is_folder(path: Path) -> bool:
