@@ -877,7 +877,17 @@ def test_a_folder_of_bags_with_a_depth_named_image_is_searched(tmp_path: Path) -
         ("a.bag", "runs/a.pcdc"),
         ("b.bag", "runs/b.pcdc"),
     ]
-    # Without the bags it is a flat depth-only folder, as before.
+    # The same with a depth/ folder of previews.
+    (runs / "depth_preview.png").unlink()
+    (runs / "depth").mkdir()
+    (runs / "depth" / "0000.png").write_bytes(imagecodecs.png_encode(frames[0][1]))
+    assert detect_kind(runs) is None
+    assert [p.name for p, _ in find_inputs([runs])] == ["a.bag", "b.bag"]
+    # With color beside depth it is an RGB-D folder whatever else it holds, as before.
+    (runs / "rgb").mkdir()
+    assert detect_kind(runs) == "folder"
+    # Without the bags, depth alone is a depth-only folder.
+    shutil.rmtree(runs / "rgb")
     for name in ("a.bag", "b.bag"):
         (runs / name).unlink()
     assert detect_kind(runs) == "folder"

@@ -11,34 +11,43 @@ from .base import Source, register_source
 __all__: list[str] = []
 
 
-def _has_flat_depth(path: Path) -> bool:
-    """Whether the folder holds a depth file of the flat layout (``*depth*.png``, ...) and no
-    file another reader takes: a folder of bags beside a ``depth_preview.png`` is a folder of
-    recordings, to be searched, not one frame of depth."""
+def _scan(path: Path) -> tuple[bool, bool]:
+    """Whether the folder holds a depth file of the flat layout (``*depth*.png``, ...), and
+    whether it holds a file another reader takes (a bag, a camera recording)."""
     from ..datasets import _DEPTH_SUFFIXES, _FLAT_DEPTH, _IMAGE_SUFFIXES
     from .base import detect_kind
 
-    found = False
+    flat = False
     try:
         with os.scandir(path) as entries:
             for e in entries:
                 stem, ext = os.path.splitext(e.name)
                 ext = ext.lower()
                 if ext in _DEPTH_SUFFIXES + _IMAGE_SUFFIXES:
-                    found = found or (
+                    flat = flat or (
                         ext in _DEPTH_SUFFIXES and bool(_FLAT_DEPTH.match(stem)) and e.is_file()
                     )
                 elif e.is_file() and detect_kind(e.path) is not None:
-                    return False
+                    return flat, True
     except OSError:
-        return False
-    return found
+        return False, False
+    return flat, False
 
 
 def _is_folder(path: Path) -> bool:
-    return path.is_dir() and (
-        (path / "depth.txt").is_file() or (path / "depth").is_dir() or _has_flat_depth(path)
-    )
+    if not path.is_dir():
+        return False
+    if ((path / "rgb.txt").is_file() and (path / "depth.txt").is_file()) or (
+        (path / "depth").is_dir() and any((path / n).is_dir() for n in ("rgb", "color"))
+    ):
+        return True  # color and depth: an RGB-D folder whatever else it holds
+    # Depth alone (depth.txt, depth/, or files named *depth*) is an RGB-D folder only beside no
+    # other input: a folder of bags with a depth/ of previews or a depth_preview.png is a
+    # folder of bags, to be searched, not frames of depth.
+    flat, others = _scan(path)
+    if others:
+        return False
+    return (path / "depth.txt").is_file() or (path / "depth").is_dir() or flat
 
 
 def _open(path: Path, **options: Any) -> Source:
