@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import operator
 import sys
 import tempfile
@@ -115,6 +116,7 @@ _CLI_WORDS = (
     ("need depth_pattern= and color_pattern=", "need --depth-pattern and --color-pattern"),
     ("color_pattern needs depth_pattern", "--color-pattern needs --depth-pattern"),
     ("with depth_pattern= and color_pattern=", "with --depth-pattern and --color-pattern"),
+    ("input_options names", "--input-camera names"),
     ("matching depth_pattern", "matching --depth-pattern"),
     ("matching color_pattern", "matching --color-pattern"),
     ("or no color_pattern for depth only", "or no --color-pattern for depth only"),
@@ -770,11 +772,15 @@ def _input_camera(spec: str) -> tuple[str, dict[str, Any]]:
         key, eq, value = item.partition("=")
         if eq and key.strip() == "depth_scale":
             try:
-                options["depth_scale"] = float(value)
+                scale = float(value)
             except ValueError:
+                scale = math.nan
+            if not (math.isfinite(scale) and scale > 0):
                 raise InputError(
-                    f"--input-camera {spec!r}: depth_scale must be a number, got {value!r}"
-                ) from None
+                    f"--input-camera {spec!r}: depth_scale must be a positive number of depth "
+                    f"units per metre, got {value!r}"
+                )
+            options["depth_scale"] = scale
         elif item in CAMERA_PRESETS:
             preset = CAMERA_PRESETS[item]
             options["intrinsics"] = preset.intrinsics

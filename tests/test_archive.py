@@ -891,3 +891,31 @@ def test_a_folder_of_bags_with_a_depth_named_image_is_searched(tmp_path: Path) -
     for name in ("a.bag", "b.bag"):
         (runs / name).unlink()
     assert detect_kind(runs) == "folder"
+
+
+@pytest.mark.parametrize(
+    ("spec", "expected"),
+    [
+        ("{a}=tum-ros,depth_scale=-5", "depth_scale must be a positive number"),
+        ("{a}=tum-ros,depth_scale=inf", "depth_scale must be a positive number"),
+        ("{a}=tum-ros,depth_scale=abc", "depth_scale must be a positive number"),
+        ("{other}=tum-ros", "--input-camera names"),
+    ],
+)
+def test_cli_archive_input_camera_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], spec: str, expected: str
+) -> None:
+    """A scale that is no positive number is refused before anything is encoded (it was
+    listed as the input's scale, then failed); an input not given names the flag, not
+    input_options."""
+    from pcdcodec.cli import main
+
+    a = make_input(tmp_path / "a", 0, 2)
+    arg = spec.format(a=a, other=tmp_path / "other")
+    out = tmp_path / "out"
+    args = ["archive", str(a), "-o", str(out), "--workers", "1", "--threads", "-q"]
+    assert main([*args, "--input-camera", arg]) == 1
+    err = capsys.readouterr().err
+    assert expected in err
+    assert "input_options" not in err
+    assert not (out / "a.pcdc").exists()
