@@ -439,3 +439,20 @@ def test_flat_folder_with_two_files_for_one_frame_is_refused(tmp_path: Path, kin
         match=rf"'frame_000001_{kind}\.png' and 'frame_000001_{kind}\.tiff' are the same frame's",
     ):
         pcdcodec.open_source(root, depth_scale=5000.0)
+
+
+@pytest.mark.parametrize("scale", ["x", -1, 0, float("nan"), float("inf"), True])
+def test_open_source_refuses_a_depth_scale_that_is_no_positive_number(
+    tmp_path: Path, scale: object
+) -> None:
+    """depth_scale="x" raised ValueError from float(); -1, 0 and NaN were taken as the scale of
+    a folder (and of a bag) and failed only later, or never."""
+    from pcdcodec.datasets import write_folder
+    from pcdcodec.sources import CameraDefaults
+
+    root = tmp_path / "seq"
+    write_folder(load_sample(max_frames=1), root, depth_scale=5000.0)
+    with pytest.raises(pcdcodec.InputError, match="depth_scale must be"):
+        pcdcodec.open_source(root, depth_scale=scale)
+    with pytest.raises(pcdcodec.InputError, match="depth_scale must be"):
+        CameraDefaults(depth_scale=scale)  # type: ignore[arg-type]

@@ -254,6 +254,12 @@ class CameraDefaults:
     #: where the depth scale came from, when not from ``origin`` (``"--depth-scale"``)
     depth_scale_origin: str | None = None
 
+    def __post_init__(self) -> None:
+        if self.depth_scale is not None:
+            from ..frame import _scale
+
+            object.__setattr__(self, "depth_scale", _scale(self.depth_scale))
+
 
 def given_intrinsics(value: Any, width: int | None, height: int | None) -> CameraIntrinsics:
     """A reader's ``intrinsics`` option as a camera: a :class:`~pcdcodec.CameraIntrinsics`, a
@@ -339,12 +345,17 @@ def open_source(
     ``options`` go to that reader (for example ``intrinsics``, ``depth_scale``, topics), and
     replace what the input says. ``defaults`` (:class:`CameraDefaults`) instead fill in only
     the camera or depth scale the input lacks. Raises :class:`~pcdcodec.InputError` when
-    ``path`` does not exist or no reader knows it.
+    ``path`` does not exist, no reader knows it, or ``depth_scale`` is not a positive finite
+    number.
     """
     _load_builtin()
     p = Path(path)
     if not p.exists():
         raise InputError(f"{str(p)!r} does not exist")
+    if options.get("depth_scale") is not None:
+        from ..frame import _scale
+
+        options["depth_scale"] = _scale(options["depth_scale"])  # every reader alike
     if kind is not None:
         if kind not in _KINDS:
             raise InputError(f"unknown source kind {kind!r}; known: {', '.join(_KINDS)}")
