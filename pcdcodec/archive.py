@@ -237,6 +237,9 @@ class ArchiveSummary:
             lines += [f"  {i.source}: {text}" for i, text in cameras if text]
         for item in self.items:
             lines += [f"NOTE {item.source}: {note}" for note in item.notes]
+        for item in self.items:
+            if item.error is not None and item.state != "failed":
+                lines.append(f"WARNING {item.source}: {item.error}")
         for item in self.failed:
             lines.append(f"FAILED {item.source}: {item.error}")
         return "\n".join(lines)
@@ -1356,9 +1359,9 @@ def _run(
             manifest.update(rel, state="verified")
             if delete_source:
                 try:
-                    if job.path.is_dir():
+                    if job.path.is_dir() and not job.path.is_symlink():
                         shutil.rmtree(job.path)
-                    else:
+                    else:  # a file, or a link (to a file or a folder): the link goes
                         job.path.unlink()
                 except OSError as err:
                     item.error = f"verified, but the source could not be deleted: {err}"

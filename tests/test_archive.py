@@ -919,3 +919,33 @@ def test_cli_archive_input_camera_errors(
     assert expected in err
     assert "input_options" not in err
     assert not (out / "a.pcdc").exists()
+
+
+def test_delete_source_removes_links_not_their_targets(tmp_path: Path) -> None:
+    """A linked folder input failed to be deleted ("Cannot call rmtree on a symbolic link"),
+    while a linked file had its link removed; both now remove the link and keep the target.
+    A source that could not be deleted is said in the text summary (it was in JSON only)."""
+    from pcdcodec.archive import ArchiveItem, ArchiveSummary
+
+    real = tmp_path / "real"
+    folder = make_input(real / "take", 0, 2)
+    links = tmp_path / "links"
+    links.mkdir()
+    (links / "take").symlink_to(folder, target_is_directory=True)
+    summary = archive(
+        [links / "take"],
+        tmp_path / "out",
+        delete_source_after_verify=True,
+        workers=1,
+        processes=False,
+        progress=False,
+    )
+    (item,) = summary.items
+    assert (item.state, item.error) == ("source-deleted", None)
+    assert not (links / "take").exists()
+    assert not (links / "take").is_symlink()
+    assert folder.is_dir()
+    assert any(folder.iterdir())  # the linked-to data is kept
+    kept = ArchiveItem("a", "out/a.pcdc", "verified", error="verified, but the source could not")
+    text = ArchiveSummary([kept], 1.0, 1).to_text()
+    assert "WARNING a: verified, but the source could not" in text
