@@ -11,13 +11,13 @@ from .base import Source, register_source
 __all__: list[str] = []
 
 
-def _scan(path: Path) -> tuple[bool, bool]:
-    """Whether the folder holds a depth file of the flat layout (``*depth*.png``, ...), and
-    whether it holds a file another reader takes (a bag, a camera recording)."""
+def _flat_depth_and_others(path: Path) -> tuple[bool, list[str]]:
+    """Whether the folder holds a depth file of the flat layout (``*depth*.png``, ...), and its
+    other files that are not images (which may be bags or camera recordings)."""
     from ..datasets import _DEPTH_SUFFIXES, _FLAT_DEPTH, _IMAGE_SUFFIXES
-    from .base import detect_kind
 
     flat = False
+    others: list[str] = []
     try:
         with os.scandir(path) as entries:
             for e in entries:
@@ -27,11 +27,11 @@ def _scan(path: Path) -> tuple[bool, bool]:
                     flat = flat or (
                         ext in _DEPTH_SUFFIXES and bool(_FLAT_DEPTH.match(stem)) and e.is_file()
                     )
-                elif e.is_file() and detect_kind(e.path) is not None:
-                    return flat, True
+                elif e.is_file():
+                    others.append(e.path)
     except OSError:
-        return False, False
-    return flat, False
+        return False, []
+    return flat, others
 
 
 def _is_folder(path: Path) -> bool:
@@ -44,10 +44,12 @@ def _is_folder(path: Path) -> bool:
     # Depth alone (depth.txt, depth/, or files named *depth*) is an RGB-D folder only beside no
     # other input: a folder of bags with a depth/ of previews or a depth_preview.png is a
     # folder of bags, to be searched, not frames of depth.
-    flat, others = _scan(path)
-    if others:
+    flat, others = _flat_depth_and_others(path)
+    if not (flat or (path / "depth.txt").is_file() or (path / "depth").is_dir()):
         return False
-    return (path / "depth.txt").is_file() or (path / "depth").is_dir() or flat
+    from .base import detect_kind
+
+    return not any(detect_kind(f) is not None for f in others)
 
 
 def _open(path: Path, **options: Any) -> Source:
