@@ -332,8 +332,11 @@ def _source_options(args: argparse.Namespace) -> dict[str, Any]:
         opts["fps"] = args.fps
         opts.update(folder)
     elif folder and kind is not None:
-        flags = " ".join("--" + k.replace("_", "-") for k in folder)
-        raise InputError(f"{flags} apply to RGB-D folders; {args.src!r} is a {kind}")
+        names = ["--depth-only" if k == "color" else "--" + k.replace("_", "-") for k in folder]
+        hint = " (a bag's depth alone: --color-topic '')" if "color" in folder else ""
+        raise InputError(
+            f"{' '.join(names)} apply to RGB-D folders; {args.src!r} is a {kind}{hint}"
+        )
     topics = {
         "depth_topic": args.depth_topic,
         "color_topic": args.color_topic,

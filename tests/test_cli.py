@@ -311,3 +311,26 @@ def test_decode_keeps_a_color_camera_and_depth_only_readable(tmp_path: Path) -> 
             assert not source.has_color
             assert frames[0].color is None
             assert not (out / "rgb.txt").exists()
+
+
+def test_folder_flags_on_a_bag_are_named_as_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--depth-only on a bag was refused as "--color apply to RGB-D folders", a flag not
+    given (and another flag's name)."""
+    from pcdcodec.cli import main
+
+    from .test_rosbag import _image, _small, _store, write_bag
+
+    store = _store(False)
+    depth = _small(1)[0][1]
+    bag = write_bag(
+        tmp_path / "a.bag",
+        [("/cam/depth/image_raw", 10**9, _image(store, False, 10**9, depth, "16UC1"))],
+        store=store,
+    )
+    assert main(["info", str(bag), "--depth-only"]) == 1
+    err = capsys.readouterr().err
+    assert "--depth-only apply to RGB-D folders" in err
+    assert "--color-topic ''" in err
+    assert "--color " not in err
