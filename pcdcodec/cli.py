@@ -333,7 +333,9 @@ def _source_options(args: argparse.Namespace) -> dict[str, Any]:
         opts.update(folder)
     elif folder and kind is not None:
         names = ["--depth-only" if k == "color" else "--" + k.replace("_", "-") for k in folder]
-        hint = " (a bag's depth alone: --color-topic '')" if "color" in folder else ""
+        hint = ""
+        if "color" in folder and kind == "rosbag":  # topic flags are for ROS bags only
+            hint = " (a bag's depth alone: --color-topic '')"
         raise InputError(
             f"{' '.join(names)} apply to RGB-D folders; {args.src!r} is a {kind}{hint}"
         )
