@@ -535,6 +535,28 @@ def _cmd_info_source(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Options of ``info`` that say how to read an input (a folder, a bag), not a recording.
+_INPUT_FLAGS = (
+    "intrinsics",
+    "camera",
+    "fx",
+    "fy",
+    "cx",
+    "cy",
+    "depth_scale",
+    "depth_pattern",
+    "color_pattern",
+    "color_intrinsics",
+    "depth_to_color",
+    "depth_only",
+    "depth_topic",
+    "color_topic",
+    "info_topic",
+    "cloud_topic",
+    "passthrough",
+)
+
+
 def _cmd_info(args: argparse.Namespace) -> int:
     from .recording import open as open_recording
     from .sources.base import detect_kind
@@ -544,6 +566,16 @@ def _cmd_info(args: argparse.Namespace) -> int:
     # probes tell them apart by the MCAP profile.
     if detect_kind(path) is not None:
         return _cmd_info_source(args)
+    given = [
+        "--" + key.replace("_", "-")
+        for key in _INPUT_FLAGS
+        if getattr(args, key, None) not in (None, False)
+    ]
+    if given and path.is_file():
+        raise InputError(
+            f"{' '.join(given)} describe how to read an input; {args.input!r} is not one "
+            "(a recording keeps its own camera and depth scale)"
+        )
     with open_recording(args.input) as rec:
         info = _info(rec)
     if args.json:

@@ -334,3 +334,16 @@ def test_folder_flags_on_a_bag_are_named_as_given(
     assert "--depth-only apply to RGB-D folders" in err
     assert "--color-topic ''" in err
     assert "--color " not in err
+
+
+def test_info_on_a_recording_refuses_input_flags(
+    encoded: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """info REC.pcdc --camera tum-ros --depth-scale 5000 printed the recording's own camera
+    and scale, silently ignoring both flags."""
+    from pcdcodec.cli import main
+
+    assert main(["info", str(encoded), "--camera", "tum-ros", "--depth-scale", "5000"]) == 1
+    err = capsys.readouterr().err
+    assert "--camera --depth-scale describe how to read an input" in err
+    assert main(["info", str(encoded)]) == 0
