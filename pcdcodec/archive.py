@@ -237,6 +237,9 @@ class ArchiveSummary:
             lines += [f"  {i.source}: {text}" for i, text in cameras if text]
         for item in self.items:
             lines += [f"NOTE {item.source}: {note}" for note in item.notes]
+        for item in self.items:
+            if item.error is not None and item.state != "failed":
+                lines.append(f"WARNING {item.source}: {item.error}")
         for item in self.failed:
             lines.append(f"FAILED {item.source}: {item.error}")
         return "\n".join(lines)
@@ -998,8 +1001,15 @@ def _camera_defaults(camera: Any, common: dict[str, Any]) -> Any:
             "the default camera must be a preset name, a pcdcodec.CameraIntrinsics or a "
             f"CameraDefaults, got {type(intrinsics).__name__}"
         )
-    if scale is not None and (isinstance(scale, bool) or not float(scale) > 0):
-        raise InputError(f"depth_scale must be a positive number of units per metre, got {scale!r}")
+    if scale is not None:
+        try:
+            value = None if isinstance(scale, bool) else float(scale)
+        except (TypeError, ValueError):
+            value = None
+        if value is None or not (math.isfinite(value) and value > 0):
+            raise InputError(
+                f"depth_scale must be a positive finite number of units per metre, got {scale!r}"
+            )
     if intrinsics is None and scale is None:
         return None
     return CameraDefaults(intrinsics, None if scale is None else float(scale), origin)
@@ -1349,9 +1359,9 @@ def _run(
             manifest.update(rel, state="verified")
             if delete_source:
                 try:
-                    if job.path.is_dir():
+                    if job.path.is_dir() and not job.path.is_symlink():
                         shutil.rmtree(job.path)
-                    else:
+                    else:  # a file, or a link (to a file or a folder): the link goes
                         job.path.unlink()
                 except OSError as err:
                     item.error = f"verified, but the source could not be deleted: {err}"

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import operator
 import sys
 import tempfile
@@ -113,6 +114,12 @@ _CLI_WORDS = (
     ),
     ("(color=False)", "(--depth-only)"),
     ("need depth_pattern= and color_pattern=", "need --depth-pattern and --color-pattern"),
+    ("color_pattern needs depth_pattern", "--color-pattern needs --depth-pattern"),
+    ("with depth_pattern= and color_pattern=", "with --depth-pattern and --color-pattern"),
+    ("input_options names", "--input-camera names"),
+    ("matching depth_pattern", "matching --depth-pattern"),
+    ("matching color_pattern", "matching --color-pattern"),
+    ("or no color_pattern for depth only", "or no --color-pattern for depth only"),
     (
         "pass camera= (for every input that lacks one) or input_options= (for this input)",
         "pass --camera NAME or --intrinsics FILE (for every input that lacks one) or "
@@ -325,8 +332,13 @@ def _source_options(args: argparse.Namespace) -> dict[str, Any]:
         opts["fps"] = args.fps
         opts.update(folder)
     elif folder and kind is not None:
-        flags = " ".join("--" + k.replace("_", "-") for k in folder)
-        raise InputError(f"{flags} apply to RGB-D folders; {args.src!r} is a {kind}")
+        names = ["--depth-only" if k == "color" else "--" + k.replace("_", "-") for k in folder]
+        hint = ""
+        if "color" in folder and kind == "rosbag":  # topic flags are for ROS bags only
+            hint = " (a bag's depth alone: --color-topic '')"
+        raise InputError(
+            f"{' '.join(names)} apply to RGB-D folders; {args.src!r} is a {kind}{hint}"
+        )
     topics = {
         "depth_topic": args.depth_topic,
         "color_topic": args.color_topic,
@@ -421,6 +433,8 @@ def _cmd_decode(args: argparse.Namespace) -> int:
             args.output,
             intrinsics=rec.intrinsics,
             depth_scale=rec.depth_scale,
+            color_intrinsics=rec.color_intrinsics,
+            depth_to_color=rec.depth_to_color,
             clouds=clouds,
             overwrite=args.overwrite,
             progress=bar.update,
@@ -521,6 +535,28 @@ def _cmd_info_source(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Options of ``info`` that say how to read an input (a folder, a bag), not a recording.
+_INPUT_FLAGS = (
+    "intrinsics",
+    "camera",
+    "fx",
+    "fy",
+    "cx",
+    "cy",
+    "depth_scale",
+    "depth_pattern",
+    "color_pattern",
+    "color_intrinsics",
+    "depth_to_color",
+    "depth_only",
+    "depth_topic",
+    "color_topic",
+    "info_topic",
+    "cloud_topic",
+    "passthrough",
+)
+
+
 def _cmd_info(args: argparse.Namespace) -> int:
     from .recording import open as open_recording
     from .sources.base import detect_kind
@@ -530,6 +566,16 @@ def _cmd_info(args: argparse.Namespace) -> int:
     # probes tell them apart by the MCAP profile.
     if detect_kind(path) is not None:
         return _cmd_info_source(args)
+    given = [
+        "--" + key.replace("_", "-")
+        for key in _INPUT_FLAGS
+        if getattr(args, key, None) not in (None, False)
+    ]
+    if given and path.is_file():
+        raise InputError(
+            f"{' '.join(given)} describe how to read an input; {args.input!r} is not one "
+            "(a recording keeps its own camera and depth scale)"
+        )
     with open_recording(args.input) as rec:
         info = _info(rec)
     if args.json:
@@ -724,7 +770,23 @@ def _archive_defaults(args: argparse.Namespace) -> Any:
         intrinsics, origin = preset.intrinsics, f"--camera {args.camera}"
         scale = scale if scale is not None else preset.depth_scale
     elif args.intrinsics is not None:
-        intrinsics, origin = read_intrinsics(args.intrinsics), f"--intrinsics {args.intrinsics}"
+        try:
+            intrinsics = read_intrinsics(args.intrinsics)
+        except InputError:
+            try:
+                read_intrinsics(args.intrinsics, 1 << 30, 1 << 30)  # read with a size: bare
+                bare = True
+            except InputError:
+                bare = False
+            if not bare:
+                raise
+            raise InputError(
+                f"--intrinsics {args.intrinsics!r} is a camera matrix without the image size, "
+                "which inputs of any size would take: give a file with the size (ROS "
+                "CameraInfo YAML, Open3D intrinsic JSON, camera.json), or give the matrix to "
+                f"each input with --input-camera INPUT={args.intrinsics}"
+            ) from None
+        origin = f"--intrinsics {args.intrinsics}"
     if intrinsics is None and scale is None:
         return None
     scale_origin = "--depth-scale" if args.depth_scale is not None else None
@@ -747,11 +809,15 @@ def _input_camera(spec: str) -> tuple[str, dict[str, Any]]:
         key, eq, value = item.partition("=")
         if eq and key.strip() == "depth_scale":
             try:
-                options["depth_scale"] = float(value)
+                scale = float(value)
             except ValueError:
+                scale = math.nan
+            if not (math.isfinite(scale) and scale > 0):
                 raise InputError(
-                    f"--input-camera {spec!r}: depth_scale must be a number, got {value!r}"
-                ) from None
+                    f"--input-camera {spec!r}: depth_scale must be a positive number of depth "
+                    f"units per metre, got {value!r}"
+                )
+            options["depth_scale"] = scale
         elif item in CAMERA_PRESETS:
             preset = CAMERA_PRESETS[item]
             options["intrinsics"] = preset.intrinsics

@@ -33,6 +33,7 @@ raises :class:`~pcdcodec.InputError` asking for ``depth_scale``.
 
 from __future__ import annotations
 
+import fnmatch
 import itertools
 import json
 import os
@@ -183,8 +184,17 @@ def _read_depth(path: Path) -> npt.NDArray[Any]:
     return img
 
 
-def _read_list(path: Path, columns: int) -> list[list[str]]:
-    rows = []
+_DECIMAL_SECONDS = re.compile(r"\d+(?:\.\d*)?")
+
+
+def _read_list(path: Path, columns: int) -> list[tuple[int, list[str]]]:
+    """A TUM list's rows, ``timestamp`` first, each with its time in int ns.
+
+    Raises :class:`~pcdcodec.InputError` naming the file and line for a row of too few
+    columns, a time that is not decimal seconds, or a time not after the row before's (the
+    rows are frames in time order; equal or earlier times are not times).
+    """
+    rows: list[tuple[int, list[str]]] = []
     for lineno, line in enumerate(path.read_text().splitlines(), 1):
         line = line.strip()
         if not line or line.startswith("#"):
@@ -192,7 +202,19 @@ def _read_list(path: Path, columns: int) -> list[list[str]]:
         parts = line.split()
         if len(parts) < columns:
             raise InputError(f"{path}:{lineno}: expected {columns} columns, got {line!r}")
-        rows.append(parts[:columns])
+        if not _DECIMAL_SECONDS.fullmatch(parts[0]):
+            raise InputError(
+                f"{path}:{lineno}: timestamp {parts[0]!r} is not seconds (a decimal number "
+                "such as 1305031229.528748)"
+            )
+        t = _seconds_to_ns(parts[0])
+        if rows and t <= rows[-1][0]:
+            raise InputError(
+                f"{path}:{lineno}: timestamp {parts[0]} is not after the line before's; the "
+                "listed times must increase (files whose listed times are not times need "
+                "depth_pattern= and color_pattern=, to pair them by name)"
+            )
+        rows.append((t, parts[:columns]))
     return rows
 
 
@@ -208,13 +230,13 @@ Pair = tuple[int, Path | None, Path]
 def _tum_pairs(root: Path, max_dt_ns: int) -> list[Pair]:
     assoc = root / "associations.txt"
     if assoc.exists():
-        return [(_seconds_to_ns(r[0]), root / r[1], root / r[3]) for r in _read_list(assoc, 4)]
-    depth = [(_seconds_to_ns(t), root / p) for t, p in _read_list(root / "depth.txt", 2)]
+        return [(t, root / r[1], root / r[3]) for t, r in _read_list(assoc, 4)]
+    depth = [(t, root / r[1]) for t, r in _read_list(root / "depth.txt", 2)]
     if not (root / "rgb.txt").exists():
         return [(t, None, d) for t, d in depth]  # depth only
     from .sync import associate
 
-    rgb = [(_seconds_to_ns(t), root / p) for t, p in _read_list(root / "rgb.txt", 2)]
+    rgb = [(t, root / r[1]) for t, r in _read_list(root / "rgb.txt", 2)]
     pairs = associate([t for t, _ in rgb], [t for t, _ in depth], max_difference=max_dt_ns)
     return [(rgb[i][0], rgb[i][1], depth[j][1]) for i, j in pairs]
 
@@ -267,8 +289,10 @@ def _pair_by_key(
     colors: dict[str, Path] | None,
     depths: dict[str, Path],
     what: str,
+    rule: str = "a color file of the same name but for its kind (or give a depth-only folder)",
 ) -> tuple[list[Path] | None, list[Path]]:
-    """Depth files and their color files, matched by key and sorted by depth file name."""
+    """Depth files and their color files, matched by key and sorted by depth file name;
+    ``rule`` says, in the error for a file without its partner, what a partner is."""
     keys = sorted(depths, key=lambda k: depths[k].name)
     if colors is None:
         return None, [depths[k] for k in keys]
@@ -277,8 +301,7 @@ def _pair_by_key(
     if alone:
         raise InputError(
             f"{str(root)!r}: {len(alone)} file(s) have no partner among the {what}, such as "
-            f"{alone[0]!r}; every depth file needs a color file of the same name but for its "
-            "kind (or give a depth-only folder)"
+            f"{alone[0]!r}; every depth file needs {rule}"
         )
     return [colors[k] for k in keys], [depths[k] for k in keys]
 
@@ -287,27 +310,50 @@ def _flat_files(root: Path) -> tuple[list[Path] | None, list[Path]] | None:
     """The flat layout's files (files named *depth* and *rgb*/*color*), or None if none."""
     depths: dict[str, Path] = {}
     colors: dict[str, Path] = {}
+
+    def add(found: dict[str, Path], key: str, p: Path) -> None:
+        if key in found:  # frame_1_depth.png and frame_1_depth.tiff: which one is the frame?
+            raise InputError(
+                f"{str(root)!r}: {found[key].name!r} and {p.name!r} are the same frame's "
+                "files; keep one, or pick files with depth_pattern= and color_pattern="
+            )
+        found[key] = p
+
     for p in _files(root, _DEPTH_SUFFIXES + _IMAGE_SUFFIXES):
         key = _flat_key(_FLAT_DEPTH, p)
         if key is not None and p.suffix.lower() in _DEPTH_SUFFIXES:
-            depths[key] = p
+            add(depths, key, p)
         elif p.suffix.lower() in _IMAGE_SUFFIXES and (key := _flat_key(_FLAT_COLOR, p)):
-            colors[key] = p
+            add(colors, key, p)
     if not depths:
         return None
     return _pair_by_key(root, colors or None, depths, "*depth* and *rgb*/*color* files")
 
 
 def _glob_key(pattern: str) -> re.Pattern[str]:
-    """A regex whose groups are what the wildcards of a glob pattern match."""
+    """A regex whose groups are what the wildcards of a glob pattern match (``*``, ``?`` and
+    ``[...]`` classes, ``[!...]`` negated; a ``[`` without its ``]`` is itself)."""
     parts = []
-    for ch in pattern:
+    i = 0
+    while i < len(pattern):
+        ch = pattern[i]
         if ch == "*":
             parts.append("(.*)")
         elif ch == "?":
             parts.append("(.)")
+        elif ch == "[":
+            start = i + 2 if pattern[i + 1 : i + 2] == "!" else i + 1
+            end = pattern.find("]", start + 1)  # a "]" first in the class is one of its chars
+            if end < 0:
+                parts.append(re.escape(ch))
+            else:
+                # fnmatch's own regex for the class, "(?s:[...])\\Z", as a group
+                regex = fnmatch.translate(pattern[i : end + 1])
+                parts.append("(" + regex.removeprefix("(?s:").removesuffix(")\\Z") + ")")
+                i = end
         else:
             parts.append(re.escape(ch))
+        i += 1
     return re.compile("".join(parts) + r"\Z")
 
 
@@ -335,7 +381,13 @@ def _pattern_files(
     if colors is not None and not colors:
         raise InputError(f"{str(root)!r} holds no file matching color_pattern {color_pattern!r}")
     return _pair_by_key(
-        root, colors, depths, f"files matching {depth_pattern!r} and {color_pattern!r}"
+        root,
+        colors,
+        depths,
+        f"files matching {depth_pattern!r} and {color_pattern!r}",
+        "a color file whose wildcards match the same text (with 'depth/d*.png' and "
+        "'rgb/c*.png', depth/d001.png pairs with rgb/c001.png), or no color_pattern for "
+        "depth only",
     )
 
 
@@ -424,10 +476,11 @@ def read_camera_json(path: str | os.PathLike[str]) -> dict[str, Any]:
 
     A ``camera.json`` holding only ``depth_scale`` beside another intrinsics file is fine: the
     camera then comes from that file. Returns a dict: ``"camera"`` (the depth camera's keys
-    given, as a dict; empty when none), ``"depth_scale"`` (float or ``None``), ``"color"`` and
-    ``"depth_to_color"`` (as given, or ``None``). Raises :class:`~pcdcodec.InputError` for a
-    file that is not a JSON object, unknown keys, an incomplete camera or a bad depth scale,
-    naming the file.
+    given, as a dict; empty when none), ``"depth_scale"`` (float or ``None``), ``"color"`` (as
+    given, or ``None``) and ``"depth_to_color"`` (a 4 × 4 float64 array, or ``None``).
+    Raises :class:`~pcdcodec.InputError` for a file that is not a JSON object, unknown keys,
+    an incomplete camera, a color camera without its size, a depth_to_color that is not 16
+    numbers or a bad depth scale, naming the file.
     """
     p = Path(path)
     try:
@@ -458,6 +511,22 @@ def read_camera_json(path: str | os.PathLike[str]) -> dict[str, Any]:
             f"{str(p)!r}: color must be a dict of the color camera's keys (width, height, fx, "
             f"fy, cx, cy), got {data['color']!r}"
         )
+    color = data.get("color")
+    if color is not None:
+        unsized = [k for k in ("width", "height") if k not in color]
+        if unsized:
+            raise InputError(
+                f"{str(p)!r}: color gives no {' or '.join(unsized)}; the color camera needs "
+                "its image size (width and height, pixels)"
+            )
+    d2c = data.get("depth_to_color")
+    if d2c is not None:
+        if isinstance(d2c, str):  # in camera.json the matrix itself, not a file name
+            raise InputError(
+                f"{str(p)!r}: depth_to_color must be a 4x4 matrix (16 numbers, row-major), "
+                f"got {d2c!r}"
+            )
+        d2c = _as_transform(d2c, f"{str(p)!r}: depth_to_color")
     scale = data.get("depth_scale")
     if scale is not None:
         if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not scale > 0:
@@ -469,8 +538,8 @@ def read_camera_json(path: str | os.PathLike[str]) -> dict[str, Any]:
     return {
         "camera": {k: data[k] for k in data if k not in ("depth_scale", "color", "depth_to_color")},
         "depth_scale": scale,
-        "color": data.get("color"),
-        "depth_to_color": data.get("depth_to_color"),
+        "color": color,
+        "depth_to_color": d2c,
     }
 
 
@@ -866,12 +935,17 @@ def write_folder(
     clouds: tuple[str, ...] = (),
     overwrite: bool = False,
     progress: Any = None,
+    color_intrinsics: CameraIntrinsics | None = None,
+    depth_to_color: Any = None,
 ) -> int:
     """Write frames as a TUM RGB-D folder that :func:`load_folder` reads back.
 
     ``rgb/NNNNNN.png`` (8-bit RGB), ``depth/NNNNNN.png`` (16-bit depth units; float32 depth as
-    ``.tiff`` metres), ``rgb.txt`` and ``depth.txt`` with the timestamps in seconds, and
-    ``camera.json`` (intrinsics and depth scale) when ``intrinsics`` is given. ``clouds`` names
+    ``.tiff`` metres), ``rgb.txt`` and ``depth.txt`` with the timestamps in seconds (no
+    ``rgb/`` and ``rgb.txt`` when no frame has color: a depth-only folder), and
+    ``camera.json`` (intrinsics and depth scale) when ``intrinsics`` is given, with the color
+    camera of color not registered to depth (``color_intrinsics``, and ``depth_to_color``,
+    the 4 × 4 transform in metres) as ``color`` and ``depth_to_color``. ``clouds`` names
     point-cloud formats to write per frame into ``clouds/`` (``"ply"``, ``"pcd"``; the frames
     need a projector, as frames of a recording have). The folder is written beside its target
     and moved into place when complete; an existing non-empty folder needs ``overwrite``.
@@ -924,10 +998,19 @@ def write_folder(
             count = i + 1
             if progress is not None:
                 progress(count)
-        (tmp / "rgb.txt").write_text("\n".join(rgb_list) + "\n")
+        if len(rgb_list) > 2:
+            (tmp / "rgb.txt").write_text("\n".join(rgb_list) + "\n")
+        else:  # no color: depth.txt alone reads back as a depth-only folder
+            (tmp / "rgb").rmdir()
         (tmp / "depth.txt").write_text("\n".join(depth_list) + "\n")
         if intrinsics is not None:
-            camera = {**intrinsics.to_dict(), "depth_scale": depth_scale}
+            camera: dict[str, Any] = {**intrinsics.to_dict(), "depth_scale": depth_scale}
+            if color_intrinsics is not None:
+                camera["color"] = color_intrinsics.to_dict()
+                if depth_to_color is not None:
+                    camera["depth_to_color"] = _as_transform(
+                        depth_to_color, "depth_to_color"
+                    ).tolist()
             (tmp / "camera.json").write_text(json.dumps(camera, indent=2) + "\n")
         if not out.exists():
             os.replace(tmp, out)

@@ -795,3 +795,162 @@ def test_archive_input_options_and_cli_words(
     assert "camera=" not in text
     with pytest.raises(pcdcodec.InputError, match="not one of the inputs"):
         archive([a], tmp_path / "o3", input_options={tmp_path / "zz": {}}, progress=False)
+
+
+def test_cli_archive_input_camera_bare_matrix_for_a_bag(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--input-camera BAG=K.txt`` with a bare 3x3 matrix: the bag's depth gives the size, as
+    a folder's does (it used to fail with "intrinsics dict must be a mapping, got str")."""
+    from pcdcodec.cli import main
+
+    from .test_rosbag import _image, _small, _store, write_bag
+
+    store = _store(False)
+    frames = _small(2)
+    messages = [
+        ("/cam/depth/image_raw", 10**9 + i, _image(store, False, 10**9 + i, d, "16UC1"))
+        for i, (_, d) in enumerate(frames)
+    ]
+    (tmp_path / "in").mkdir()
+    bag = write_bag(tmp_path / "in" / "cam.bag", messages, store=store)
+    k = tmp_path / "K.txt"
+    k.write_text("150 0 80\n0 151 60\n0 0 1\n")
+    out = tmp_path / "out"
+    args = ["archive", str(bag), "-o", str(out), "--workers", "1", "--threads", "-q"]
+    assert main([*args, "--input-camera", f"{bag}={k},depth_scale=5000", "--json"]) == 0
+    item = json.loads(capsys.readouterr().out)["items"][0]
+    assert item["error"] is None
+    with pcdcodec.open(out / "cam.pcdc") as rec:
+        cam = rec.intrinsics
+        assert (cam.width, cam.height, cam.fx, cam.fy) == (160, 120, 150, 151)
+        assert rec.depth_scale == 5000
+
+
+@pytest.mark.parametrize("scale", ["x", [1000], float("inf"), float("nan"), 0, True])
+def test_archive_default_depth_scale_must_be_a_positive_number(tmp_path: Path, scale: Any) -> None:
+    """A default depth scale that is no number raised ValueError/TypeError; an infinite one was
+    taken (and compared with every input's)."""
+    a = make_input(tmp_path / "a", 0, 2)
+    with pytest.raises(pcdcodec.InputError, match="depth_scale must be a positive finite number"):
+        archive([a], tmp_path / "out", source_options={"depth_scale": scale}, progress=False)
+
+
+def test_cli_archive_intrinsics_bare_matrix_says_what_to_do(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``archive --intrinsics K.txt`` with a bare matrix: the error names the flag and the ways
+    that work, not "give width and height", which no archive flag can."""
+    from pcdcodec.cli import main
+
+    a = make_input(tmp_path / "a", 0, 2)
+    k = tmp_path / "K.txt"
+    k.write_text("500 0 320\n0 500 240\n0 0 1\n")
+    args = ["archive", str(a), "-o", str(tmp_path / "out"), "-q", "--intrinsics", str(k)]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "give width and height" not in err
+    assert f"--intrinsics {str(k)!r} is a camera matrix without the image size" in err
+    assert f"--input-camera INPUT={k}" in err
+    # A file that is no camera keeps its own error.
+    k.write_text("not a camera\n")
+    assert main(args) == 1
+    assert "without the image size" not in capsys.readouterr().err
+
+
+def test_a_folder_of_bags_with_a_depth_named_image_is_searched(tmp_path: Path) -> None:
+    """runs/ holding bags and a depth_preview.png: the bags are the inputs. The folder was
+    taken as a one-frame depth-only image folder, and the bags in it were never archived."""
+    import imagecodecs
+
+    from pcdcodec.archive import find_inputs
+    from pcdcodec.sources.base import detect_kind
+
+    from .test_rosbag import _image, _small, _store, write_bag
+
+    store = _store(False)
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    frames = _small(1)
+    for name in ("a.bag", "b.bag"):
+        msg = _image(store, False, 10**9, frames[0][1], "16UC1")
+        write_bag(runs / name, [("/cam/depth/image_raw", 10**9, msg)], store=store)
+    (runs / "depth_preview.png").write_bytes(imagecodecs.png_encode(frames[0][1]))
+    assert detect_kind(runs) is None
+    found = find_inputs([runs])
+    assert [(p.name, out) for p, out in found] == [
+        ("a.bag", "runs/a.pcdc"),
+        ("b.bag", "runs/b.pcdc"),
+    ]
+    # The same with a depth/ folder of previews.
+    (runs / "depth_preview.png").unlink()
+    (runs / "depth").mkdir()
+    (runs / "depth" / "0000.png").write_bytes(imagecodecs.png_encode(frames[0][1]))
+    assert detect_kind(runs) is None
+    assert [p.name for p, _ in find_inputs([runs])] == ["a.bag", "b.bag"]
+    # With color beside depth it is an RGB-D folder whatever else it holds, as before.
+    (runs / "rgb").mkdir()
+    assert detect_kind(runs) == "folder"
+    # Without the bags, depth alone is a depth-only folder.
+    shutil.rmtree(runs / "rgb")
+    for name in ("a.bag", "b.bag"):
+        (runs / name).unlink()
+    assert detect_kind(runs) == "folder"
+
+
+@pytest.mark.parametrize(
+    ("spec", "expected"),
+    [
+        ("{a}=tum-ros,depth_scale=-5", "depth_scale must be a positive number"),
+        ("{a}=tum-ros,depth_scale=inf", "depth_scale must be a positive number"),
+        ("{a}=tum-ros,depth_scale=abc", "depth_scale must be a positive number"),
+        ("{other}=tum-ros", "--input-camera names"),
+    ],
+)
+def test_cli_archive_input_camera_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], spec: str, expected: str
+) -> None:
+    """A scale that is no positive number is refused before anything is encoded (it was
+    listed as the input's scale, then failed); an input not given names the flag, not
+    input_options."""
+    from pcdcodec.cli import main
+
+    a = make_input(tmp_path / "a", 0, 2)
+    arg = spec.format(a=a, other=tmp_path / "other")
+    out = tmp_path / "out"
+    args = ["archive", str(a), "-o", str(out), "--workers", "1", "--threads", "-q"]
+    assert main([*args, "--input-camera", arg]) == 1
+    err = capsys.readouterr().err
+    assert expected in err
+    assert "input_options" not in err
+    assert not (out / "a.pcdc").exists()
+
+
+def test_delete_source_removes_links_not_their_targets(tmp_path: Path) -> None:
+    """A linked folder input failed to be deleted ("Cannot call rmtree on a symbolic link"),
+    while a linked file had its link removed; both now remove the link and keep the target.
+    A source that could not be deleted is said in the text summary (it was in JSON only)."""
+    from pcdcodec.archive import ArchiveItem, ArchiveSummary
+
+    real = tmp_path / "real"
+    folder = make_input(real / "take", 0, 2)
+    links = tmp_path / "links"
+    links.mkdir()
+    (links / "take").symlink_to(folder, target_is_directory=True)
+    summary = archive(
+        [links / "take"],
+        tmp_path / "out",
+        delete_source_after_verify=True,
+        workers=1,
+        processes=False,
+        progress=False,
+    )
+    (item,) = summary.items
+    assert (item.state, item.error) == ("source-deleted", None)
+    assert not (links / "take").exists()
+    assert not (links / "take").is_symlink()
+    assert folder.is_dir()
+    assert any(folder.iterdir())  # the linked-to data is kept
+    kept = ArchiveItem("a", "out/a.pcdc", "verified", error="verified, but the source could not")
+    text = ArchiveSummary([kept], 1.0, 1).to_text()
+    assert "WARNING a: verified, but the source could not" in text

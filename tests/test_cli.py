@@ -264,3 +264,86 @@ def test_encode_into_a_missing_folder_names_the_folder(tmp_path: Path) -> None:
     assert out.returncode != 0
     assert f"create {str(tmp_path / 'nope')!r} first" in out.stderr
     assert "partial" not in out.stderr
+
+
+def test_decode_keeps_a_color_camera_and_depth_only_readable(tmp_path: Path) -> None:
+    """A decoded folder encodes again when the recording had a color camera of its own (its
+    camera.json left it out, and the folder was refused as unregistered color) or no color
+    (an empty rgb.txt made it a folder with no pairs)."""
+    from pcdcodec.cli import main
+
+    seq = load_sample(max_frames=2)
+    color_cam = pcdcodec.CameraIntrinsics(320, 240, 260.0, 261.0, 160.0, 120.0)
+    d2c = np.eye(4)
+    d2c[:3, 3] = (0.025, -0.001, 0.003)
+    two = tmp_path / "two.pcdc"
+    with pcdcodec.open(
+        two,
+        "w",
+        intrinsics=seq.intrinsics,
+        depth_scale=seq.depth_scale,
+        color_intrinsics=color_cam,
+        depth_to_color=d2c,
+    ) as rec:
+        for f in seq:
+            rec.write(f.color[::2, ::2].copy(), f.depth, f.timestamp_ns)
+    alone = tmp_path / "alone.pcdc"
+    with pcdcodec.open(
+        alone, "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale, color=None
+    ) as rec:
+        for f in seq:
+            rec.write(None, f.depth, f.timestamp_ns)
+    for name in ("two", "alone"):
+        out = tmp_path / name
+        assert main(["decode", str(tmp_path / f"{name}.pcdc"), "-o", str(out), "-q"]) == 0
+        source = pcdcodec.open_source(out)
+        with source:
+            frames = list(source)
+        assert len(frames) == 2
+        for got, want in zip(frames, seq, strict=True):
+            np.testing.assert_array_equal(got.depth, want.depth)
+        if name == "two":
+            assert source.color_intrinsics == color_cam
+            np.testing.assert_array_equal(source.depth_to_color, d2c)
+            assert frames[0].color is not None
+            assert frames[0].color.shape == (240, 320, 3)
+        else:
+            assert not source.has_color
+            assert frames[0].color is None
+            assert not (out / "rgb.txt").exists()
+
+
+def test_folder_flags_on_a_bag_are_named_as_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--depth-only on a bag was refused as "--color apply to RGB-D folders", a flag not
+    given (and another flag's name)."""
+    from pcdcodec.cli import main
+
+    from .test_rosbag import _image, _small, _store, write_bag
+
+    store = _store(False)
+    depth = _small(1)[0][1]
+    bag = write_bag(
+        tmp_path / "a.bag",
+        [("/cam/depth/image_raw", 10**9, _image(store, False, 10**9, depth, "16UC1"))],
+        store=store,
+    )
+    assert main(["info", str(bag), "--depth-only"]) == 1
+    err = capsys.readouterr().err
+    assert "--depth-only apply to RGB-D folders" in err
+    assert "--color-topic ''" in err
+    assert "--color " not in err
+
+
+def test_info_on_a_recording_refuses_input_flags(
+    encoded: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """info REC.pcdc --camera tum-ros --depth-scale 5000 printed the recording's own camera
+    and scale, silently ignoring both flags."""
+    from pcdcodec.cli import main
+
+    assert main(["info", str(encoded), "--camera", "tum-ros", "--depth-scale", "5000"]) == 1
+    err = capsys.readouterr().err
+    assert "--camera --depth-scale describe how to read an input" in err
+    assert main(["info", str(encoded)]) == 0

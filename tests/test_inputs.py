@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -312,3 +313,146 @@ def test_no_pairs_error_says_what_was_looked_for(tmp_path: Path) -> None:
     (tmp_path / "other" / "a.png").write_bytes(b"")
     with pytest.raises(pcdcodec.InputError, match=r"not an RGB-D folder.*\.npy"):
         load_folder(tmp_path / "other")
+
+
+def test_camera_recordings_take_an_intrinsics_file(tmp_path: Path) -> None:
+    """``intrinsics=`` as a file for a RealSense .bag: read, a bare matrix at the recorded depth
+    camera's size (it used to be kept as the path string)."""
+    from .test_rosbag import RS_BAG
+
+    if not RS_BAG.is_file():
+        pytest.skip(f"{RS_BAG} is not present")
+    k = tmp_path / "K.txt"
+    k.write_text("400 0 320\n0 401 240\n0 0 1\n")
+    with pcdcodec.open_source(RS_BAG, intrinsics=str(k)) as src:
+        cam = src.intrinsics
+        assert isinstance(cam, pcdcodec.CameraIntrinsics)
+        assert (cam.width, cam.height, cam.fx, cam.fy) == (640, 480, 400.0, 401.0)
+        assert src.intrinsics_origin == "given"
+    with pytest.raises(pcdcodec.InputError, match="does not exist"):
+        pcdcodec.open_source(RS_BAG, intrinsics=str(tmp_path / "none.txt"))
+
+
+@pytest.mark.parametrize(
+    ("listing", "stamp", "expected"),
+    [
+        ("rgb.txt", "12x.5", r"rgb\.txt:\d+: timestamp '12x\.5' is not seconds"),
+        ("depth.txt", "-1.5", r"depth\.txt:\d+: timestamp '-1\.5' is not seconds"),
+        ("depth.txt", "0.000001", r"depth\.txt:\d+: timestamp 0\.000001 is not after"),
+    ],
+)
+def test_tum_lists_with_bad_times_are_refused_naming_the_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], listing: str, stamp: str, expected: str
+) -> None:
+    """A TUM list's time that is not decimal seconds (it raised ValueError), or that does not
+    increase (an error naming no file, from the pairing), names the list and its line."""
+    from pcdcodec.cli import main
+    from pcdcodec.datasets import write_folder
+
+    root = tmp_path / "seq"
+    write_folder(load_sample(max_frames=3), root, depth_scale=5000.0)
+    path = root / listing
+    lines = path.read_text().splitlines()
+    data = [i for i, line in enumerate(lines) if line and not line.startswith("#")]
+    i = data[-1]  # the last frame: a later one with an earlier time
+    lines[i] = " ".join([stamp, *lines[i].split()[1:]])
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(pcdcodec.InputError, match=expected):
+        pcdcodec.open_source(root, depth_scale=5000.0)
+    assert main(["info", str(root), "--depth-scale", "5000"]) == 1
+    err = capsys.readouterr().err
+    assert re.search(expected, err), err
+    if "not after" in expected:
+        assert "--depth-pattern and --color-pattern" in err
+
+
+def test_name_patterns_with_character_classes(tmp_path: Path) -> None:
+    """``[...]`` in a name pattern is a glob wildcard, paired by what it matches (files the glob
+    found were dropped as matching nothing: "holds no file matching")."""
+    from pcdcodec.datasets import write_folder
+
+    root = tmp_path / "seq"
+    write_folder(load_sample(max_frames=4), root, depth_scale=5000.0)
+    (root / "rgb.txt").unlink()
+    (root / "depth.txt").unlink()
+    depth_names = sorted(p.name for p in (root / "depth").iterdir())
+    src = pcdcodec.open_source(
+        root,
+        depth_pattern="depth/00000[0-2].png",
+        color_pattern="rgb/00000[!3-9].png",
+        depth_scale=5000.0,
+        intrinsics=pcdcodec.camera.camera_preset("tum-ros").intrinsics,
+    )
+    with src:
+        frames = list(src)
+    assert depth_names[:4] == ["000000.png", "000001.png", "000002.png", "000003.png"]
+    assert len(frames) == 3
+    seq = load_sample(max_frames=3)
+    for got, want in zip(frames, seq, strict=True):
+        assert (got.depth == want.depth).all()
+        assert (got.color == want.color).all()
+
+
+def test_name_patterns_without_partners_say_how_patterns_pair(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Patterns whose wildcards match other text: the error says what pairs them (it spoke of
+    "the same name but for its kind", the flat layout's rule)."""
+    from pcdcodec.datasets import write_folder
+
+    root = tmp_path / "seq"
+    write_folder(load_sample(max_frames=2), root, depth_scale=5000.0)
+    for p in (root / "rgb").iterdir():
+        p.rename(p.with_name("rgb" + p.name))
+    with pytest.raises(pcdcodec.InputError, match="no partner") as err:
+        pcdcodec.open_source(
+            root, depth_pattern="depth/*.png", color_pattern="rgb/*.png", depth_scale=5000.0
+        )
+    assert "whose wildcards match the same text" in str(err.value)
+    assert "same name but for its kind" not in str(err.value)
+    # The command line names its flags.
+    from pcdcodec.cli import main
+
+    flags = ["--depth-pattern", "depth/*.png", "--depth-scale", "5000"]
+    assert main(["info", str(root), *flags, "--color-pattern", "rgb/*.png"]) == 1
+    assert "or no --color-pattern for depth only" in capsys.readouterr().err
+    assert main(["info", str(root), *flags, "--color-pattern", "rgb/*.jpg"]) == 1
+    assert "holds no file matching --color-pattern 'rgb/*.jpg'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kind", ["depth", "rgb"])
+def test_flat_folder_with_two_files_for_one_frame_is_refused(tmp_path: Path, kind: str) -> None:
+    """frame_1_depth.png beside frame_1_depth.tiff: one of them was kept silently (the last
+    in name order), the other's data lost."""
+    import imagecodecs
+
+    root = tmp_path / "pcl"
+    root.mkdir()
+    for i, (color, depth) in enumerate(_sample_pairs()[:2]):
+        (root / f"frame_{i:06d}_depth.tiff").write_bytes(imagecodecs.tiff_encode(depth))
+        (root / f"frame_{i:06d}_rgb.tiff").write_bytes(imagecodecs.tiff_encode(color))
+    other = _sample_pairs()[2]
+    data = other[1] if kind == "depth" else other[0]
+    (root / f"frame_000001_{kind}.png").write_bytes(imagecodecs.png_encode(data))
+    with pytest.raises(
+        pcdcodec.InputError,
+        match=rf"'frame_000001_{kind}\.png' and 'frame_000001_{kind}\.tiff' are the same frame's",
+    ):
+        pcdcodec.open_source(root, depth_scale=5000.0)
+
+
+@pytest.mark.parametrize("scale", ["x", -1, 0, float("nan"), float("inf"), True])
+def test_open_source_refuses_a_depth_scale_that_is_no_positive_number(
+    tmp_path: Path, scale: object
+) -> None:
+    """depth_scale="x" raised ValueError from float(); -1, 0 and NaN were taken as the scale of
+    a folder (and of a bag) and failed only later, or never."""
+    from pcdcodec.datasets import write_folder
+    from pcdcodec.sources import CameraDefaults
+
+    root = tmp_path / "seq"
+    write_folder(load_sample(max_frames=1), root, depth_scale=5000.0)
+    with pytest.raises(pcdcodec.InputError, match="depth_scale must be"):
+        pcdcodec.open_source(root, depth_scale=scale)
+    with pytest.raises(pcdcodec.InputError, match="depth_scale must be"):
+        CameraDefaults(depth_scale=scale)  # type: ignore[arg-type]

@@ -360,3 +360,41 @@ def test_cli_color_camera_depth_only_and_patterns(
     for name, preset in CAMERA_PRESETS.items():
         assert name in listing
         assert f"{preset.intrinsics.fx:g}" in listing
+
+
+def test_camera_json_color_camera_and_transform_are_checked_naming_the_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A camera.json color camera without its size, or a depth_to_color that is not 16
+    numbers, is refused naming camera.json: the size was taken half from the images (a 640x960
+    camera for 640x480 images), and a string was read as a file relative to the working
+    directory, in errors that named no file."""
+    root = _plain_folder(tmp_path / "f", [0, 1], "intrinsics.K.txt")
+    color = {"fx": 600, "fy": 600, "cx": 320, "cy": 240}
+    cases = [
+        ({"color": {**color, "height": 480}}, r"camera\.json': color gives no width"),
+        ({"color": color}, r"camera\.json': color gives no width or height"),
+        (
+            {"color": {**color, "width": 640, "height": 480}, "depth_to_color": "d2c.txt"},
+            r"camera\.json': depth_to_color must be a 4x4 matrix",
+        ),
+        (
+            {"color": {**color, "width": 640, "height": 480}, "depth_to_color": [[1, 0], [0, 1]]},
+            r"camera\.json': depth_to_color must be a 4x4 matrix",
+        ),
+    ]
+    (tmp_path / "d2c.txt").write_text(" ".join(str(v) for v in np.eye(4).ravel()))
+    monkeypatch.chdir(tmp_path)  # where a file name in depth_to_color used to be looked for
+    for data, expected in cases:
+        (root / "camera.json").write_text(json.dumps({"depth_scale": 1000, **data}))
+        with pytest.raises(pcdcodec.InputError, match=expected):
+            open_folder(root)
+    # Complete, it is read: the transform as numbers.
+    moved = np.eye(4)
+    moved[0, 3] = 0.025
+    data = {"color": {**color, "width": 640, "height": 480}, "depth_to_color": moved.tolist()}
+    (root / "camera.json").write_text(json.dumps({"depth_scale": 1000, **data}))
+    source = open_folder(root)
+    assert source.color_intrinsics is not None
+    assert (source.color_intrinsics.width, source.color_intrinsics.fx) == (640, 600.0)
+    np.testing.assert_array_equal(source.depth_to_color, moved)

@@ -29,7 +29,7 @@ import numpy.typing as npt
 
 from ..camera import CameraIntrinsics
 from ..errors import DecodeError, InputError
-from .base import Source, read_magic, register_source
+from .base import Source, given_intrinsics, read_magic, register_source
 
 __all__ = ["DEPTH_MODES", "AzureKinectSource", "open_azure_kinect"]
 
@@ -362,7 +362,9 @@ class AzureKinectSource(Source):
         finally:
             container.close()
         if intrinsics is not None:
-            self.intrinsics = intrinsics
+            own = self.intrinsics  # a bare matrix takes the recorded depth camera's size
+            size = (own.width, own.height) if own is not None else (None, None)
+            self.intrinsics = given_intrinsics(intrinsics, *size)
 
     def _read_header(self, container: Any, name: str) -> None:
         where = repr(name)

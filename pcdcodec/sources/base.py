@@ -254,6 +254,29 @@ class CameraDefaults:
     #: where the depth scale came from, when not from ``origin`` (``"--depth-scale"``)
     depth_scale_origin: str | None = None
 
+    def __post_init__(self) -> None:
+        if self.depth_scale is not None:
+            from ..frame import _scale
+
+            object.__setattr__(self, "depth_scale", _scale(self.depth_scale))
+
+
+def given_intrinsics(value: Any, width: int | None, height: int | None) -> CameraIntrinsics:
+    """A reader's ``intrinsics`` option as a camera: a :class:`~pcdcodec.CameraIntrinsics`, a
+    dict of its :meth:`~pcdcodec.CameraIntrinsics.to_dict` keys, or an intrinsics file (see
+    :func:`~pcdcodec.camera.read_intrinsics`), whose bare 3 x 3 matrix takes the depth
+    images' ``width`` x ``height`` (pixels), as a folder's does.
+
+    Raises :class:`~pcdcodec.InputError` for a file that cannot be read or a bad dict.
+    """
+    from ..camera import CameraIntrinsics, read_intrinsics
+
+    if isinstance(value, CameraIntrinsics):
+        return value
+    if isinstance(value, (str, os.PathLike)):
+        return read_intrinsics(value, width, height)
+    return CameraIntrinsics.from_dict(value)
+
 
 def _camera_text(camera: CameraIntrinsics) -> str:
     return (
@@ -322,12 +345,17 @@ def open_source(
     ``options`` go to that reader (for example ``intrinsics``, ``depth_scale``, topics), and
     replace what the input says. ``defaults`` (:class:`CameraDefaults`) instead fill in only
     the camera or depth scale the input lacks. Raises :class:`~pcdcodec.InputError` when
-    ``path`` does not exist or no reader knows it.
+    ``path`` does not exist, no reader knows it, or ``depth_scale`` is not a positive finite
+    number.
     """
     _load_builtin()
     p = Path(path)
     if not p.exists():
         raise InputError(f"{str(p)!r} does not exist")
+    if options.get("depth_scale") is not None:
+        from ..frame import _scale
+
+        options["depth_scale"] = _scale(options["depth_scale"])  # every reader alike
     if kind is not None:
         if kind not in _KINDS:
             raise InputError(f"unknown source kind {kind!r}; known: {', '.join(_KINDS)}")

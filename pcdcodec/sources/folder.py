@@ -11,25 +11,45 @@ from .base import Source, register_source
 __all__: list[str] = []
 
 
-def _has_flat_depth(path: Path) -> bool:
-    """Whether the folder holds a depth file of the flat layout (``*depth*.png``, ...)."""
-    from ..datasets import _DEPTH_SUFFIXES, _FLAT_DEPTH
+def _flat_depth_and_others(path: Path) -> tuple[bool, list[str]]:
+    """Whether the folder holds a depth file of the flat layout (``*depth*.png``, ...), and its
+    other files that are not images (which may be bags or camera recordings)."""
+    from ..datasets import _DEPTH_SUFFIXES, _FLAT_DEPTH, _IMAGE_SUFFIXES
 
+    flat = False
+    others: list[str] = []
     try:
         with os.scandir(path) as entries:
             for e in entries:
                 stem, ext = os.path.splitext(e.name)
-                if ext.lower() in _DEPTH_SUFFIXES and _FLAT_DEPTH.match(stem) and e.is_file():
-                    return True
+                ext = ext.lower()
+                if ext in _DEPTH_SUFFIXES + _IMAGE_SUFFIXES:
+                    flat = flat or (
+                        ext in _DEPTH_SUFFIXES and bool(_FLAT_DEPTH.match(stem)) and e.is_file()
+                    )
+                elif e.is_file():
+                    others.append(e.path)
     except OSError:
-        return False
-    return False
+        return False, []
+    return flat, others
 
 
 def _is_folder(path: Path) -> bool:
-    return path.is_dir() and (
-        (path / "depth.txt").is_file() or (path / "depth").is_dir() or _has_flat_depth(path)
-    )
+    if not path.is_dir():
+        return False
+    if ((path / "rgb.txt").is_file() and (path / "depth.txt").is_file()) or (
+        (path / "depth").is_dir() and any((path / n).is_dir() for n in ("rgb", "color"))
+    ):
+        return True  # color and depth: an RGB-D folder whatever else it holds
+    # Depth alone (depth.txt, depth/, or files named *depth*) is an RGB-D folder only beside no
+    # other input: a folder of bags with a depth/ of previews or a depth_preview.png is a
+    # folder of bags, to be searched, not frames of depth.
+    flat, others = _flat_depth_and_others(path)
+    if not (flat or (path / "depth.txt").is_file() or (path / "depth").is_dir()):
+        return False
+    from .base import detect_kind
+
+    return not any(detect_kind(f) is not None for f in others)
 
 
 def _open(path: Path, **options: Any) -> Source:

@@ -32,7 +32,7 @@ import numpy.typing as npt
 
 from ..camera import CameraIntrinsics
 from ..errors import DecodeError, InputError, PcdcodecError
-from .base import FrameIndex, Source, read_magic, register_source
+from .base import FrameIndex, Source, given_intrinsics, read_magic, register_source
 
 __all__ = ["RealSenseBagSource", "open_realsense"]
 
@@ -202,7 +202,9 @@ class RealSenseBagSource(Source):
         finally:
             reader.close()
         if intrinsics is not None:
-            self.intrinsics = intrinsics
+            own = self.intrinsics  # a bare matrix takes the recorded depth camera's size
+            size = (own.width, own.height) if own is not None else (None, None)
+            self.intrinsics = given_intrinsics(intrinsics, *size)
 
     def _deserialize(self, raw: bytes, conn: Any) -> Any:
         """A message of ``conn``, or a :class:`~pcdcodec.DecodeError` naming the file and topic."""

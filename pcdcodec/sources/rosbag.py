@@ -34,7 +34,7 @@ import numpy as np
 
 from ..errors import DecodeError, InputError, PcdcodecError
 from . import _rosmsg as rm
-from .base import FrameIndex, Source, read_magic, register_source
+from .base import FrameIndex, Source, given_intrinsics, read_magic, register_source
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
 
@@ -304,8 +304,6 @@ class RosbagSource(Source):
         intrinsics: Any,
         depth_scale: float | None,
     ) -> None:
-        from ..camera import CameraIntrinsics
-
         no_color = color_topic is not None and color_topic.strip().lower() in ("", "none")
         if no_color:
             color_topic = ""
@@ -433,11 +431,7 @@ class RosbagSource(Source):
             if infos and (len(infos) == 1 or _affinity(infos[0].topic, anchor) > (0, 0)):
                 info_topic = infos[0].topic
         if intrinsics is not None:
-            self.intrinsics = (
-                intrinsics
-                if isinstance(intrinsics, CameraIntrinsics)
-                else (CameraIntrinsics.from_dict(intrinsics))
-            )
+            self.intrinsics = given_intrinsics(intrinsics, width, height)
         elif info_topic:
             iconn = self._conn(info_topic, "camera info")
             if iconn.msgtype != CAMERA_INFO:
