@@ -685,7 +685,7 @@ def test_a_bad_frame_midway_leaves_no_output(tmp_path: Path) -> None:
         img = _image(store, True, NS + k * 1000, d, "16UC1")
         msgs.append(("/cam/depth/image_raw", NS + k, img))
     bag = write_bag(tmp_path / "b", msgs, ros2=True)
-    with pytest.raises(InputError, match=r"'/cam/depth/image_raw': the frame at .* is 80x60"):
+    with pytest.raises(InputError, match=r"'/cam/depth/image_raw': image is 80x60, expected 160x120.*at 1000002000 ns"):
         pcdcodec.encode(bag, tmp_path / "o.pcdc")
     assert not (tmp_path / "o.pcdc").exists()
 
