@@ -387,6 +387,8 @@ class RosbagSource(Source):
                     "CompressedImage"
                 )
             if cand.role != "depth":
+                if cand.note and rm.compressed_kind(cand.encoding) == "depth":
+                    raise DecodeError(cand.note)
                 enc = cand.encoding
                 raise InputError(
                     f"depth topic {depth_topic!r} has encoding {enc!r}; expected one of "
@@ -423,6 +425,8 @@ class RosbagSource(Source):
                 cconn = self._conn(color_topic, "color")
                 ccand = by_topic[color_topic]
                 if ccand.role != "color":
+                    if ccand.note and rm.compressed_kind(ccand.encoding) == "color":
+                        raise DecodeError(ccand.note)
                     raise InputError(
                         f"color topic {color_topic!r} has encoding {ccand.encoding!r}; expected "
                         f"one of {', '.join(rm.COLOR_ENCODINGS)} or a JPEG/PNG CompressedImage"
@@ -599,12 +603,14 @@ class RosbagSource(Source):
     def _emit(self, frames: Iterator[tuple[Any, Any, int]], limit: int | None) -> Iterator[Any]:
         from ..datasets import RGBDFrame
 
+        shape = self._shape
+        assert shape is not None  # set when the source opens
         for color, depth, ts in frames:
-            if depth.shape != self._shape:
+            if depth.shape != shape:
                 topic = self.depth_topic or self.cloud_topic
                 raise InputError(
                     f"topic {topic!r}: the frame at {ts} ns is {depth.shape[1]}x{depth.shape[0]}, "
-                    f"the first frame {self._shape[1]}x{self._shape[0]}"
+                    f"the first frame {shape[1]}x{shape[0]}"
                 )
             self.stats.frames += 1
             yield RGBDFrame(color, depth, ts)
