@@ -25,6 +25,8 @@ ROS2 = BAGS / "ros2-converted"
 RS_BAG = BAGS / "realsense" / "single_depth_color_640x480.bag"
 SPOT_DEPTH = "/spot/depth/frontleft/image"
 
+DEPTH_TOPIC = "/cam/depth/image_raw"
+
 needs_bags = pytest.mark.skipif(not SPOT.is_dir(), reason=f"{SPOT} is not present")
 
 NS = 1_000_000_000
@@ -1049,3 +1051,30 @@ def test_every_error_from_a_bag_names_the_bag(tmp_path: Path) -> None:
         list(src)
     assert str(bag) in str(err.value)
     assert "'/cam/depth/image_raw'" in str(err.value)
+
+
+@pytest.mark.parametrize("kind", [None, "rosbag"])
+def test_a_damaged_record_length_costs_no_gigabytes(tmp_path: Path, kind: str | None) -> None:
+    """A ROS 1 record header whose length field says 2 GiB: probing and opening the bag end in
+    an error naming it, without allocating what the length asks for."""
+    import tracemalloc
+
+    store = _store(False)
+    depth = _small(1)[0][1]
+    bag = write_bag(
+        tmp_path / "len.bag", [(DEPTH_TOPIC, NS, _image(store, False, NS, depth, "16UC1"))]
+    )
+    data = bytearray(bag.read_bytes())
+    pos = 13  # after the magic: the bag header record, then the first record after it
+    pos += 4 + struct.unpack_from("<I", data, pos)[0]
+    pos += 4 + struct.unpack_from("<I", data, pos)[0]
+    struct.pack_into("<I", data, pos, 0x7FFFFFF0)
+    bag.write_bytes(bytes(data))
+    tracemalloc.start()
+    try:
+        with pytest.raises(DecodeError, match=r"len\.bag"):
+            pcdcodec.open_source(bag, kind=kind)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 100_000_000

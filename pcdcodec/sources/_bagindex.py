@@ -12,13 +12,53 @@ messages logged at the same time.
 from __future__ import annotations
 
 import heapq
+import io
+import os
 import struct
 from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
 from typing import Any
 
 from ..errors import DecodeError, InputError
 
 COLUMNS = 5
+
+
+class _BoundedReader(io.BufferedReader):
+    """A file whose reads never ask for more than the bytes left in it.
+
+    A damaged length field in a bag (a 32-bit record or chunk size) makes its reader ask for up
+    to 4 GiB; Python allocates the whole request before reading. Capped at what the file holds,
+    a damaged length costs at most the file's size and ends in the reader's own error.
+    """
+
+    def __init__(self, raw: io.FileIO) -> None:
+        super().__init__(raw)
+        self._size = os.fstat(raw.fileno()).st_size
+
+    def read(self, size: int | None = -1, /) -> bytes:
+        if size is not None and size > 0:
+            size = min(size, max(0, self._size - self.tell()))
+            if size == 0:
+                return b""
+        return super().read(size)
+
+
+class _BoundedPath(type(Path())):  # type: ignore[misc]
+    """A path whose binary reads are :class:`_BoundedReader` (rosbags opens bags through the
+    path it is given, and paths derived from it)."""
+
+    def open(self, mode: str = "r", *args: Any, **kwargs: Any) -> Any:
+        if mode == "rb" and not args and not kwargs:
+            return _BoundedReader(io.FileIO(self, "rb"))
+        return super().open(mode, *args, **kwargs)
+
+
+def bounded_path(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a :class:`~pathlib.Path` that rosbags' readers open as a
+    :class:`_BoundedReader`: pass it to ``rosbags.rosbag1.Reader`` or ``AnyReader`` so a damaged
+    length field cannot make them allocate gigabytes."""
+    return _BoundedPath(path)
 
 
 def stamp_value(sec: int, nanosec: int, where: str) -> int:

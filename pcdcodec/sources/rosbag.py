@@ -226,19 +226,31 @@ class RosbagSource(Source):
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
 
+        from . import _bagindex
+
         p = self.path
         if not p.exists():
             raise InputError(f"bag {str(p)!r} does not exist")
         target = p
-        if p.is_file() and not read_magic(p).startswith(ROS1_MAGIC):
-            # A single ROS 2 storage file: rosbags picks the storage by suffix.
-            suffix = ".db3" if read_magic(p).startswith(SQLITE_MAGIC) else ".mcap"
+        if p.is_file():
+            # rosbags picks ROS 1 or the ROS 2 storage by the file's suffix.
+            head = read_magic(p)
+            suffix = (
+                ".bag"
+                if head.startswith(ROS1_MAGIC)
+                else ".db3"
+                if head.startswith(SQLITE_MAGIC)
+                else ".mcap"
+            )
             if p.suffix != suffix:
                 self._tmp = tempfile.TemporaryDirectory(prefix="pcdcodec-bag-")
                 target = Path(self._tmp.name) / f"bag{suffix}"
                 target.symlink_to(p.resolve())
-        reader = AnyReader([target], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
         try:
+            reader = AnyReader(
+                [_bagindex.bounded_path(target)],
+                default_typestore=get_typestore(Stores.ROS2_HUMBLE),
+            )
             reader.open()
         except Exception as exc:
             raise _wrap(exc, p) from exc
