@@ -1078,3 +1078,15 @@ def test_a_damaged_record_length_costs_no_gigabytes(tmp_path: Path, kind: str | 
     finally:
         tracemalloc.stop()
     assert peak < 100_000_000
+
+
+def test_a_ros1_bag_opens_whatever_its_file_name(tmp_path: Path) -> None:
+    store = _store(False)
+    depth = _small(1)[0][1]
+    bag = write_bag(
+        tmp_path / "a.bag", [(DEPTH_TOPIC, NS, _image(store, False, NS, depth, "16UC1"))]
+    )
+    renamed = tmp_path / "recording.dat"
+    shutil.copy(bag, renamed)
+    with pcdcodec.open_source(renamed) as src:
+        assert np.array_equal(next(iter(src)).depth, depth)
