@@ -8,7 +8,7 @@ stamp) or the written file's bytes, and the mutant is read through every view of
 topic: opened, iterated, indexed, and a stretch read alone. A case fails on an exception outside
 pcdcodec's tree, an error that does not name the bag, data that differs where the change could
 not alter it, an index that disagrees with iteration, a traced memory peak over the bound set by
-the declared camera, or a hang (``--timeout``; the stacks of all threads are printed).
+the declared camera (``--memory``), or a hang (``--timeout``; the stacks of all threads are printed).
 
     python scripts/fuzz_bags.py --cases 3000 --seed 1 --jobs 2 --out bag-fuzz-out
 
@@ -45,9 +45,9 @@ def _init(formats: list[str], work: str) -> None:
         _cleans[fmt] = make_clean(fmt, _work)
 
 
-def _run(job: tuple[str, int, int, float]) -> tuple[str, int, str, str, str]:
-    fmt, seed, case, timeout = job
-    result = run_case(_cleans[fmt], seed, case, _work, timeout=timeout)
+def _run(job: tuple[str, int, int, float, str]) -> tuple[str, int, str, str, str]:
+    fmt, seed, case, timeout, memory = job
+    result = run_case(_cleans[fmt], seed, case, _work, timeout=timeout, memory=memory)
     kind = result.detail.split(" ")[5] if result.detail.count(" ") > 5 else "?"
     return fmt, case, kind, result.outcome, result.detail
 
@@ -61,6 +61,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="worker processes")
     parser.add_argument("--timeout", type=float, default=60.0, help="seconds before a hang")
     parser.add_argument("--out", type=Path, help="where the summary goes")
+    parser.add_argument(
+        "--memory",
+        choices=("limit", "trace"),
+        default="limit",
+        help="cap the address space while reading (fast) or trace every allocation (slow)",
+    )
     args = parser.parse_args(argv)
     formats = args.formats.split(",")
     unknown = [f for f in formats if f not in FORMATS]
@@ -71,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="pcdcodec-bagfuzz-work-"))
     jobs = [
-        (fmt, args.seed, k, args.timeout)
+        (fmt, args.seed, k, args.timeout, args.memory)
         for k in range(args.first, args.first + args.cases)
         for fmt in formats
     ]

@@ -22,13 +22,15 @@ read on its own, and the outcome classified:
 and failures: ``FOREIGN-EXCEPTION`` (anything outside pcdcodec's tree), ``UNNAMED-ERROR`` (an
 error not naming the bag), ``WRONG-DATA`` (frames, timestamps or camera differing where the
 mutation could not change them, or frames of the wrong size or type), ``INDEX-MISMATCH`` (the
-frame index or a stretch read alone disagreeing with iteration), ``MEMORY`` (a traced peak above
-:func:`memory_bound`, which follows the declared camera) and hangs (a watchdog stops the
-process). Everything is seeded: case ``k`` of seed ``s`` is the same mutation on every run.
+frame index or a stretch read alone disagreeing with iteration), ``MEMORY`` (an allocation
+past :func:`memory_bound`, which follows the declared camera: the address space is capped there
+while a view reads, or with ``memory="trace"`` every allocation is traced) and hangs (a watchdog
+stops the process). Everything is seeded: case ``k`` of seed ``s`` is the same mutation on every run.
 """
 
 from __future__ import annotations
 
+import contextlib
 import contextlib
 import copy
 import functools
@@ -38,7 +40,7 @@ import shutil
 import struct
 import tracemalloc
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -247,34 +249,78 @@ class Reading:
 
 
 def memory_bound(shape: tuple[int, int] | None) -> int:
-    """The most a view may allocate (traced), from the camera size it declares: a fixed
-    allowance for the bag reader, plus 64 frames of the declared size (8 bytes a pixel)."""
+    """The most a view may allocate, from the camera size it declares: a fixed allowance for the
+    bag reader, plus 64 frames of the declared size (8 bytes a pixel)."""
     h, w = shape if shape is not None else (H, W)
-    return 24 * 2**20 + 64 * h * w * 8
+    return 256 * 2**20 + 64 * h * w * 8
 
 
-def read_view(path: Path, view: str, *, trace: bool = True) -> Reading:
-    """Open ``path`` with a view's options, iterate it, index it and read frames 1.. alone."""
+def _vm_size() -> int | None:
+    """This process's virtual memory size (bytes), or ``None`` where /proc does not say."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmSize:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+@contextlib.contextmanager
+def _address_space_limit(extra: int) -> Iterator[None]:
+    """Let this process map at most ``extra`` more bytes inside the block: an allocation beyond
+    it raises MemoryError (cheap, unlike tracing every allocation). No-op off Linux."""
+    try:
+        import resource
+    except ImportError:
+        yield
+        return
+    size = _vm_size()
+    if size is None:
+        yield
+        return
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    limit = size + extra
+    if hard != resource.RLIM_INFINITY:
+        limit = min(limit, hard)
+    resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+
+
+def read_view(path: Path, view: str, *, memory: str = "limit") -> Reading:
+    """Open ``path`` with a view's options, iterate it, index it and read frames 1.. alone.
+
+    ``memory`` is how memory is bounded: ``"limit"`` caps the address space at
+    :func:`memory_bound` of the clean camera (an allocation past it is a MemoryError),
+    ``"trace"`` traces every allocation and records the peak (slow), ``"none"`` neither.
+    """
     out = Reading()
-    if trace:
+    out.bound = memory_bound((H, W))
+    if memory == "trace":
         tracemalloc.start()
     src = None
+    guard = _address_space_limit(out.bound) if memory == "limit" else contextlib.nullcontext()
     try:
-        out.stage = "open"
-        src = pcdcodec.open_source(path, **VIEWS[view])
-        out.intrinsics = src.intrinsics
-        out.stage = "iterate"
-        for f in src:
-            out.frames.append((int(f.timestamp_ns), f.color, f.depth))
-        out.stage = "index"
-        index = src.frame_index()
-        assert index is not None
-        out.index = [int(t) for t in index.timestamps]
-        out.stage = "stretch"
-        out.stretch = [
-            (int(f.timestamp_ns), f.color, f.depth) for f in src.frames_at(index.slice(1))
-        ]
-        out.stage = "done"
+        with guard:
+            out.stage = "open"
+            src = pcdcodec.open_source(path, **VIEWS[view])
+            out.intrinsics = src.intrinsics
+            out.stage = "iterate"
+            for f in src:
+                out.frames.append((int(f.timestamp_ns), f.color, f.depth))
+            out.stage = "index"
+            index = src.frame_index()
+            assert index is not None
+            out.index = [int(t) for t in index.timestamps]
+            out.stage = "stretch"
+            out.stretch = [
+                (int(f.timestamp_ns), f.color, f.depth) for f in src.frames_at(index.slice(1))
+            ]
+            out.stage = "done"
     except BaseException as exc:
         out.error = exc
     finally:
@@ -284,10 +330,10 @@ def read_view(path: Path, view: str, *, trace: bool = True) -> Reading:
                 src.close()
             except BaseException as exc:
                 out.error = out.error or exc
-        if trace:
+        if memory == "trace":
             out.peak = tracemalloc.get_traced_memory()[1]
             tracemalloc.stop()
-        out.bound = memory_bound(shape)
+            out.bound = memory_bound(shape)
     return out
 
 
@@ -676,6 +722,11 @@ def classify(clean: Reading, got: Reading, mutation: Mutation, path: Path) -> tu
     if got.peak > got.bound:
         return "MEMORY", f"traced peak {got.peak} bytes over the bound {got.bound}"
     exc = got.error
+    cause: BaseException | None = exc
+    while cause is not None:  # a MemoryError wrapped into a reader's error is still one
+        if isinstance(cause, MemoryError):
+            return "MEMORY", f"{got.stage}: an allocation past the bound of {got.bound} bytes"
+        cause = cause.__cause__ or cause.__context__
     if exc is not None and not isinstance(exc, pcdcodec.PcdcodecError):
         return "FOREIGN-EXCEPTION", f"{got.stage}: {type(exc).__name__}: {exc}"
     if exc is not None and not _named(exc, path):
@@ -746,14 +797,16 @@ class Clean:
 def make_clean(fmt: str, folder: Path) -> Clean:
     """Write the clean bag of ``fmt`` under ``folder`` and read it through every view."""
     path = write_bag(fmt, build_messages(fmt), folder, f"clean-{fmt}")
-    readings = {view: read_view(path, view, trace=False) for view in VIEWS}
+    readings = {view: read_view(path, view, memory="none") for view in VIEWS}
     for view, r in readings.items():
         if r.error is not None or len(r.frames) != FRAMES:
             raise RuntimeError(f"the clean {fmt} bag does not read through {view}: {r.error!r}")
     return Clean(fmt, path, readings)
 
 
-def run_case(clean: Clean, seed: int, case: int, folder: Path, timeout: float = 60.0) -> Result:
+def run_case(
+    clean: Clean, seed: int, case: int, folder: Path, timeout: float = 60.0, memory: str = "limit"
+) -> Result:
     """Build, write and read mutant ``case`` of ``seed``; the worst outcome of its views."""
     msgs = build_messages(clean.fmt)
     mutation = mutate(clean.fmt, msgs, seed, case)
@@ -768,7 +821,7 @@ def run_case(clean: Clean, seed: int, case: int, folder: Path, timeout: float = 
     result = Result("identical")
     with watchdog(timeout, mutation.what):
         for view in mutation.views:
-            got = read_view(path, view)
+            got = read_view(path, view, memory=memory)
             outcome, detail = classify(clean.readings[view], got, mutation, path)
             result.views[view] = outcome
             if outcome not in OK_OUTCOMES:
