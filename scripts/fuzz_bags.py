@@ -7,8 +7,8 @@ format (ROS 1, ROS 2 sqlite3, ROS 2 mcap) a small clean bag is written, then cas
 stamp) or the written file's bytes, and the mutant is read through every view of the changed
 topic: opened, iterated, indexed, and a stretch read alone. A case fails on an exception outside
 pcdcodec's tree, an error that does not name the bag, data that differs where the change could
-not alter it, an index that disagrees with iteration, a traced memory peak over the bound set by
-the declared camera (``--memory``), or a hang (``--timeout``; the stacks of all threads are printed).
+not alter it, an index that disagrees with iteration, memory past the bound set by the declared
+camera (``--memory``), or a hang (``--timeout``; the stacks of all threads are printed).
 
     python scripts/fuzz_bags.py --cases 3000 --seed 1 --jobs 2 --out bag-fuzz-out
 

@@ -24,13 +24,13 @@ error not naming the bag), ``WRONG-DATA`` (frames, timestamps or camera differin
 mutation could not change them, or frames of the wrong size or type), ``INDEX-MISMATCH`` (the
 frame index or a stretch read alone disagreeing with iteration), ``MEMORY`` (an allocation
 past :func:`memory_bound`, which follows the declared camera: the address space is capped there
-while a view reads, or with ``memory="trace"`` every allocation is traced) and hangs (a watchdog
-stops the process). Everything is seeded: case ``k`` of seed ``s`` is the same mutation on every run.
+while a view reads, or with ``memory="trace"`` every allocation is traced) and hangs (a
+watchdog stops the process). Everything is seeded: case ``k`` of seed ``s`` is the same mutation
+on every run.
 """
 
 from __future__ import annotations
 
-import contextlib
 import contextlib
 import copy
 import functools
