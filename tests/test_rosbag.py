@@ -1090,3 +1090,19 @@ def test_a_ros1_bag_opens_whatever_its_file_name(tmp_path: Path) -> None:
     shutil.copy(bag, renamed)
     with pcdcodec.open_source(renamed) as src:
         assert np.array_equal(next(iter(src)).depth, depth)
+
+
+@pytest.mark.parametrize(
+    ("point_step", "row_step", "match"),
+    [
+        (2**32 - 1, 160, r"row_step 160 is shorter than width 10 x point_step 4294967295"),
+        (16, 2**32 - 1, r"data is 800 bytes, expected row_step 4294967295 x height 5"),
+    ],
+)
+def test_damaged_cloud_steps_are_errors(point_step: int, row_step: int, match: str) -> None:
+    pts = np.zeros((5, 10), np.dtype({"names": ["x", "y", "z"], "formats": ["<f4"] * 3,
+                                      "offsets": [0, 4, 8], "itemsize": 16}))  # fmt: skip
+    msg = _cloud_msg(pts, [("x", 0, 7), ("y", 4, 7), ("z", 8, 7)], False)
+    msg.point_step, msg.row_step = point_step, row_step
+    with pytest.raises(PcdcodecError, match=match):
+        rm.cloud_layout(msg, "/pts")

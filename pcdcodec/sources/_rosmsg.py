@@ -488,14 +488,26 @@ def cloud_layout(msg: Any, topic: str) -> CloudLayout:
         names.append("rgb")
         formats.append(order + "u4")  # the float's bits are the packed color
         offsets.append(int(f.offset))
-    step = int(msg.point_step)
+    step, row = int(msg.point_step), int(msg.row_step)
+    size = len(msg.data)
+    # The steps against the data before any dtype is built from them (numpy's item size is a
+    # C int): a damaged point_step or row_step is an error, whatever its size.
+    if row < w * step:
+        raise InputError(
+            f"cloud topic {topic!r}: row_step {row} is shorter than width {w} x point_step {step}"
+        )
+    if row * h > size:
+        raise DecodeError(
+            f"cloud topic {topic!r}: data is {size} bytes, expected row_step {row} x height {h} "
+            f"= {row * h}"
+        )
     for n, o in zip(names, offsets, strict=True):
         if o + 4 > step:
             raise InputError(
                 f"cloud topic {topic!r}: field {n!r} at byte offset {o} runs past point_step {step}"
             )
     dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": step})
-    return CloudLayout(w, h, step, int(msg.row_step), dtype, color)
+    return CloudLayout(w, h, step, row, dtype, color)
 
 
 def cloud_points(msg: Any, layout: CloudLayout, topic: str) -> npt.NDArray[Any]:
