@@ -1106,3 +1106,14 @@ def test_damaged_cloud_steps_are_errors(point_step: int, row_step: int, match: s
     msg.point_step, msg.row_step = point_step, row_step
     with pytest.raises(PcdcodecError, match=match):
         rm.cloud_layout(msg, "/pts")
+
+
+def test_a_color_topic_whose_first_image_is_a_bomb_is_not_dropped_unseen(tmp_path: Path) -> None:
+    color = _small(1)[0][0]
+    whole = _jpeg(color)
+    bag = _color_bag(tmp_path / "bomb.bag", [_declaring(whole, 30000, 30000), whole])
+    match = r"bomb\.bag'.*'/cam/color/image_raw/compressed'.*30000x30000.*color_topic=''"
+    with pytest.raises(DecodeError, match=match):
+        pcdcodec.open_source(bag)
+    with pcdcodec.open_source(bag, color_topic="") as src:
+        assert [f.color for f in src] == [None, None]

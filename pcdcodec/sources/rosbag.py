@@ -430,6 +430,20 @@ class RosbagSource(Source):
                 if colors:
                     color_topic = colors[0].topic
                 else:
+                    # A color topic whose first image is damaged or oversized is not a camera
+                    # of another size: recording depth only would lose its color unseen.
+                    damaged = [
+                        c
+                        for c in cands
+                        if c.msgtype == COMPRESSED
+                        and c.note
+                        and rm.compressed_kind(c.encoding) == "color"
+                    ]
+                    if damaged:
+                        raise DecodeError(
+                            f"{damaged[0].note}; its first image cannot be read, so its color "
+                            "cannot be recorded (pass color_topic='' to record depth only)"
+                        )
                     self.notes.append(
                         f"no color topic of the depth's size {width}x{height}: depth only"
                     )
