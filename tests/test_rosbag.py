@@ -1117,3 +1117,33 @@ def test_a_color_topic_whose_first_image_is_a_bomb_is_not_dropped_unseen(tmp_pat
         pcdcodec.open_source(bag)
     with pcdcodec.open_source(bag, color_topic="") as src:
         assert [f.color for f in src] == [None, None]
+
+
+def test_any_source_error_names_its_input_keeping_its_class(tmp_path: Path) -> None:
+    """The mechanism every reader relies on: a Source subclass's errors from opening, iterating
+    and indexing get the input's path in front unless they name it already."""
+    from pcdcodec.sources.base import Source
+
+    class Broken(Source):
+        def __init__(self, path: Path, fail_open: bool = False) -> None:
+            self.path = path
+            if fail_open:
+                raise InputError("color must have shape (height, width, 3), got (240, 424, 2)")
+
+        def __iter__(self) -> Any:
+            yield None
+            raise DecodeError("frame 1 is damaged")
+
+        def frame_index(self) -> Any:
+            raise DecodeError(f"{str(self.path)!r} has no index")
+
+    path = tmp_path / "camera.mkv"
+    with pytest.raises(InputError, match=r"camera\.mkv'.*: color must have shape"):
+        Broken(path, fail_open=True)
+    it = iter(Broken(path))
+    next(it)
+    with pytest.raises(DecodeError, match=r"^'.*camera\.mkv': frame 1 is damaged$"):
+        next(it)
+    with pytest.raises(DecodeError) as err:
+        Broken(path).frame_index()
+    assert str(err.value).count("camera.mkv") == 1  # already named: left as it is
