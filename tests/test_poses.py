@@ -219,6 +219,7 @@ def _tf_bag(
     *,
     ros2: bool,
     camera: str = "cam",
+    damaged: frozenset[int] = frozenset(),
 ) -> Path:
     """A bag of small depth images at ``frames`` (ns) in frame ``camera``, and transforms
     ``(topic, stamp, parent, child, 4x4 pose of child in parent)``."""
@@ -240,7 +241,7 @@ def _tf_bag(
         image = _image(store, ros2, ns, depth, "16UC1")
         image.header.frame_id = camera
         messages.append(("/cam/depth", ns, image))
-    for topic, ns, parent, child, pose in tf:
+    for k, (topic, ns, parent, child, pose) in enumerate(tf):
         q = matrix_to_quaternion(pose[:3, :3])
         stamped = t["geometry_msgs/msg/TransformStamped"](
             header=_header(store, ros2, ns, parent),
@@ -250,6 +251,8 @@ def _tf_bag(
                 rotation=t["geometry_msgs/msg/Quaternion"](*map(float, q)),
             ),
         )
+        if k in damaged:  # nanoseconds past a second: a damaged stamp
+            stamped.header.stamp.nanosec = 1_500_000_000
         messages.append((topic, ns, t["tf2_msgs/msg/TFMessage"](transforms=[stamped])))
     messages.sort(key=lambda m: m[1])
     return write_bag(path, messages, ros2=ros2, store=store)
@@ -320,3 +323,19 @@ def test_tf_that_does_not_place_the_camera_gives_no_poses_and_says_why(tmp_path:
         assert poses == [None, None], why
         if why != "gap":
             assert any(why in n for n in notes), (why, notes)
+
+
+@pytest.mark.parametrize("ros2", [False, True])
+def test_tf_samples_with_damaged_stamps_are_ignored_and_counted(tmp_path: Path, ros2: bool) -> None:
+    ms = 1_000_000
+    poses = [_rz(0.1 * k, (k * 0.5, 0.0, 0.0)) for k in range(3)]
+    tf = [("/tf", 100 * ms * k, "map", "cam", p) for k, p in enumerate(poses)]
+    bag = _tf_bag(
+        tmp_path / ("d" if ros2 else "d.bag"), [100 * ms], tf, ros2=ros2, damaged=frozenset({0})
+    )
+    with pcdcodec.open_source(bag, intrinsics=pcdcodec.CameraIntrinsics(8, 6, 5, 5, 4, 3)) as src:
+        (frame,) = list(src)
+        notes = src.describe()["notes"]
+    assert frame.pose is not None
+    np.testing.assert_allclose(frame.pose, poses[1], rtol=0, atol=1e-12)
+    assert any("1 transforms from 'map' to 'cam'" in n and "damaged stamp" in n for n in notes)

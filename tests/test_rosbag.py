@@ -25,6 +25,8 @@ ROS2 = BAGS / "ros2-converted"
 RS_BAG = BAGS / "realsense" / "single_depth_color_640x480.bag"
 SPOT_DEPTH = "/spot/depth/frontleft/image"
 
+DEPTH_TOPIC = "/cam/depth/image_raw"
+
 needs_bags = pytest.mark.skipif(not SPOT.is_dir(), reason=f"{SPOT} is not present")
 
 NS = 1_000_000_000
@@ -685,7 +687,8 @@ def test_a_bad_frame_midway_leaves_no_output(tmp_path: Path) -> None:
         img = _image(store, True, NS + k * 1000, d, "16UC1")
         msgs.append(("/cam/depth/image_raw", NS + k, img))
     bag = write_bag(tmp_path / "b", msgs, ros2=True)
-    with pytest.raises(InputError, match=r"'/cam/depth/image_raw': the frame at .* is 80x60"):
+    match = r"'/cam/depth/image_raw': image is 80x60, expected 160x120.*at 1000002000 ns"
+    with pytest.raises(InputError, match=match):
         pcdcodec.encode(bag, tmp_path / "o.pcdc")
     assert not (tmp_path / "o.pcdc").exists()
 
@@ -784,3 +787,363 @@ def test_the_missing_camera_note_goes_once_intrinsics_are_given() -> None:
         assert "no camera info topic: pass intrinsics" in src.describe()["notes"]
         src.intrinsics = pcdcodec.CameraIntrinsics(424, 240, 300.0, 300.0, 212.0, 120.0)
         assert "no camera info topic: pass intrinsics" not in src.describe()["notes"]
+
+
+# -- seams: layouts, ambiguous clouds and stamps, damaged and oversized images -----------------
+
+
+def _cloud_bag_msg(
+    store: Any, ns: int, z: Any, color: Any, *, step: int = 16, big: bool = False,
+    fields: list[tuple[str, int, int, int]] | None = None,
+) -> Any:  # fmt: skip
+    """A PointCloud2 whose points hold x, y, z (float32) and packed rgb at offsets 0/4/8/12,
+    then padding up to ``step`` bytes."""
+    h, w = z.shape
+    o = ">" if big else "<"
+    dt = np.dtype(
+        {"names": ["x", "y", "z", "rgb"], "formats": [o + "f4", o + "f4", o + "f4", o + "u4"],
+         "offsets": [0, 4, 8, 12], "itemsize": step}
+    )  # fmt: skip
+    pts = np.zeros((h, w), dt)
+    pts["x"], pts["y"], pts["z"] = z * 0.5, z * 0.25, z
+    c = color.astype(np.uint32)
+    pts["rgb"] = (c[..., 0] << 16) | (c[..., 1] << 8) | c[..., 2]
+    field = store.types["sensor_msgs/msg/PointField"]
+    if fields is None:
+        fields = [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1), ("rgb", 12, 6, 1)]
+    return store.types["sensor_msgs/msg/PointCloud2"](
+        header=_header(store, False, ns), height=h, width=w,
+        fields=[field(name=n, offset=off, datatype=d, count=k) for n, off, d, k in fields],
+        is_bigendian=big, point_step=step, row_step=w * step,
+        data=pts.reshape(-1).view(np.uint8).copy(), is_dense=False,
+    )  # fmt: skip
+
+
+def _cloud_inputs() -> tuple[list[Any], list[Any]]:
+    frames = _small(3)
+    zs = [(d.astype(np.float32) / np.float32(5000.0)) + np.float32(1e-5) for _, d in frames]
+    return zs, [c for c, _ in frames]
+
+
+@pytest.mark.parametrize("change", ["point_step", "is_bigendian", "both"])
+def test_each_cloud_is_read_with_its_own_layout(tmp_path: Path, change: str) -> None:
+    """Clouds with the first cloud's fields but another point_step or byte order are read with
+    their own layout: depth and color come back exactly."""
+    store = _store(False)
+    zs, colors = _cloud_inputs()
+    msgs = []
+    for k in range(3):
+        step = 24 if k > 0 and change in ("point_step", "both") else 16
+        big = k > 0 and change in ("is_bigendian", "both")
+        msg = _cloud_bag_msg(store, NS + k * 1000, zs[k], colors[k], step=step, big=big)
+        msgs.append(("/cam/points", NS + k, msg))
+    bag = write_bag(tmp_path / "c.bag", msgs)
+    intr = pcdcodec.CameraIntrinsics(160, 120, 131.25, 131.25, 79.75, 59.75)
+    with pcdcodec.open_source(bag, cloud_depth="float32", intrinsics=intr) as src:
+        got = list(src)
+    assert len(got) == 3
+    for frame, z, color in zip(got, zs, colors, strict=True):
+        assert np.array_equal(frame.depth.view(np.uint32), z.view(np.uint32))
+        assert np.array_equal(frame.color, color)
+
+
+@pytest.mark.parametrize(
+    ("fields", "match"),
+    [
+        (
+            [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1), ("z", 0, 7, 1), ("rgb", 12, 6, 1)],
+            r"'/cam/points' has the field 'z' twice",
+        ),
+        (
+            [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1), ("rgb", 12, 6, 0)],
+            r"'/cam/points': field 'rgb' has count 0, expected 1",
+        ),
+        (
+            [("x", 0, 7, 1), ("y", 4, 7, 1), ("z", 8, 7, 1), ("rgb", 12, 6, 1), ("rgba", 12, 6, 1)],
+            r"both an 'rgb' and an 'rgba' field",
+        ),
+    ],
+)
+def test_ambiguous_cloud_fields_are_refused_naming_the_field(
+    tmp_path: Path, fields: Any, match: str
+) -> None:
+    store = _store(False)
+    zs, colors = _cloud_inputs()
+    msg = _cloud_bag_msg(store, NS, zs[0], colors[0], fields=fields)
+    bag = write_bag(tmp_path / "c.bag", [("/cam/points", NS, msg)])
+    with (
+        pytest.raises(InputError, match=match),
+        pcdcodec.open_source(bag, cloud_topic="/cam/points") as src,
+    ):
+        list(src)
+
+
+def _stamp_bag(path: Path, ros2: bool, stamps: list[tuple[int, int]]) -> Path:
+    """Depth images whose header stamps are the raw (sec, nanosec) pairs given."""
+    store = _store(ros2)
+    depth = _small(1)[0][1]
+    t = store.types
+    msgs = []
+    for k, (sec, nsec) in enumerate(stamps):
+        img = _image(store, ros2, NS, depth, "16UC1")
+        img.header.stamp = t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec)
+        msgs.append(("/cam/depth/image_raw", NS + k * 33_000_000, img))
+    return write_bag(path, msgs, ros2=ros2)
+
+
+@pytest.mark.parametrize("ros2", [False, True])
+def test_a_stamp_of_a_second_or_more_of_nanoseconds_is_refused(tmp_path: Path, ros2: bool) -> None:
+    name = "stamps" if ros2 else "stamps.bag"
+    bag = _stamp_bag(tmp_path / name, ros2, [(5, 0), (5, 1_500_000_000)])
+    match = r"stamps(\.bag)?'.*topic '/cam/depth/image_raw': header stamp 5 s 1500000000 ns"
+    with pcdcodec.open_source(bag) as src:
+        with pytest.raises(DecodeError, match=match):
+            list(src)
+        with pytest.raises(DecodeError, match=match):
+            src.frame_index()
+
+
+def test_ros1_stamps_after_2038_read_the_same_by_every_path(tmp_path: Path) -> None:
+    """ROS 1 seconds are unsigned: stamps at and after 2**31 s are read as such by iteration,
+    the frame index and reading a stretch; a recording cannot hold them and says so."""
+    big = 1 << 31
+    # rosbags writes ROS 1 seconds as int32: -2**31 + s is the same four bytes as 2**31 + s.
+    stamps = [(big - 1, 900_000_000), (-big, 0), (-big + 1, 5)]
+    bag = _stamp_bag(tmp_path / "late.bag", False, stamps)
+    want = [(big - 1) * NS + 900_000_000, big * NS, (big + 1) * NS + 5]
+    with pcdcodec.open_source(bag) as src:
+        assert [f.timestamp_ns for f in src] == want
+        index = src.frame_index()
+        assert index.timestamps.tolist() == want
+        assert [f.timestamp_ns for f in src.frames(1)] == want[1:]
+        assert [f.timestamp_ns for f in src.frames_at(index.slice(1, 3))] == want[1:]
+    intr = pcdcodec.CameraIntrinsics(160, 120, 131.25, 131.25, 79.75, 59.75)
+    with pytest.raises(InputError, match=r"later than a recording can hold"):
+        pcdcodec.encode(bag, tmp_path / "late.pcdc", intrinsics=intr)
+
+
+def _color_bag(path: Path, payloads: list[bytes], fmt: str = "rgb8; jpeg compressed bgr8") -> Path:
+    """A depth Image topic with CameraInfo, and a CompressedImage color topic of ``payloads``."""
+    store = _store(False)
+    depth = _small(1)[0][1]
+    msgs = [("/cam/depth/camera_info", 1, _info(store, False, NS, 160, 120))]
+    ctype = store.types["sensor_msgs/msg/CompressedImage"]
+    for k, data in enumerate(payloads):
+        ts = NS + k * 33_000_000
+        msgs.append(("/cam/depth/image_raw", ts, _image(store, False, ts, depth, "16UC1")))
+        cmsg = ctype(header=_header(store, False, ts), format=fmt,
+                     data=np.frombuffer(data, np.uint8))  # fmt: skip
+        msgs.append(("/cam/color/image_raw/compressed", ts + 1, cmsg))
+    return write_bag(path, msgs)
+
+
+def _jpeg(color: Any) -> bytes:
+    import imagecodecs
+
+    return bytes(imagecodecs.jpeg8_encode(color, level=90))
+
+
+def _declaring(data: bytes, width: int, height: int) -> bytes:
+    """A JPEG or PNG whose header declares another size (PNG: with its IHDR CRC fixed)."""
+    import zlib
+
+    b = bytearray(data)
+    if b.startswith(b"\x89PNG"):
+        struct.pack_into(">II", b, 16, width, height)
+        struct.pack_into(">I", b, 29, zlib.crc32(bytes(b[12:29])))
+        return bytes(b)
+    i = 2
+    while b[i + 1] not in (0xC0, 0xC1, 0xC2):
+        i += 2 + struct.unpack_from(">H", b, i + 2)[0]
+    struct.pack_into(">HH", b, i + 5, height, width)
+    return bytes(b)
+
+
+def test_a_cut_jpeg_in_a_bag_is_an_error_naming_bag_topic_and_time(tmp_path: Path) -> None:
+    color = _small(1)[0][0]
+    whole = _jpeg(color)
+    bag = _color_bag(tmp_path / "cut.bag", [whole, whole[: len(whole) // 2], whole])
+    with pcdcodec.open_source(bag) as src:
+        assert src.color_topic == "/cam/color/image_raw/compressed"
+        it = iter(src)
+        assert np.array_equal(next(it).color.shape, (120, 160, 3))
+        with pytest.raises(
+            DecodeError,
+            match=r"cut\.bag'.*color topic '/cam/color/image_raw/compressed': the JPEG image is "
+            r"cut short.*at 1033000000 ns",
+        ):
+            next(it)
+
+
+@pytest.mark.parametrize("first", [True, False])
+def test_a_jpeg_declaring_30000x30000_is_refused_before_decoding(
+    tmp_path: Path, first: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import imagecodecs
+
+    color = _small(1)[0][0]
+    whole = _jpeg(color)
+    bomb = _declaring(whole, 30000, 30000)
+    payloads = [bomb, whole] if first else [whole, bomb]
+    bag = _color_bag(tmp_path / "bomb.bag", payloads)
+    decoded: list[bytes] = []
+    imread = imagecodecs.imread
+
+    def spy(data: Any, *args: Any, **kwargs: Any) -> Any:
+        decoded.append(bytes(data))
+        return imread(data, *args, **kwargs)
+
+    monkeypatch.setattr(imagecodecs, "imread", spy)
+    with (
+        pytest.raises(PcdcodecError, match=r"30000x30000") as err,
+        pcdcodec.open_source(bag, color_topic="/cam/color/image_raw/compressed") as src,
+    ):
+        list(src)
+    assert bomb not in decoded  # refused from its header, never handed to a decoder
+    assert "bomb.bag" in str(err.value)
+
+
+def test_a_16bit_png_bomb_without_camera_info_is_refused_before_decoding(tmp_path: Path) -> None:
+    import imagecodecs
+
+    store = _store(True)
+    depth = _small(1)[0][1]
+    png = _declaring(bytes(imagecodecs.png_encode(depth)), 20000, 20000)
+    msg = store.types["sensor_msgs/msg/CompressedImage"](
+        header=_header(store, True, NS), format="16UC1; png compressed",
+        data=np.frombuffer(png, np.uint8),
+    )  # fmt: skip
+    bag = write_bag(tmp_path / "png", [("/cam/depth/image/compressed", NS, msg)], ros2=True)
+    match = r"20000x20000 pixels, more than the 16384 a side"
+    with (
+        pytest.raises(PcdcodecError, match=match),
+        pcdcodec.open_source(bag, depth_topic="/cam/depth/image/compressed") as src,
+    ):
+        list(src)
+
+
+def test_a_raw_image_declaring_a_huge_size_is_refused_before_allocating(tmp_path: Path) -> None:
+    store = _store(False)
+    depth = _small(1)[0][1]
+    msgs = [("/cam/depth/camera_info", 1, _info(store, False, NS, 160, 120))]
+    for k in range(2):
+        img = _image(store, False, NS + k, depth, "16UC1")
+        if k == 1:
+            img.width, img.height, img.step = 100_000, 100_000, 200_000
+        msgs.append(("/cam/depth/image_raw", NS + k, img))
+    bag = write_bag(tmp_path / "huge.bag", msgs)
+    match = r"huge\.bag'.*image is 100000x100000, expected 160x120"
+    with pcdcodec.open_source(bag) as src, pytest.raises(InputError, match=match):
+        list(src)
+
+
+def test_every_error_from_a_bag_names_the_bag(tmp_path: Path) -> None:
+    """Errors raised inside the message decoders name only the topic: the source names the
+    file, keeping the error's class."""
+    store = _store(False)
+    color, depth = _small(1)[0]
+    msgs = []
+    for k in range(2):
+        img = _image(store, False, NS + k, color if k else depth, "rgb8" if k else "16UC1")
+        msgs.append(("/cam/depth/image_raw", NS + k, img))
+    bag = write_bag(tmp_path / "mixed.bag", msgs)
+    with pcdcodec.open_source(bag) as src, pytest.raises(InputError) as err:
+        list(src)
+    assert str(bag) in str(err.value)
+    assert "'/cam/depth/image_raw'" in str(err.value)
+
+
+@pytest.mark.parametrize("kind", [None, "rosbag"])
+def test_a_damaged_record_length_costs_no_gigabytes(tmp_path: Path, kind: str | None) -> None:
+    """A ROS 1 record header whose length field says 2 GiB: probing and opening the bag end in
+    an error naming it, without allocating what the length asks for."""
+    import tracemalloc
+
+    store = _store(False)
+    depth = _small(1)[0][1]
+    bag = write_bag(
+        tmp_path / "len.bag", [(DEPTH_TOPIC, NS, _image(store, False, NS, depth, "16UC1"))]
+    )
+    data = bytearray(bag.read_bytes())
+    pos = 13  # after the magic: the bag header record, then the first record after it
+    pos += 4 + struct.unpack_from("<I", data, pos)[0]
+    pos += 4 + struct.unpack_from("<I", data, pos)[0]
+    struct.pack_into("<I", data, pos, 0x7FFFFFF0)
+    bag.write_bytes(bytes(data))
+    tracemalloc.start()
+    try:
+        with pytest.raises(DecodeError, match=r"len\.bag"):
+            pcdcodec.open_source(bag, kind=kind)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 100_000_000
+
+
+def test_a_ros1_bag_opens_whatever_its_file_name(tmp_path: Path) -> None:
+    store = _store(False)
+    depth = _small(1)[0][1]
+    bag = write_bag(
+        tmp_path / "a.bag", [(DEPTH_TOPIC, NS, _image(store, False, NS, depth, "16UC1"))]
+    )
+    renamed = tmp_path / "recording.dat"
+    shutil.copy(bag, renamed)
+    with pcdcodec.open_source(renamed) as src:
+        assert np.array_equal(next(iter(src)).depth, depth)
+
+
+@pytest.mark.parametrize(
+    ("point_step", "row_step", "match"),
+    [
+        (2**32 - 1, 160, r"row_step 160 is shorter than width 10 x point_step 4294967295"),
+        (16, 2**32 - 1, r"data is 800 bytes, expected row_step 4294967295 x height 5"),
+    ],
+)
+def test_damaged_cloud_steps_are_errors(point_step: int, row_step: int, match: str) -> None:
+    pts = np.zeros((5, 10), np.dtype({"names": ["x", "y", "z"], "formats": ["<f4"] * 3,
+                                      "offsets": [0, 4, 8], "itemsize": 16}))  # fmt: skip
+    msg = _cloud_msg(pts, [("x", 0, 7), ("y", 4, 7), ("z", 8, 7)], False)
+    msg.point_step, msg.row_step = point_step, row_step
+    with pytest.raises(PcdcodecError, match=match):
+        rm.cloud_layout(msg, "/pts")
+
+
+def test_a_color_topic_whose_first_image_is_a_bomb_is_not_dropped_unseen(tmp_path: Path) -> None:
+    color = _small(1)[0][0]
+    whole = _jpeg(color)
+    bag = _color_bag(tmp_path / "bomb.bag", [_declaring(whole, 30000, 30000), whole])
+    match = r"bomb\.bag'.*'/cam/color/image_raw/compressed'.*30000x30000.*color_topic=''"
+    with pytest.raises(DecodeError, match=match):
+        pcdcodec.open_source(bag)
+    with pcdcodec.open_source(bag, color_topic="") as src:
+        assert [f.color for f in src] == [None, None]
+
+
+def test_any_source_error_names_its_input_keeping_its_class(tmp_path: Path) -> None:
+    """The mechanism every reader relies on: a Source subclass's errors from opening, iterating
+    and indexing get the input's path in front unless they name it already."""
+    from pcdcodec.sources.base import Source
+
+    class Broken(Source):
+        def __init__(self, path: Path, fail_open: bool = False) -> None:
+            self.path = path
+            if fail_open:
+                raise InputError("color must have shape (height, width, 3), got (240, 424, 2)")
+
+        def __iter__(self) -> Any:
+            yield None
+            raise DecodeError("frame 1 is damaged")
+
+        def frame_index(self) -> Any:
+            raise DecodeError(f"{str(self.path)!r} has no index")
+
+    path = tmp_path / "camera.mkv"
+    with pytest.raises(InputError, match=r"camera\.mkv'.*: color must have shape"):
+        Broken(path, fail_open=True)
+    it = iter(Broken(path))
+    next(it)
+    with pytest.raises(DecodeError, match=r"^'.*camera\.mkv': frame 1 is damaged$"):
+        next(it)
+    with pytest.raises(DecodeError) as err:
+        Broken(path).frame_index()
+    assert str(err.value).count("camera.mkv") == 1  # already named: left as it is

@@ -12,8 +12,11 @@ messages logged at the same time.
 from __future__ import annotations
 
 import heapq
+import io
+import os
 import struct
 from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
 from typing import Any
 
 from ..errors import DecodeError, InputError
@@ -21,13 +24,70 @@ from ..errors import DecodeError, InputError
 COLUMNS = 5
 
 
-def ros1_stamp(raw: bytes) -> int | None:
+class _BoundedReader(io.BufferedReader):
+    """A file whose reads never ask for more than the bytes left in it.
+
+    A damaged length field in a bag (a 32-bit record or chunk size) makes its reader ask for up
+    to 4 GiB; Python allocates the whole request before reading. Capped at what the file holds,
+    a damaged length costs at most the file's size and ends in the reader's own error.
+    """
+
+    def __init__(self, raw: io.FileIO) -> None:
+        super().__init__(raw)
+        self._size = os.fstat(raw.fileno()).st_size
+
+    def read(self, size: int | None = -1, /) -> bytes:
+        if size is not None and size > 0:
+            size = min(size, max(0, self._size - self.tell()))
+            if size == 0:
+                return b""
+        return super().read(size)
+
+
+class _BoundedPath(type(Path())):  # type: ignore[misc]
+    """A path whose binary reads are :class:`_BoundedReader` (rosbags opens bags through the
+    path it is given, and paths derived from it)."""
+
+    def open(self, mode: str = "r", *args: Any, **kwargs: Any) -> Any:
+        if mode == "rb" and not args and not kwargs:
+            return _BoundedReader(io.FileIO(self, "rb"))
+        return super().open(mode, *args, **kwargs)
+
+
+def bounded_path(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a :class:`~pathlib.Path` that rosbags' readers open as a
+    :class:`_BoundedReader`: pass it to ``rosbags.rosbag1.Reader`` or ``AnyReader`` so a damaged
+    length field cannot make them allocate gigabytes."""
+    return _BoundedPath(path)
+
+
+def stamp_value(sec: int, nanosec: int, where: str) -> int:
+    """A header stamp in nanoseconds, the one reading of stamps for every path through a bag.
+
+    ROS 1 seconds are unsigned 32-bit and ROS 2 seconds signed: the caller passes ``sec`` as the
+    message's format defines it (a ROS 1 stamp at or after 2**31 s is read as such, not as a
+    negative number). Raises :class:`~pcdcodec.DecodeError` naming ``where`` for nanoseconds
+    outside [0, 10**9), which would move the frame by whole seconds, and for a stamp before
+    1970 (negative seconds).
+    """
+    if not 0 <= nanosec < 1_000_000_000:
+        raise DecodeError(
+            f"{where}: header stamp {sec} s {nanosec} ns has nanoseconds outside 0 to "
+            "999999999; the stamp is damaged"
+        )
+    if sec < 0:
+        raise DecodeError(f"{where}: header stamp {sec} s {nanosec} ns is before 1970")
+    return int(sec) * 1_000_000_000 + int(nanosec)
+
+
+def ros1_stamp(raw: bytes, where: str = "a ROS 1 message") -> int | None:
     """The header stamp (ns) of a ROS 1 message that starts with a std_msgs/Header (seq, then
-    the stamp's seconds and nanoseconds); ``None`` when the message is too short."""
+    the stamp's unsigned seconds and nanoseconds); ``None`` when the message is too short.
+    Raises :class:`~pcdcodec.DecodeError` for a damaged stamp (:func:`stamp_value`)."""
     if len(raw) < 12:
         return None
     _, sec, nsec = struct.unpack_from("<III", raw, 0)
-    return int(sec) * 1_000_000_000 + int(nsec)
+    return stamp_value(sec, nsec, where)
 
 
 def _ros1_op(header: bytes) -> int | None:
@@ -79,22 +139,24 @@ def ros1_index_stamps(reader: Any, conns: list[Any]) -> list[tuple[Any, int, int
                     f.seek(length, 1)
                 if op != 0x02 or length < 12:
                     return None
-                stamp = ros1_stamp(f.read(12))
+                conn = owner[(entry.chunk_pos, entry.offset)]
+                stamp = ros1_stamp(f.read(12), f"topic {conn.topic!r}")
                 if stamp is None:
                     return None
-                out.append((owner[(entry.chunk_pos, entry.offset)], int(entry.time), stamp))
+                out.append((conn, int(entry.time), stamp))
     except (OSError, struct.error, KeyError):
         return None
     return out
 
 
-def cdr_stamp(raw: bytes) -> int | None:
+def cdr_stamp(raw: bytes, where: str = "a ROS 2 message") -> int | None:
     """The header stamp (ns) of a CDR-serialised ROS 2 message that starts with a Header, or
-    ``None`` when the encapsulation is not plain CDR (the caller then deserialises)."""
+    ``None`` when the encapsulation is not plain CDR (the caller then deserialises). Raises
+    :class:`~pcdcodec.DecodeError` for a damaged stamp (:func:`stamp_value`)."""
     if len(raw) < 12 or raw[0] != 0 or raw[1] not in (0, 1):
         return None
     sec, nsec = struct.unpack_from("<iI" if raw[1] == 1 else ">iI", raw, 4)
-    return int(sec) * 1_000_000_000 + int(nsec)
+    return stamp_value(sec, nsec, where)
 
 
 def check_rows(rows: Any) -> Any:

@@ -26,6 +26,7 @@ __all__ = [
     "cloud_to_rgbd",
     "compressed_depth_encode",
     "compressed_kind",
+    "compressed_size",
     "decode_compressed",
     "decode_image",
     "fit_intrinsics",
@@ -44,12 +45,25 @@ _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 _FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 _FIELD_NAMES = {1: "INT8", 2: "UINT8", 3: "INT16", 4: "UINT16", 5: "INT32", 6: "UINT32"}
 _FIELD_NAMES.update({7: "FLOAT32", 8: "FLOAT64"})
+#: the PointCloud2 fields read: each may appear once, with one value per point
+_CLOUD_FIELDS = ("x", "y", "z", "rgb", "rgba")
 
 
-def stamp_ns(msg: Any) -> int:
-    """The header stamp of ``msg`` in nanoseconds (``timestamp`` for Foxglove messages)."""
+def stamp_ns(msg: Any, topic: str, *, ros1: bool) -> int:
+    """The header stamp of ``msg`` in nanoseconds (``timestamp`` for Foxglove messages).
+
+    ROS 1 seconds are unsigned: rosbags gives them as int32, so a stamp at or after 2**31 s
+    comes back negative and is turned back here, as the raw readers of
+    :mod:`~pcdcodec.sources._bagindex` read it. Raises :class:`~pcdcodec.DecodeError` for a
+    damaged stamp (see :func:`~pcdcodec.sources._bagindex.stamp_value`).
+    """
+    from ._bagindex import stamp_value
+
     s = msg.header.stamp if hasattr(msg, "header") else msg.timestamp
-    return int(s.sec) * 1_000_000_000 + int(s.nanosec)
+    sec, nsec = int(s.sec), int(s.nanosec)
+    if ros1 and sec < 0:
+        sec += 1 << 32
+    return stamp_value(sec, nsec, f"topic {topic!r}")
 
 
 def image_kind(encoding: str) -> str | None:
@@ -95,12 +109,21 @@ def _rows(msg: Any, bpp: int, topic: str) -> npt.NDArray[np.uint8]:
     return data[: step * h].reshape(h, step)[:, : w * bpp]
 
 
-def decode_image(msg: Any, role: str, topic: str) -> npt.NDArray[Any]:
+def decode_image(
+    msg: Any, role: str, topic: str, shape: tuple[int, int] | None = None
+) -> npt.NDArray[Any]:
     """A ``sensor_msgs/Image`` as depth (H×W uint16 or float32 metres) or color (H×W×3 RGB).
 
     ``role`` is ``"depth"`` or ``"color"``; an encoding that does not fit the role raises
-    :class:`~pcdcodec.InputError` naming the topic and the encoding.
+    :class:`~pcdcodec.InputError` naming the topic and the encoding. ``shape`` (height, width),
+    when given, is the size the image must declare; the declared size is checked against it
+    and against the data's length before anything is allocated.
     """
+    if shape is not None and (int(msg.height), int(msg.width)) != tuple(shape):
+        raise InputError(
+            f"{role} topic {topic!r}: image is {int(msg.width)}x{int(msg.height)}, expected "
+            f"{shape[1]}x{shape[0]} (the camera's size)"
+        )
     enc = str(msg.encoding)
     big = bool(msg.is_bigendian)
     if role == "depth":
@@ -128,47 +151,89 @@ def decode_image(msg: Any, role: str, topic: str) -> npt.NDArray[Any]:
     )
 
 
-def _imread(data: bytes, topic: str) -> npt.NDArray[Any]:
+#: The largest image a bag may declare when no camera fixes its size: a side, and in all.
+MAX_IMAGE_SIDE = 16384
+MAX_IMAGE_PIXELS = 1 << 26  # 64 megapixels: 128 MiB as 16-bit depth, 192 MiB as RGB
+
+
+def _check_size(width: int, height: int, where: str, shape: tuple[int, int] | None) -> None:
+    """Refuse a declared image size other than ``shape`` (height, width), or, without one,
+    beyond :data:`MAX_IMAGE_SIDE` / :data:`MAX_IMAGE_PIXELS`; before anything is decoded."""
+    if shape is not None:
+        if (height, width) != tuple(shape):
+            raise InputError(
+                f"{where}: the image declares {width}x{height} pixels, expected "
+                f"{shape[1]}x{shape[0]} (the camera's size)"
+            )
+        return
+    if width > MAX_IMAGE_SIDE or height > MAX_IMAGE_SIDE or width * height > MAX_IMAGE_PIXELS:
+        raise DecodeError(
+            f"{where}: the image declares {width}x{height} pixels, more than the "
+            f"{MAX_IMAGE_SIDE} a side or {MAX_IMAGE_PIXELS} in all read without a camera info "
+            "giving its size"
+        )
+
+
+def _imread(data: bytes, where: str, header: Any) -> npt.NDArray[Any]:
     import imagecodecs
 
     try:
-        return np.asarray(imagecodecs.imread(data))
+        img = np.asarray(imagecodecs.imread(data))
     except Exception as exc:
-        raise DecodeError(f"topic {topic!r}: cannot decode the compressed image: {exc}") from exc
+        raise DecodeError(f"{where}: cannot decode the compressed image: {exc}") from exc
+    if img.shape[:2] != (header.height, header.width):
+        raise DecodeError(
+            f"{where}: the {header.format.upper()} image decodes to {img.shape[1]}x{img.shape[0]} "
+            f"pixels but declares {header.width}x{header.height}"
+        )
+    return img
 
 
-def decode_compressed(msg: Any, role: str, topic: str) -> npt.NDArray[Any]:
-    """A ``sensor_msgs/CompressedImage`` as depth or color (see :func:`decode_image`).
+@dataclass(frozen=True)
+class _Compressed:
+    """A CompressedImage taken apart: what it holds and the size it declares."""
 
-    Color: JPEG or PNG. Depth: a 16-bit PNG (``"16UC1; png compressed"``) or image_transport's
-    ``compressedDepth`` (PNG or RVL after its 12-byte header; the header's depth parameters
-    are only used for 32FC1, which compressedDepth stores as quantized inverse depth).
-    """
+    kind: str  # "image" (JPEG/PNG, color or 16-bit depth PNG), "cdepth-png" or "cdepth-rvl"
+    body: bytes  # the JPEG/PNG, or the RVL words after the size
+    width: int
+    height: int
+    header: Any  # the ImageHeader of a JPEG/PNG, else None
+    float_depth: bool  # compressedDepth of 32FC1 (quantized inverse depth)
+    quant: tuple[float, float]
+
+
+def _take_apart(msg: Any, role: str, topic: str) -> _Compressed:
+    """Check a CompressedImage's format and structure and read its declared size, decoding
+    nothing (see :func:`decode_compressed`)."""
+    from ._images import image_header
+
     fmt = str(msg.format)
     data = bytes(msg.data) if not isinstance(msg.data, bytes) else msg.data
     head = fmt.split(";")[0].strip() if ";" in fmt else ""
+    where = f"{role} topic {topic!r}"
     if role == "color":
         if head and head not in COLOR_ENCODINGS:
             raise InputError(
                 f"color topic {topic!r} has format {fmt!r}; expected an original encoding of "
                 f"{', '.join(COLOR_ENCODINGS)}"
             )
-        img = _imread(data, topic)
-        if img.dtype != np.uint8:
-            raise InputError(f"color topic {topic!r}: image is {img.dtype}, expected 8-bit")
-        if img.ndim == 2:
-            return np.repeat(img[..., None], 3, axis=2)
-        return np.ascontiguousarray(img[..., :3])
+        h = image_header(data, where)
+        if h.bits != 8:
+            raise InputError(f"color topic {topic!r}: image has {h.bits}-bit samples, expected 8")
+        return _Compressed("image", data, h.width, h.height, h, False, (0.0, 0.0))
     if "compresseddepth" not in fmt.lower():
         if head not in ("16UC1", "mono16"):
             raise InputError(
                 f"depth topic {topic!r} has format {fmt!r}; expected '16UC1; png compressed' or "
                 "a compressedDepth format"
             )
-        img = _imread(data, topic)
-        if img.dtype != np.uint16 or img.ndim != 2:
-            raise DecodeError(f"depth topic {topic!r}: PNG is {img.dtype} {img.shape}, not 16-bit")
-        return img
+        h = image_header(data, where)
+        if h.format != "png" or h.bits != 16 or h.channels != 1:
+            raise DecodeError(
+                f"depth topic {topic!r}: image is a {h.bits}-bit {h.format.upper()} with "
+                f"{h.channels} channels, expected a 16-bit one-channel PNG"
+            )
+        return _Compressed("image", data, h.width, h.height, h, False, (0.0, 0.0))
     if head not in ("16UC1", "mono16", "32FC1"):
         raise InputError(
             f"depth topic {topic!r} has format {fmt!r}; compressedDepth holds 16UC1 or 32FC1"
@@ -178,36 +243,89 @@ def decode_compressed(msg: Any, role: str, topic: str) -> npt.NDArray[Any]:
             f"depth topic {topic!r}: compressedDepth message is {len(data)} bytes, shorter than "
             f"its {_CDEPTH_HEADER}-byte header"
         )
+    quant = struct.unpack_from("<ff", data, 4)
     body = data[_CDEPTH_HEADER:]
     tail = fmt.split(";", 1)[1].lower() if ";" in fmt else fmt.lower()
     if "rvl" in tail:
         if len(body) < 8:
             raise DecodeError(f"depth topic {topic!r}: RVL body is {len(body)} bytes, too short")
         cols, rows = struct.unpack_from("<II", body, 0)
-        if not (0 < cols <= 16384 and 0 < rows <= 16384):
+        if not (0 < cols <= MAX_IMAGE_SIDE and 0 < rows <= MAX_IMAGE_SIDE):
             raise DecodeError(
                 f"depth topic {topic!r}: RVL image size {cols}x{rows} at byte offset "
                 f"{_CDEPTH_HEADER} is not plausible"
             )
-        from ..depth.rvl import _decode
-
         # ROS pads nothing after the words; a stream cut inside a word is corrupt.
         words = body[8 : 8 + (len(body) - 8) // 4 * 4]
-        image = _decode(memoryview(words), cols * rows).reshape(rows, cols)
+        return _Compressed("cdepth-rvl", words, cols, rows, None, head == "32FC1", quant)
+    if not body.startswith(_PNG_MAGIC):
+        raise DecodeError(
+            f"depth topic {topic!r}: no PNG after the compressedDepth header at byte offset "
+            f"{_CDEPTH_HEADER} (found {body[:8]!r})"
+        )
+    h = image_header(body, where)
+    if h.bits != 16 or h.channels != 1:
+        raise DecodeError(
+            f"depth topic {topic!r}: compressedDepth PNG is {h.bits}-bit with {h.channels} "
+            "channels, expected 16-bit with one"
+        )
+    return _Compressed("cdepth-png", body, h.width, h.height, h, head == "32FC1", quant)
+
+
+def compressed_size(msg: Any, role: str, topic: str) -> tuple[int, int]:
+    """``(width, height)`` a CompressedImage declares, read from its header without decoding
+    it; raises as :func:`decode_compressed` does for a bad format or a cut or damaged image."""
+    c = _take_apart(msg, role, topic)
+    _check_size(c.width, c.height, f"{role} topic {topic!r}", None)
+    return c.width, c.height
+
+
+def decode_compressed(
+    msg: Any, role: str, topic: str, shape: tuple[int, int] | None = None
+) -> npt.NDArray[Any]:
+    """A ``sensor_msgs/CompressedImage`` as depth or color (see :func:`decode_image`).
+
+    Color: JPEG or PNG. Depth: a 16-bit PNG (``"16UC1; png compressed"``) or image_transport's
+    ``compressedDepth`` (PNG or RVL after its 12-byte header; the header's depth parameters
+    are only used for 32FC1, which compressedDepth stores as quantized inverse depth).
+
+    Before decoding, the image's whole structure is checked (a JPEG or PNG cut short or
+    damaged, see :mod:`pcdcodec.sources._images`) and its declared size compared with
+    ``shape`` (height, width: the camera's), or without one bounded by
+    :data:`MAX_IMAGE_SIDE` and :data:`MAX_IMAGE_PIXELS`, so a few bytes declaring a huge
+    image allocate nothing. Raises :class:`~pcdcodec.DecodeError` (damaged, cut, wrong size)
+    or :class:`~pcdcodec.InputError` (a format pcdcodec does not read), naming the topic.
+    """
+    c = _take_apart(msg, role, topic)
+    where = f"{role} topic {topic!r}"
+    _check_size(c.width, c.height, where, shape)
+    if c.kind == "image":
+        img = _imread(c.body, where, c.header)
+        if role == "depth":
+            return img.astype(np.uint16, copy=False)
+        if img.dtype != np.uint8:
+            raise InputError(f"color topic {topic!r}: image is {img.dtype}, expected 8-bit")
+        if img.ndim == 2:
+            return np.repeat(img[..., None], 3, axis=2)
+        if img.shape[2] < 3:  # gray with alpha
+            return np.repeat(img[..., :1], 3, axis=2)
+        return np.ascontiguousarray(img[..., :3])
+    if c.kind == "cdepth-rvl":
+        from ..depth.rvl import _decode
+
+        try:
+            image = _decode(memoryview(c.body), c.width * c.height).reshape(c.height, c.width)
+        except DecodeError as exc:
+            raise DecodeError(f"{where}: {exc}") from None
     else:
-        if not body.startswith(_PNG_MAGIC):
-            raise DecodeError(
-                f"depth topic {topic!r}: no PNG after the compressedDepth header at byte offset "
-                f"{_CDEPTH_HEADER} (found {body[:8]!r})"
-            )
-        image = _imread(body, topic)
+        image = _imread(c.body, where, c.header)
         if image.dtype != np.uint16 or image.ndim != 2:
             raise DecodeError(
                 f"depth topic {topic!r}: compressedDepth PNG is {image.dtype} {image.shape}"
             )
-    if head != "32FC1":
+    if not c.float_depth:
         return image.astype(np.uint16, copy=False)
-    quant_a, quant_b = struct.unpack_from("<ff", data, 4)
+    quant_a, quant_b = c.quant
     out = np.full(image.shape, np.nan, np.float32)
     valid = image != 0
     out[valid] = np.float32(quant_a) / (image[valid].astype(np.float32) - np.float32(quant_b))
@@ -320,7 +438,27 @@ def cloud_layout(msg: Any, topic: str) -> CloudLayout:
             "an organized cloud, one point per pixel"
         )
     order = ">" if msg.is_bigendian else "<"
-    fields = {str(f.name): f for f in msg.fields}
+    fields: dict[str, Any] = {}
+    for f in msg.fields:
+        name = str(f.name)
+        if name in _CLOUD_FIELDS and name in fields:
+            # PCL reads the first, other readers the last: neither is safe to guess.
+            raise InputError(
+                f"cloud topic {topic!r} has the field {name!r} twice (byte offsets "
+                f"{int(fields[name].offset)} and {int(f.offset)}); expected each of "
+                f"{', '.join(_CLOUD_FIELDS)} at most once"
+            )
+        fields[name] = f
+    if "rgb" in fields and "rgba" in fields:
+        raise InputError(
+            f"cloud topic {topic!r} has both an 'rgb' and an 'rgba' field; expected one color field"
+        )
+    for name in _CLOUD_FIELDS:
+        if name in fields and int(fields[name].count) != 1:
+            raise InputError(
+                f"cloud topic {topic!r}: field {name!r} has count {int(fields[name].count)}, "
+                "expected 1 (one value per point)"
+            )
     names: list[str] = []
     formats: list[str] = []
     offsets: list[int] = []
@@ -350,14 +488,26 @@ def cloud_layout(msg: Any, topic: str) -> CloudLayout:
         names.append("rgb")
         formats.append(order + "u4")  # the float's bits are the packed color
         offsets.append(int(f.offset))
-    step = int(msg.point_step)
+    step, row = int(msg.point_step), int(msg.row_step)
+    size = len(msg.data)
+    # The steps against the data before any dtype is built from them (numpy's item size is a
+    # C int): a damaged point_step or row_step is an error, whatever its size.
+    if row < w * step:
+        raise InputError(
+            f"cloud topic {topic!r}: row_step {row} is shorter than width {w} x point_step {step}"
+        )
+    if row * h > size:
+        raise DecodeError(
+            f"cloud topic {topic!r}: data is {size} bytes, expected row_step {row} x height {h} "
+            f"= {row * h}"
+        )
     for n, o in zip(names, offsets, strict=True):
         if o + 4 > step:
             raise InputError(
                 f"cloud topic {topic!r}: field {n!r} at byte offset {o} runs past point_step {step}"
             )
     dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": step})
-    return CloudLayout(w, h, step, int(msg.row_step), dtype, color)
+    return CloudLayout(w, h, step, row, dtype, color)
 
 
 def cloud_points(msg: Any, layout: CloudLayout, topic: str) -> npt.NDArray[Any]:

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..errors import DecodeError
 from ..transform import quaternion_to_matrix, slerp
 from . import _rosmsg as rm
 
@@ -55,11 +56,16 @@ def _static(conn: Any) -> bool:
     return str(conn.topic).rstrip("/").endswith("tf_static")
 
 
-def _transforms(messages: Messages, conns: list[Any]) -> Iterator[tuple[bool, Any]]:
+def _ros1(conn: Any) -> bool:
+    return type(getattr(conn, "ext", None)).__name__.endswith("Rosbag1")
+
+
+def _transforms(messages: Messages, conns: list[Any]) -> Iterator[tuple[bool, bool, Any]]:
+    """(static, ROS 1, transform) for every transform in ``conns``."""
     for conn, _, msg in messages(conns):
-        static = _static(conn)
+        static, ros1 = _static(conn), _ros1(conn)
         for tf in msg.transforms:
-            yield static, tf
+            yield static, ros1, tf
 
 
 @dataclass
@@ -71,7 +77,7 @@ class _Edge:
     values: array[float] = field(default_factory=lambda: array("d"))
     bad: int = 0
 
-    def add(self, static: bool, tf: Any) -> None:
+    def add(self, static: bool, ros1: bool, tf: Any) -> None:
         t, q = tf.transform.translation, tf.transform.rotation
         row = [float(t.x), float(t.y), float(t.z), float(q.x), float(q.y), float(q.z), float(q.w)]
         if not (np.isfinite(row).all() and sum(v * v for v in row[3:]) > 1e-12):
@@ -79,9 +85,14 @@ class _Edge:
             return
         if static:
             self.static = np.asarray(row)
-        else:
-            self.stamps.append(rm.stamp_ns(tf))
-            self.values.extend(row)
+            return
+        try:  # the same reading of stamps as the images' (ROS 1 seconds unsigned)
+            stamp = rm.stamp_ns(tf, "/tf", ros1=ros1)
+        except DecodeError:
+            self.bad += 1  # a damaged stamp: counted in the same note
+            return
+        self.stamps.append(stamp)
+        self.values.extend(row)
 
 
 class TfPoses:
@@ -157,7 +168,7 @@ def read_tf_poses(
         notes.append("the bag has /tf, but the depth messages name no frame_id: no poses")
         return None
     parents: dict[str, set[str]] = {}
-    for _, tf in _transforms(messages, tf_conns):
+    for _, _, tf in _transforms(messages, tf_conns):
         child, parent = _name(tf.child_frame_id), _name(tf.header.frame_id)
         if child and parent and child != parent:
             parents.setdefault(child, set()).add(parent)
@@ -182,15 +193,15 @@ def read_tf_poses(
         return None
     chain.reverse()
     edges = {pc: _Edge() for pc in chain}
-    for static, tf in _transforms(messages, tf_conns):
+    for static, ros1, tf in _transforms(messages, tf_conns):
         edge = edges.get((_name(tf.header.frame_id), _name(tf.child_frame_id)))
         if edge is not None:
-            edge.add(static, tf)
+            edge.add(static, ros1, tf)
     for (parent, child), edge in edges.items():
         if edge.bad:
             notes.append(
-                f"tf: {edge.bad} transforms from {parent!r} to {child!r} with non-finite values "
-                "or a zero quaternion were ignored"
+                f"tf: {edge.bad} transforms from {parent!r} to {child!r} with non-finite values, "
+                "a zero quaternion or a damaged stamp were ignored"
             )
         if edge.static is None and len(edge.stamps) == 0:
             notes.append(f"tf has no usable transform from {parent!r} to {child!r}: no poses")

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import InputError
+from ..errors import InputError, PcdcodecError
 
 if TYPE_CHECKING:
     from ..camera import CameraIntrinsics
@@ -31,6 +31,7 @@ __all__ = [
     "Source",
     "SourceKind",
     "detect_kind",
+    "name_input",
     "open_source",
     "register_source",
     "source_kinds",
@@ -89,6 +90,12 @@ class Source(abc.ABC):
 
     Iterating yields frames one at a time, so a source of any length runs in bounded memory.
     A source is a context manager; :meth:`close` releases files it holds.
+
+    Every :class:`~pcdcodec.PcdcodecError` raised while opening a source, iterating it or
+    indexing it names the input: the methods a subclass defines (``__init__``, ``__iter__``,
+    ``frames``, ``frames_at``, ``frame_index``, ``encoded_frames``, ``candidates``) and the
+    iterators they return put the source's path in front of a message that lacks it, keeping
+    the error's class (:func:`name_input`). Readers name the topic, stream or frame themselves.
     """
 
     path: Path
@@ -101,6 +108,13 @@ class Source(abc.ABC):
     intrinsics_origin: str = "input"
     depth_scale_origin: str = "input"
     camera_notes: tuple[str, ...] = ()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        for name in _NAMED_METHODS:
+            method = cls.__dict__.get(name)
+            if callable(method) and not getattr(method, "_names_input", False):
+                setattr(cls, name, _naming(method, name))
 
     @abc.abstractmethod
     def __iter__(self) -> Iterator[RGBDFrame]:
@@ -166,6 +180,78 @@ class Source(abc.ABC):
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+#: Methods of every Source whose errors (and whose iterators' errors) name the input.
+_NAMED_METHODS = (
+    "__init__",
+    "__iter__",
+    "frames",
+    "frames_at",
+    "frame_index",
+    "encoded_frames",
+    "candidates",
+)
+
+
+def name_input(exc: PcdcodecError, path: Any) -> PcdcodecError:
+    """Make ``exc`` name the input ``path`` when its message does not already (by full path or
+    file name): the message gets the path in front, the class and traceback stay."""
+    if path is None:
+        return exc
+    p = Path(path)
+    text = str(exc.args[0]) if exc.args else ""
+    if str(p) in text or (p.name and (repr(p.name) in text or f"/{p.name}" in text)):
+        return exc
+    exc.args = (f"{str(p)!r}: {text}" if text else f"{str(p)!r}", *exc.args[1:])
+    return exc
+
+
+def _where(source: Any, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
+    path = getattr(source, "path", None)
+    if path is None:
+        path = args[0] if args else kwargs.get("path")
+    return path if isinstance(path, (str, os.PathLike)) else None
+
+
+def _naming(method: Callable[..., Any], name: str) -> Callable[..., Any]:
+    """``method`` with every PcdcodecError it raises naming the source's input; an iterator it
+    returns is wrapped, so errors raised while iterating name the input too."""
+    import functools
+
+    @functools.wraps(method)
+    def wrapper(self: Any, *args: Any, **kwargs: Any) -> Any:
+        try:
+            out = method(self, *args, **kwargs)
+        except PcdcodecError as exc:
+            name_input(exc, _where(self, args, kwargs))
+            raise
+        if isinstance(out, Iterator) and not isinstance(out, _NamedIterator):
+            return _NamedIterator(self, out)
+        return out
+
+    wrapper._names_input = True  # type: ignore[attr-defined]
+    return wrapper
+
+
+class _NamedIterator(Iterator[Any]):
+    """An iterator whose PcdcodecErrors name the source's input (see :func:`name_input`)."""
+
+    def __init__(self, source: Any, it: Iterator[Any]) -> None:
+        self._source = source
+        self._it = it
+
+    def __next__(self) -> Any:
+        try:
+            return next(self._it)
+        except PcdcodecError as exc:
+            name_input(exc, getattr(self._source, "path", None))
+            raise
+
+    def close(self) -> None:
+        close = getattr(self._it, "close", None)
+        if close is not None:
+            close()
 
 
 @dataclass(frozen=True)

@@ -47,7 +47,9 @@ def _is_realsense(path: Path) -> bool:
     try:
         from rosbags.rosbag1 import Reader
 
-        with Reader(path) as reader:
+        from ._bagindex import bounded_path
+
+        with Reader(bounded_path(path)) as reader:
             return any(_IMAGE.match(c.topic) for c in reader.connections)
     except Exception:
         return False

@@ -142,6 +142,16 @@ def _affinity(a: str, b: str) -> tuple[int, int]:
     return common, lead
 
 
+def _encoding(msg: Any) -> str:
+    return str(getattr(msg, "encoding", getattr(msg, "format", "")))
+
+
+def _add_time(exc: PcdcodecError, what: str) -> None:
+    """Say which message an error is about, keeping its class."""
+    if exc.args and isinstance(exc.args[0], str) and what not in exc.args[0]:
+        exc.args = (f"{exc.args[0]} ({what})", *exc.args[1:])
+
+
 def _wrap(exc: Exception, path: Path) -> PcdcodecError:
     text = str(exc) or type(exc).__name__
     return DecodeError(f"cannot read bag {str(path)!r}: {text} (is the file complete?)")
@@ -199,6 +209,9 @@ class RosbagSource(Source):
         self.max_frames = max_frames
         self.max_difference = int(max_difference)
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
+        self._layouts: dict[Any, rm.CloudLayout] = {}
+        self._shape: tuple[int, int] | None = None
+        self._depth_dtype: np.dtype[Any] = np.dtype(np.uint16)
         self._index: FrameIndex | None = None
         self._tf: Any = None  # the camera's poses from /tf (False: none); read on first use
         self._reader = self._open_reader()
@@ -214,19 +227,31 @@ class RosbagSource(Source):
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
 
+        from . import _bagindex
+
         p = self.path
         if not p.exists():
             raise InputError(f"bag {str(p)!r} does not exist")
         target = p
-        if p.is_file() and not read_magic(p).startswith(ROS1_MAGIC):
-            # A single ROS 2 storage file: rosbags picks the storage by suffix.
-            suffix = ".db3" if read_magic(p).startswith(SQLITE_MAGIC) else ".mcap"
+        if p.is_file():
+            # rosbags picks ROS 1 or the ROS 2 storage by the file's suffix.
+            head = read_magic(p)
+            suffix = (
+                ".bag"
+                if head.startswith(ROS1_MAGIC)
+                else ".db3"
+                if head.startswith(SQLITE_MAGIC)
+                else ".mcap"
+            )
             if p.suffix != suffix:
                 self._tmp = tempfile.TemporaryDirectory(prefix="pcdcodec-bag-")
                 target = Path(self._tmp.name) / f"bag{suffix}"
                 target.symlink_to(p.resolve())
-        reader = AnyReader([target], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
         try:
+            reader = AnyReader(
+                [_bagindex.bounded_path(target)],
+                default_typestore=get_typestore(Stores.ROS2_HUMBLE),
+            )
             reader.open()
         except Exception as exc:
             raise _wrap(exc, p) from exc
@@ -262,9 +287,9 @@ class RosbagSource(Source):
                     cand.encoding = str(msg.format)
                     cand.role = rm.compressed_kind(cand.encoding)
                     if cand.role is not None:
+                        # The size from the image's header: nothing is decoded here.
                         try:
-                            img = rm.decode_compressed(msg, cand.role, t)
-                            cand.height, cand.width = img.shape[:2]
+                            cand.width, cand.height = rm.compressed_size(msg, cand.role, t)
                         except PcdcodecError as exc:
                             cand.role, cand.note = None, str(exc)
             elif mt == CAMERA_INFO:
@@ -347,8 +372,7 @@ class RosbagSource(Source):
             first = self._first(conn)
             if first is None:
                 raise InputError(f"cloud topic {cloud_topic!r} has no messages")
-            self._layout = rm.cloud_layout(first, cloud_topic)
-            self._cloud_fields = [(f.name, f.offset, f.datatype) for f in first.fields]
+            self._layout = self._cloud_layout(first, cloud_topic)
             self.cloud_topic = cloud_topic
             self._depth_conn = conn
             self._color_conn = None
@@ -359,6 +383,7 @@ class RosbagSource(Source):
             first_pts = rm.cloud_points(first, self._layout, cloud_topic)
             if self.cloud_depth == "auto" and depth_scale is None:
                 self._pick_units(first_pts["z"].astype(np.float32))
+            self._depth_dtype = np.dtype(np.uint16 if self._cloud_units is not None else np.float32)
         else:
             if depth_topic is None:
                 # Raw images before compressed ones, then the busiest topic.
@@ -373,6 +398,8 @@ class RosbagSource(Source):
                     "CompressedImage"
                 )
             if cand.role != "depth":
+                if cand.note and rm.compressed_kind(cand.encoding) == "depth":
+                    raise DecodeError(cand.note)
                 enc = cand.encoding
                 raise InputError(
                     f"depth topic {depth_topic!r} has encoding {enc!r}; expected one of "
@@ -383,6 +410,7 @@ class RosbagSource(Source):
             width, height = cand.width, cand.height
             anchor = depth_topic
             float_depth = cand.encoding.startswith("32FC1")
+            self._depth_dtype = np.dtype(np.float32 if float_depth else np.uint16)
             self.depth_scale = (
                 float(depth_scale) if depth_scale is not None else (1.0 if float_depth else 1000.0)
             )
@@ -401,6 +429,20 @@ class RosbagSource(Source):
                 if colors:
                     color_topic = colors[0].topic
                 else:
+                    # A color topic whose first image is damaged or oversized is not a camera
+                    # of another size: recording depth only would lose its color unseen.
+                    damaged = [
+                        c
+                        for c in cands
+                        if c.msgtype == COMPRESSED
+                        and c.note
+                        and rm.compressed_kind(c.encoding) == "color"
+                    ]
+                    if damaged:
+                        raise DecodeError(
+                            f"{damaged[0].note}; its first image cannot be read, so its color "
+                            "cannot be recorded (pass color_topic='' to record depth only)"
+                        )
                     self.notes.append(
                         f"no color topic of the depth's size {width}x{height}: depth only"
                     )
@@ -408,6 +450,8 @@ class RosbagSource(Source):
                 cconn = self._conn(color_topic, "color")
                 ccand = by_topic[color_topic]
                 if ccand.role != "color":
+                    if ccand.note and rm.compressed_kind(ccand.encoding) == "color":
+                        raise DecodeError(ccand.note)
                     raise InputError(
                         f"color topic {color_topic!r} has encoding {ccand.encoding!r}; expected "
                         f"one of {', '.join(rm.COLOR_ENCODINGS)} or a JPEG/PNG CompressedImage"
@@ -522,14 +566,50 @@ class RosbagSource(Source):
             out["intrinsics_fit_residual_px"] = self.fit_residual
         return out
 
-    def _stamp(self, msg: Any, log_time: int) -> int:
-        ns = rm.stamp_ns(msg)
+    def _stamp(self, msg: Any, log_time: int, topic: str) -> int:
+        """A message's time: its header stamp, or its log time where the stamp is 0 (unset).
+        Every path (iteration, :meth:`frame_index`, :meth:`frames_at`) reads stamps through
+        :func:`~pcdcodec.sources._bagindex.stamp_value`, so they agree."""
+        ns = rm.stamp_ns(msg, topic, ros1=not self._reader.is2)
         return ns if ns > 0 else int(log_time)
 
-    def _decode(self, msg: Any, conn: Any, role: str) -> Any:
-        if conn.msgtype == IMAGE:
-            return rm.decode_image(msg, role, conn.topic)
-        return rm.decode_compressed(msg, role, conn.topic)
+    def _decode(self, msg: Any, conn: Any, role: str, ts: int) -> Any:
+        """An image message as depth or color, checked against the camera's size before it is
+        decoded; errors name the topic and the message's time."""
+        try:
+            if conn.msgtype == IMAGE:
+                out = rm.decode_image(msg, role, conn.topic, self._shape)
+            else:
+                out = rm.decode_compressed(msg, role, conn.topic, self._shape)
+        except PcdcodecError as exc:
+            _add_time(exc, f"message at {ts} ns")
+            raise
+        if role == "depth" and out.dtype != self._depth_dtype:
+            raise InputError(
+                f"depth topic {conn.topic!r}: the message at {ts} ns holds {out.dtype} depth "
+                f"({_encoding(msg)!r}), the first message {self._depth_dtype}; expected one "
+                "depth type in a topic"
+            )
+        return out
+
+    def _cloud_layout(self, msg: Any, topic: str) -> rm.CloudLayout:
+        """The layout of a cloud, read from the message itself; kept by its whole description
+        (fields, steps, byte order, size), so a cloud that changes any of them gets its own."""
+        key = (
+            tuple((str(f.name), int(f.offset), int(f.datatype), int(f.count)) for f in msg.fields),
+            int(msg.point_step),
+            int(msg.row_step),
+            bool(msg.is_bigendian),
+            int(msg.width),
+            int(msg.height),
+        )
+        layout = self._layouts.get(key)
+        if layout is None:
+            layout = rm.cloud_layout(msg, topic)
+            if len(self._layouts) >= 8:
+                self._layouts.clear()
+            self._layouts[key] = layout
+        return layout
 
     def __iter__(self) -> Iterator[Any]:
         self.stats = _Stats()
@@ -544,12 +624,14 @@ class RosbagSource(Source):
     def _emit(self, frames: Iterator[tuple[Any, Any, int]], limit: int | None) -> Iterator[Any]:
         from ..datasets import RGBDFrame
 
+        shape = self._shape
+        assert shape is not None  # set when the source opens
         for color, depth, ts in frames:
-            if depth.shape != self._shape:
+            if depth.shape != shape:
                 topic = self.depth_topic or self.cloud_topic
                 raise InputError(
                     f"topic {topic!r}: the frame at {ts} ns is {depth.shape[1]}x{depth.shape[0]}, "
-                    f"the first frame {self._shape[1]}x{self._shape[0]}"
+                    f"the first frame {shape[1]}x{shape[0]}"
                 )
             self.stats.frames += 1
             yield RGBDFrame(color, depth, ts, pose=self._pose(ts))
@@ -582,12 +664,12 @@ class RosbagSource(Source):
     def _depth_frames(self) -> Iterator[tuple[Any, Any, int]]:
         last = -1
         for conn, t, msg in self._messages([self._depth_conn]):
-            ts = self._stamp(msg, t)
+            ts = self._stamp(msg, t, conn.topic)
             if ts <= last:
                 self.stats.out_of_order += 1
                 continue
             last = ts
-            yield None, self._decode(msg, conn, "depth"), ts
+            yield None, self._decode(msg, conn, "depth", ts), ts
 
     def _paired_frames(self) -> Iterator[tuple[Any, Any, int]]:
         from ..sync import Synchronizer
@@ -603,7 +685,7 @@ class RosbagSource(Source):
 
         for conn, t, msg in self._messages([dconn, cconn]):
             role = "depth" if conn.topic == dconn.topic else "color"
-            ts = self._stamp(msg, t)
+            ts = self._stamp(msg, t, conn.topic)
             if ts <= last[role]:
                 self.stats.out_of_order += 1
                 continue
@@ -620,8 +702,8 @@ class RosbagSource(Source):
     def _pair(self, cmsg: Any, dmsg: Any, dts: int) -> tuple[Any, Any, int]:
         cconn, dconn = self._color_conn, self._depth_conn
         assert cconn is not None
-        color = self._decode(cmsg, cconn, "color")
-        depth = self._decode(dmsg, dconn, "depth")
+        color = self._decode(cmsg, cconn, "color", dts)
+        depth = self._decode(dmsg, dconn, "depth", dts)
         if color.shape[:2] != depth.shape:
             raise InputError(
                 f"color topic {cconn.topic!r} is {color.shape[1]}x{color.shape[0]} but "
@@ -632,8 +714,8 @@ class RosbagSource(Source):
 
     def _cloud_frames(self) -> Iterator[tuple[Any, Any, int]]:
         last = -1
-        for _, t, msg in self._messages([self._depth_conn]):
-            ts = self._stamp(msg, t)
+        for conn, t, msg in self._messages([self._depth_conn]):
+            ts = self._stamp(msg, t, conn.topic)
             if ts <= last:
                 self.stats.out_of_order += 1
                 continue
@@ -642,15 +724,23 @@ class RosbagSource(Source):
 
     def _cloud_frame(self, msg: Any, ts: int) -> tuple[Any, Any, int]:
         topic = self._depth_conn.topic
-        layout = self._layout
-        if (int(msg.width), int(msg.height)) != (layout.width, layout.height):
+        first = self._layout
+        if (int(msg.width), int(msg.height)) != (first.width, first.height):
             raise InputError(
                 f"cloud topic {topic!r}: cloud at {ts} ns is {msg.width}x{msg.height}, earlier "
-                f"clouds {layout.width}x{layout.height}"
+                f"clouds {first.width}x{first.height}"
             )
-        if [(f.name, f.offset, f.datatype) for f in msg.fields] != self._cloud_fields:
-            layout = rm.cloud_layout(msg, topic)
-        z, rgb, _ = rm.cloud_to_rgbd(msg, layout, topic)
+        try:
+            layout = self._cloud_layout(msg, topic)
+            if (layout.color is None) != (first.color is None):
+                raise InputError(
+                    f"cloud topic {topic!r}: the cloud {'has' if layout.color else 'lacks'} a "
+                    f"color field, the first cloud {'has' if first.color else 'lacks'} one"
+                )
+            z, rgb, _ = rm.cloud_to_rgbd(msg, layout, topic)
+        except PcdcodecError as exc:
+            _add_time(exc, f"cloud at {ts} ns")
+            raise
         if self._cloud_units is not None:
             units = self._as_units(z)
             if units is None:
@@ -682,13 +772,18 @@ class RosbagSource(Source):
         read here starts with a std_msgs/Header), or the log time where the stamp is 0."""
         from . import _bagindex
 
-        ns = _bagindex.cdr_stamp(raw) if self._reader.is2 else _bagindex.ros1_stamp(raw)
+        where = f"topic {conn.topic!r}"
+        ns = (
+            _bagindex.cdr_stamp(raw, where)
+            if self._reader.is2
+            else _bagindex.ros1_stamp(raw, where)
+        )
         if ns is None:
             try:
                 msg = self._reader.deserialize(raw, conn.msgtype)
             except Exception as exc:
                 raise _wrap(exc, self.path) from exc
-            return self._stamp(msg, log_time)
+            return self._stamp(msg, log_time, conn.topic)
         return ns if ns > 0 else int(log_time)
 
     def frame_index(self) -> FrameIndex:
@@ -810,7 +905,7 @@ class RosbagSource(Source):
             elif self.mode == "cloud":
                 yield self._cloud_frame(dmsg, ts)
             else:
-                yield None, self._decode(dmsg, dconn, "depth"), ts
+                yield None, self._decode(dmsg, dconn, "depth", ts), ts
 
     def _as_units(self, z: Any) -> Any:
         """``z`` as uint16 units when they give back every z bit for bit, else ``None``."""
@@ -893,14 +988,14 @@ class RosbagSource(Source):
                     ts, data, key = waiting.pop(0)
                     pts = dts if ts == cts else ts
                     group.append(Packet.create(data, pts, pts, key))
-                depth = self._decode(dmsg, dconn, "depth")
+                depth = self._decode(dmsg, dconn, "depth", dts)
                 self.stats.frames += 1
                 assert fmt_seen is not None
                 yield fmt_seen, group, depth, dts
 
         for conn, t, msg in self._messages([dconn, vconn]):
             role = "depth" if conn.topic == dconn.topic else "video"
-            ts = self._stamp(msg, t)
+            ts = self._stamp(msg, t, conn.topic)
             if ts <= last[role]:
                 self.stats.out_of_order += 1
                 continue
