@@ -1,0 +1,201 @@
+"""What a SIGKILL costs a recording: frames handed to the writer vs frames readable after.
+
+Run: ``python scripts/writer_kill_test.py [--kills 24] [--modes paced,idle] [--seed 0]
+[--writer REV]``.
+
+A child process records the bundled sample (640×480, looped) with the default codecs and is
+killed with SIGKILL at a random point; the file it leaves is then read as it is (unfinished,
+without an index) and through ``pcdcodec recover``. The child prints each frame's number and
+the time just before handing it to ``write()``, so the parent knows every frame handed in,
+even one whose ``write()`` never returned.
+
+* ``paced``: frames handed in at 30 fps, without pause. The kill comes 0.3 to 3 s after the
+  first frame is readable (past the codecs' start-up).
+* ``idle``: bursts of 1 to 8 frames at 30 fps, each followed by an idle gap of 0.02 to 1 s; the
+  kill comes at a random point of a random burst or gap. Kills more than 50 ms after the last
+  frame was handed in are counted apart: there the writer is idle and should lose nothing.
+
+``--writer REV`` runs the ``RecordingWriter`` of an earlier commit instead (its
+``pcdcodec/recording/writer.py``, with the rest of the package as checked out), for the
+figures before a change.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import signal
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import pcdcodec  # noqa: E402
+
+CHILD = textwrap.dedent(
+    """
+    import importlib.util, random, sys, time
+    import pcdcodec
+    path, mode, seed, writer_file = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+    if writer_file:
+        spec = importlib.util.spec_from_file_location(
+            "pcdcodec.recording._writer_under_test", writer_file
+        )
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        Writer = module.RecordingWriter
+    else:
+        Writer = pcdcodec.RecordingWriter
+    rng = random.Random(seed)
+    seq = pcdcodec.load_sample()
+    frames = [(f.color, f.depth) for f in seq]
+    rec = Writer(path, intrinsics=seq.intrinsics, depth_scale=seq.depth_scale)
+    k = 0
+    start = time.monotonic()
+    while True:
+        burst = 10**9 if mode == "paced" else rng.randint(1, 8)
+        for _ in range(burst):
+            time.sleep(max(0.0, start + k / 30 - time.monotonic()))
+            print(k, time.monotonic(), flush=True)
+            color, depth = frames[k % len(frames)]
+            rec.write(color, depth, k * 33_333_333)
+            k += 1
+        gap = rng.uniform(0.02, 1.0)
+        time.sleep(gap)
+        start += gap + 1 / 30
+    """
+)
+
+
+@dataclass
+class Mode:
+    kills: int = 0
+    handed: int = 0
+    readable: int = 0
+    recovered: int = 0
+    losses: list[int] = field(default_factory=list)
+    idle_losses: list[int] = field(default_factory=list)  # kills >= 50 ms after a hand-in
+    recover_mismatch: int = 0
+    rates: list[float] = field(default_factory=list)  # frames handed in per second, paced
+
+
+def readable(path: Path) -> int:
+    with pcdcodec.open(path) as rec:
+        return len(rec)
+
+
+def wait_readable(path: Path, timeout: float = 60.0) -> None:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        try:
+            if path.exists() and readable(path) >= 1:
+                return
+        except pcdcodec.PcdcodecError:
+            pass  # the file's first bytes are still being written
+        time.sleep(0.01)
+    raise SystemExit(f"no frame readable in {path} after {timeout:.0f} s")
+
+
+def kill_once(
+    workdir: Path, mode: str, seed: int, writer_file: str, rng: random.Random, stats: Mode
+) -> None:
+    path = workdir / f"{mode}-{seed}.pcdc"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", CHILD, str(path), mode, str(seed), writer_file],
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
+    assert proc.stdout is not None
+    try:
+        wait_readable(path)
+        time.sleep(rng.uniform(0.3, 3.0))
+        killed_at = time.monotonic()
+    finally:
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    lines = [line.split() for line in proc.stdout.read().splitlines() if line.strip()]
+    proc.stdout.close()
+    handed = len(lines)
+    since_last = killed_at - float(lines[-1][1])
+    found = readable(path)
+    recovered_path = workdir / f"{mode}-{seed}-recovered.pcdc"
+    recovered = pcdcodec.recording.recover(path, recovered_path)
+    stats.kills += 1
+    stats.handed += handed
+    stats.readable += found
+    stats.recovered += recovered
+    stats.losses.append(handed - found)
+    if mode == "paced" and handed > 31:
+        # Over the last 30 frames: below 30 fps, write() waited for the codecs.
+        stats.rates.append(30 / (float(lines[-1][1]) - float(lines[-31][1])))
+    if recovered != found:
+        stats.recover_mismatch += 1
+    if since_last >= 0.05:
+        stats.idle_losses.append(handed - found)
+    path.unlink()
+    recovered_path.unlink()
+
+
+def histogram(losses: list[int]) -> str:
+    if not losses:
+        return "-"
+    counts: dict[int, int] = {}
+    for lost in losses:
+        counts[lost] = counts.get(lost, 0) + 1
+    return ", ".join(f"{lost} lost: {n}" for lost, n in sorted(counts.items()))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--kills", type=int, default=24, help="kills per mode (default 24)")
+    parser.add_argument("--modes", default="paced,idle", help="paced, idle or both")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--writer", default="", help="git revision of the writer to test")
+    args = parser.parse_args()
+    rng = random.Random(args.seed)
+    with tempfile.TemporaryDirectory() as tmp:
+        workdir = Path(tmp)
+        writer_file = ""
+        if args.writer:
+            source = subprocess.run(
+                ["git", "show", f"{args.writer}:pcdcodec/recording/writer.py"],
+                cwd=ROOT,
+                capture_output=True,
+                text=True,
+                check=True,
+            ).stdout
+            (workdir / "writer.py").write_text(source)
+            writer_file = str(workdir / "writer.py")
+        print(f"writer: {args.writer or 'as checked out'}; {args.kills} kills per mode")
+        print("| mode | kills | handed in | readable | lost per kill | idle kills (≥ 50 ms) |")
+        print("|---|---|---|---|---|---|")
+        for mode in args.modes.split(","):
+            stats = Mode()
+            for k in range(args.kills):
+                kill_once(workdir, mode, args.seed * 1000 + k, writer_file, rng, stats)
+            print(
+                f"| {mode} | {stats.kills} | {stats.handed} | {stats.readable} | "
+                f"{histogram(stats.losses)} | {len(stats.idle_losses)} kills: "
+                f"{histogram(stats.idle_losses)} |",
+                flush=True,
+            )
+            if stats.rates:
+                rates = sorted(stats.rates)
+                print(
+                    f"  paced: frames handed in per second before the kill, min "
+                    f"{rates[0]:.1f}, median {rates[len(rates) // 2]:.1f}, max {rates[-1]:.1f}"
+                )
+            if stats.recover_mismatch:
+                print(f"  recover found another count than the reader {stats.recover_mismatch}x")
+
+
+if __name__ == "__main__":
+    main()
