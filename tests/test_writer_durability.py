@@ -258,7 +258,7 @@ def test_abort_stops_the_writing_thread_before_closing_the_file(
 
 # Records the sample cut to 160x120, so the default codecs keep up with 30 fps on a busy
 # machine. Prints the number of each frame before handing it in; in "idle" mode, waits after
-# the last frame until the writer says everything is written, then prints "idle".
+# the last frame until the writer has written everything, then prints "idle".
 KILLED_WRITER = textwrap.dedent(
     """
     import sys, time, pcdcodec
@@ -274,9 +274,7 @@ KILLED_WRITER = textwrap.dedent(
             print(k, flush=True)
             color, depth = frames[k % len(frames)]
             rec.write(color, depth, k * 33_000_000)
-        end = time.monotonic() + 5
-        while rec.frames_complete < count and time.monotonic() < end:
-            time.sleep(0.001)
+        rec.flush()  # returns once every frame is written and flushed to the file
         print("idle", flush=True)
         time.sleep(60)
     """

@@ -410,6 +410,11 @@ class RecordingWriter:
         :class:`~pcdcodec.InputError` for frames of another size than the first, color of
         another size than the color camera's, timestamps that do not increase, a pose that is
         not a rigid 4 × 4 transform, or bad arrays; the frames already written stay intact.
+
+        The frame is encoded and written in the background; ``write()`` returns at once unless
+        ``in_flight`` frames already wait, and then blocks until one is written. An error met
+        encoding or writing an earlier frame is raised here, before this frame is taken (call
+        again to hand it in); the frames handed in after the failed one are still written.
         """
         self._check_open()
         self._raise_background_error()
@@ -465,7 +470,8 @@ class RecordingWriter:
         files or ROS bags go in unchanged. A recording takes either :meth:`write` frames or
         encoded ones, not both. Raises :class:`~pcdcodec.InputError` for a recording without
         color, items that are not :class:`~pcdcodec.color.base.Packet`, or the errors of
-        :meth:`write`.
+        :meth:`write`; like it, writes in the background and blocks while ``in_flight`` frames
+        wait.
         """
         self._check_open()
         self._raise_background_error()
