@@ -15,8 +15,8 @@ in the writer's queue, and a kill loses them too.
 * ``paced``: frames handed in at 30 fps, without pause. The kill comes 0.3 to 3 s after the
   first frame is readable (past the codecs' start-up).
 * ``idle``: bursts of 1 to 8 frames at 30 fps, each followed by an idle gap of 0.02 to 1 s; the
-  kill comes at a random point of a random burst or gap. Kills more than 50 ms after the last
-  frame was handed in are counted apart: there the writer is idle and should lose nothing.
+  kill comes at a random point of a random burst or gap. Kills 50 ms or more after the last
+  ``write()`` returned are counted apart: there the writer is idle and should lose nothing.
 
 ``--step 2`` records every second pixel (320×240), a quarter of the work per frame, for a
 machine too busy to encode 640×480 at 30 fps. ``--writer REV`` runs the ``RecordingWriter``
@@ -77,6 +77,7 @@ CHILD = textwrap.dedent(
             print(k, time.monotonic(), rec.frames_complete, flush=True)
             color, depth = frames[k % len(frames)]
             rec.write(color, depth, k * 33_333_333)
+            print("returned", time.monotonic(), flush=True)
             k += 1
         gap = rng.uniform(0.02, 1.0)
         time.sleep(gap)
@@ -92,7 +93,7 @@ class Mode:
     readable: int = 0
     recovered: int = 0
     losses: list[int] = field(default_factory=list)
-    idle_losses: list[int] = field(default_factory=list)  # kills >= 50 ms after a hand-in
+    idle_losses: list[int] = field(default_factory=list)  # kills >= 50 ms after a write()
     recover_mismatch: int = 0
     rates: list[float] = field(default_factory=list)  # frames handed in per second, paced
     # Kills where every frame before the last one handed in was written when it was handed
@@ -141,10 +142,12 @@ def kill_once(
     finally:
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
-    lines = [line.split() for line in proc.stdout.read().splitlines() if line.strip()]
+    events = [line.split() for line in proc.stdout.read().splitlines() if line.strip()]
     proc.stdout.close()
+    lines = [e for e in events if e[0] != "returned"]  # one per frame handed in
     handed = len(lines)
-    since_last = killed_at - float(lines[-1][1])
+    # Idle: the last write() had returned, 50 ms or more before the kill.
+    since_last = killed_at - float(events[-1][1]) if events[-1][0] == "returned" else 0.0
     found = readable(path)
     recovered_path = workdir / f"{mode}-{seed}-recovered.pcdc"
     recovered = pcdcodec.recording.recover(path, recovered_path)
@@ -203,7 +206,7 @@ def main() -> None:
         print(f"writer: {args.writer or 'as checked out'}; {size}; {args.kills} kills per mode")
         print(
             "| mode | kills | handed in | readable | lost per kill | kills with the codecs "
-            "caught up | kills ≥ 50 ms after a hand-in |"
+            "caught up | kills ≥ 50 ms after a write() returned |"
         )
         print("|---|---|---|---|---|---|---|")
         for mode in args.modes.split(","):
