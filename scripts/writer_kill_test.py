@@ -146,8 +146,10 @@ def kill_once(
     proc.stdout.close()
     lines = [e for e in events if e[0] != "returned"]  # one per frame handed in
     handed = len(lines)
-    # Idle: the last write() had returned, 50 ms or more before the kill.
-    since_last = killed_at - float(events[-1][1]) if events[-1][0] == "returned" else 0.0
+    # Idle: the last write() had returned, 50 ms or more before the kill. (A line the kill
+    # cut short counts as not idle.)
+    last = events[-1]
+    since_last = killed_at - float(last[1]) if last[0] == "returned" and len(last) == 2 else 0.0
     found = readable(path)
     recovered_path = workdir / f"{mode}-{seed}-recovered.pcdc"
     recovered = pcdcodec.recording.recover(path, recovered_path)
@@ -156,12 +158,12 @@ def kill_once(
     stats.readable += found
     stats.recovered += recovered
     stats.losses.append(handed - found)
-    if mode == "paced" and handed > 31:
+    if mode == "paced" and handed > 31 and len(lines[-1]) == 3:
         # Over the last 30 frames: below 30 fps, write() waited for the codecs.
         stats.rates.append(30 / (float(lines[-1][1]) - float(lines[-31][1])))
     if recovered != found:
         stats.recover_mismatch += 1
-    if int(lines[-1][2]) == handed - 1:
+    if len(lines[-1]) == 3 and int(lines[-1][2]) == handed - 1:
         stats.kept_up_losses.append(handed - found)
     if since_last >= 0.05:
         stats.idle_losses.append(handed - found)
