@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import base64
+import contextlib
 import json
 import os
+import threading
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import IO, Any
 
@@ -42,6 +44,9 @@ from ._ros import (
 )
 
 __all__ = ["RecordingWriter"]
+
+#: A frame handed in: its timestamp (ns) and the futures of its color packets and depth bytes.
+_Pending = tuple[int, Future[list[Packet]] | None, Future[bytes]]
 
 _NS = 1_000_000_000
 #: The latest timestamp a recording holds: the ROS messages it stores (camera calibration,
@@ -136,13 +141,18 @@ class RecordingWriter:
     """Writes RGB-D frames into a ``.pcdc`` file (an MCAP file; see ``docs/format.md``).
 
     Use :func:`pcdcodec.open` with mode ``"w"`` rather than this class directly. Color and depth
-    of each frame are encoded on two threads while the caller prepares the next frame; at most
-    ``in_flight`` frames wait in memory, so memory stays bounded however long the recording.
-    Each message is written and flushed as soon as it is encoded: if the process dies, every
-    frame whose messages were written (``frames_complete``) can be read back, and
-    ``pcdcodec recover`` rewrites the file with an index. Frames still in flight are lost: the
-    ``in_flight`` queue plus the frames a video encoder holds back, which at the codecs'
-    defaults (``low_delay=True``) is none, except for AV1 (about 55; see ``docs/format.md``).
+    of each frame are encoded on two threads while the caller prepares the next frame, and a
+    third thread writes each frame to the file, in the order handed in, as soon as both are
+    encoded, whether or not more frames follow: an idle writer has everything handed in
+    written and flushed within milliseconds. When the caller hands in frames faster than the
+    codecs encode them, at most ``in_flight`` frames wait in memory and :meth:`write` blocks
+    until one is written, so memory stays bounded however long the recording. If the process
+    dies, every frame whose messages were written (``frames_complete``) can be read back, and
+    ``pcdcodec recover`` rewrites the file with an index. Lost are only the frames not yet
+    encoded (at 30 fps with the default codecs, at most the frame being handed in) and those a
+    video encoder holds back, which at the codecs' defaults (``low_delay=True``) is none, except
+    for AV1 (about 55; see ``docs/format.md``). An error while encoding or writing a frame in
+    the background is raised by the next :meth:`write`, :meth:`flush` or :meth:`close`.
     """
 
     def __init__(
@@ -226,9 +236,17 @@ class RecordingWriter:
         self._encoder: VideoEncoder | None = None
         self._shape: tuple[int, int] | None = None
         self._last_ts: int | None = None
-        self._pending: deque[tuple[int, Future[list[Packet]] | None, Future[bytes]]] = deque()
+        self._pending: deque[_Pending] = deque()
         self._color_pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-color")
         self._depth_pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-depth")
+        # One thread writes the file (the MCAP writer is not thread-safe), taking the frames in
+        # the order handed in. The condition guards the count of frames handed in and not yet
+        # written, and the errors met writing them, which the caller's thread raises.
+        self._mux_pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-write")
+        self._mux_state = threading.Condition()
+        self._unwritten = 0
+        self._errors: list[BaseException] = []
+        self._aborted = False
         self._channels: dict[str, int] = {}
         self._sequence = 0
         # Frames count as complete once their depth and their color packet are both written.
@@ -402,8 +420,14 @@ class RecordingWriter:
         :class:`~pcdcodec.InputError` for frames of another size than the first, color of
         another size than the color camera's, timestamps that do not increase, a pose that is
         not a rigid 4 × 4 transform, or bad arrays; the frames already written stay intact.
+
+        The frame is encoded and written in the background; ``write()`` returns at once unless
+        ``in_flight`` frames already wait, and then blocks until one is written. An error met
+        encoding or writing an earlier frame is raised here, before this frame is taken (call
+        again to hand it in); the frames handed in after the failed one are still written.
         """
         self._check_open()
+        self._raise_background_error()
         rigid = None if pose is None else as_rigid(pose, "pose")
         if self._mode == "encoded":
             raise InputError("this recording takes encoded color (write_encoded), not images")
@@ -456,9 +480,11 @@ class RecordingWriter:
         files or ROS bags go in unchanged. A recording takes either :meth:`write` frames or
         encoded ones, not both. Raises :class:`~pcdcodec.InputError` for a recording without
         color, items that are not :class:`~pcdcodec.color.base.Packet`, or the errors of
-        :meth:`write`.
+        :meth:`write`; like it, writes in the background and blocks while ``in_flight`` frames
+        wait.
         """
         self._check_open()
+        self._raise_background_error()
         if self.color_codec is None:
             raise InputError("this recording has no color codec: open it with the codec whose "
                              "packets these are")  # fmt: skip
@@ -518,9 +544,66 @@ class RecordingWriter:
         self, timestamp: int, fut_color: Future[list[Packet]] | None, d: npt.NDArray[Any]
     ) -> None:
         fut_depth = self._depth_pool.submit(self.depth_codec.encode, d.copy())
-        self._pending.append((timestamp, fut_color, fut_depth))
-        while len(self._pending) > self.in_flight:
-            self._drain_one()
+        entry = (timestamp, fut_color, fut_depth)
+        with self._mux_state:
+            self._pending.append(entry)
+            self._unwritten += 1
+        self._mux_pool.submit(self._mux_one, entry)
+        # Memory stays bounded: wait while more than in_flight frames are not yet written.
+        with self._mux_state:
+            self._mux_state.wait_for(lambda: self._unwritten <= self.in_flight)
+
+    def _mux_one(self, entry: _Pending) -> None:
+        """Write one frame handed in, once encoded (on the writing thread, in order)."""
+        timestamp, fut_color, fut_depth = entry
+        try:
+            # No lock is held while the encoders run: the caller keeps handing frames in.
+            for future in (fut_color, fut_depth):
+                if future is not None:
+                    # exception() waits on the future's own condition, which cancel() wakes
+                    # (futures.wait() would not: abort() cancels queued encodes).
+                    with contextlib.suppress(CancelledError):
+                        future.exception()
+            if self._aborted:
+                return
+            try:
+                self._drain_one()
+            except BaseException as exc:  # kept for the caller's thread, which raises it
+                add_note = getattr(exc, "add_note", None)  # Python 3.11+
+                if add_note is not None:
+                    add_note(f"(raised encoding or writing the frame at {timestamp} ns)")
+                with self._mux_state:
+                    self._errors.append(exc)
+        finally:
+            with self._mux_state:
+                # Each frame gets one try, whether or not it was taken off the queue.
+                if self._pending and self._pending[0] is entry:
+                    self._pending.popleft()
+                self._unwritten -= 1
+                self._mux_state.notify_all()
+
+    def _raise_background_error(self) -> None:
+        """Raise the first error met writing earlier frames; each is raised once."""
+        with self._mux_state:
+            errors, self._errors = self._errors, []
+        if errors:
+            add_note = getattr(errors[0], "add_note", None)
+            if len(errors) > 1 and add_note is not None:
+                add_note(f"({len(errors) - 1} more frames failed after it)")
+            raise errors[0]
+
+    def flush(self) -> None:
+        """Wait until every frame handed in is encoded, written and flushed to the file.
+
+        Frames are written without it, each as soon as it is encoded; this waits for that.
+        Frames a video encoder holds back (``low_delay=False``, AV1's default) stay held until
+        :meth:`close`. Raises the first error met encoding or writing a frame since the last
+        call that raised one; the frames handed in after a failed one are still written.
+        """
+        self._check_open()
+        with self._mux_state:
+            self._mux_state.wait_for(lambda: self._unwritten == 0)
+        self._raise_background_error()
 
     def _encode_color(self, rgb: npt.NDArray[np.uint8], timestamp: int) -> list[Packet]:
         assert self._encoder is not None
@@ -800,9 +883,11 @@ class RecordingWriter:
         if self._sync is not None:
             attempt(flush_sync)
         self._closed = True
-        # Bounded: each frame gets one try, whether or not its step took it off the queue.
-        for _ in range(len(self._pending)):
-            attempt(self._drain_one)
+        # The writing thread gives every frame handed in one try; its errors come first.
+        self._mux_pool.shutdown(wait=True)
+        with self._mux_state:
+            errors.extend(self._errors)
+            self._errors = []
         self._pending.clear()
         # Wait for every encode still running (a frame whose write() failed part way may have
         # left one behind) before the encoder is flushed: an FFmpeg codec context used from
@@ -837,10 +922,13 @@ class RecordingWriter:
     def abort(self) -> None:
         """Stop without finishing: what was written stays readable, as after a crash."""
         self._closed = True
+        self._aborted = True
         # Queued frames are dropped; a frame being coded finishes first (milliseconds), so no
-        # codec keeps running on a worker thread once abort() returns.
+        # codec keeps running on a worker thread once abort() returns. The writing thread
+        # writes nothing more, and is done before the file is closed.
         self._color_pool.shutdown(wait=True, cancel_futures=True)
         self._depth_pool.shutdown(wait=True, cancel_futures=True)
+        self._mux_pool.shutdown(wait=True)
         self._file.close()
 
     def __enter__(self) -> RecordingWriter:

@@ -1,0 +1,328 @@
+"""A frame handed to the writer reaches the file as soon as it is encoded, whatever follows."""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+
+import pcdcodec
+from pcdcodec.color.base import Packet, StreamCodec
+from pcdcodec.datasets import RGBDSequence, load_sample
+from pcdcodec.depth import Zstd
+
+STEP = 33_000_000  # ns between frames
+
+
+@pytest.fixture(scope="module")
+def sample() -> RGBDSequence:
+    return load_sample(max_frames=12)
+
+
+def _writer(path: Path, sample: RGBDSequence, **options: Any) -> pcdcodec.RecordingWriter:
+    return pcdcodec.open(
+        path, "w", intrinsics=sample.intrinsics, depth_scale=sample.depth_scale, **options
+    )
+
+
+def _poll(condition: Callable[[], bool], timeout: float = 5.0) -> bool:
+    """Whether ``condition`` came true within ``timeout`` seconds (a generous bound, not a
+    measurement)."""
+    end = time.monotonic() + timeout
+    while True:
+        if condition():
+            return True
+        if time.monotonic() > end:
+            return False
+        time.sleep(0.01)
+
+
+def _readable(path: Path) -> int:
+    """Frames a separate reader finds in the (possibly unfinished) file."""
+    with pcdcodec.open(path) as rec:
+        return len(rec)
+
+
+# -- frames are written without waiting for later ones ----------------------------------------
+
+
+def _encoded_groups(sample: RGBDSequence, frames: int) -> list[list[Packet]]:
+    codec = pcdcodec.get_codec("h264", kind="color")
+    assert isinstance(codec, StreamCodec)
+    encoder = codec.encoder(sample.intrinsics.width, sample.intrinsics.height, 30.0)
+    groups = [encoder.encode(sample[i].color, i * STEP) for i in range(frames)]
+    assert all(len(g) == 1 for g in groups)  # low delay: each frame's packet comes with it
+    return groups
+
+
+@pytest.mark.parametrize("how", ["write", "write_frames", "write_encoded"])
+def test_a_separate_reader_sees_every_frame_handed_in_while_the_writer_is_open(
+    tmp_path: Path, sample: RGBDSequence, how: str
+) -> None:
+    path = tmp_path / "open.pcdc"
+    n = 6
+    rec = _writer(path, sample)  # the default codecs, in_flight = 4
+    try:
+        if how == "write":
+            for i in range(n):
+                rec.write(sample[i].color, sample[i].depth, i * STEP)
+        elif how == "write_frames":
+            rec.write_frames((sample[i].color, sample[i].depth, i * STEP) for i in range(n))
+        else:
+            for i, group in enumerate(_encoded_groups(sample, n)):
+                rec.write_encoded(group, sample[i].depth, i * STEP)
+        # Nothing more is handed in: the frames still reach the file, without close().
+        assert _poll(lambda: _readable(path) == n), f"{_readable(path)} of {n} frames readable"
+        assert rec.frames_complete == n
+        with pcdcodec.open(path) as back:
+            assert not back.indexed
+            for i, frame in enumerate(back):
+                assert frame.timestamp_ns == i * STEP
+                np.testing.assert_array_equal(frame.depth, sample[i].depth)
+                assert frame.color is not None
+    finally:
+        rec.close()
+    with pcdcodec.open(path) as back:
+        assert back.indexed
+        assert len(back) == n
+        assert back.verify().ok
+
+
+def test_flush_waits_for_every_frame_handed_in(tmp_path: Path, sample: RGBDSequence) -> None:
+    path = tmp_path / "f.pcdc"
+    with _writer(path, sample) as rec:
+        for i in range(5):
+            rec.write(sample[i].color, sample[i].depth, i * STEP, pose=np.eye(4))
+            rec.flush()
+            assert rec.frames_complete == rec.frames_written == rec.poses_written == i + 1
+            assert _readable(path) == i + 1
+    with pcdcodec.open(path) as back:
+        assert len(back) == 5
+        assert back.has_poses
+
+
+# -- the queue still bounds memory -------------------------------------------------------------
+
+
+class _GatedZstd(Zstd):
+    """zstd that waits for a gate before each frame, as a codec slower than the caller."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.gate = threading.Event()
+        self.calls = 0
+
+    @classmethod
+    def param_names(cls) -> tuple[str, ...]:
+        return ("level",)  # the file records plain zstd, which reads it back
+
+    def encode(self, depth: npt.ArrayLike) -> bytes:
+        self.calls += 1
+        assert self.gate.wait(30), "the test never opened the gate"
+        return super().encode(depth)
+
+
+def test_a_caller_faster_than_the_codecs_waits_on_the_bounded_queue(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    path = tmp_path / "slow.pcdc"
+    codec = _GatedZstd()
+    rec = _writer(path, sample, depth=codec, in_flight=3)
+    handed: list[int] = []
+
+    def produce() -> None:
+        for i in range(8):
+            rec.write(sample[i].color, sample[i].depth, i * STEP)
+            handed.append(i)
+
+    thread = threading.Thread(target=produce)
+    thread.start()
+    try:
+        # With no frame encoded, write() returns for in_flight frames and blocks on the next.
+        assert _poll(lambda: len(handed) == 3)
+        time.sleep(0.2)  # a write() that wrongly went on would show here
+        assert handed == [0, 1, 2]
+        assert rec.frames_written == 0
+        assert codec.calls == 1  # the depth thread is on frame 0; 1 to 3 wait as copies
+    finally:
+        codec.gate.set()
+        thread.join(30)
+    assert not thread.is_alive()
+    rec.close()
+    with pcdcodec.open(path) as back:
+        assert len(back) == 8
+        for i, frame in enumerate(back):
+            np.testing.assert_array_equal(frame.depth, sample[i].depth)
+
+
+# -- errors met in the background are raised --------------------------------------------------
+
+
+class _FailingZstd(Zstd):
+    def __init__(self, fail_on: int) -> None:
+        super().__init__()
+        self._calls = 0
+        self._fail_on = fail_on
+
+    @classmethod
+    def param_names(cls) -> tuple[str, ...]:
+        return ("level",)
+
+    def encode(self, depth: npt.ArrayLike) -> bytes:
+        self._calls += 1
+        if self._calls == self._fail_on:
+            raise RuntimeError(f"encoder failure on call {self._calls}")
+        return super().encode(depth)
+
+
+def test_a_background_encode_error_is_raised_by_a_later_write(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    path = tmp_path / "e.pcdc"
+    rec = _writer(path, sample, depth=_FailingZstd(fail_on=3), in_flight=4)
+    for i in range(3):
+        rec.write(sample[i].color, sample[i].depth, i * STEP)
+    # Frame 2 fails on the depth thread. At most in_flight frames wait, so one of the next
+    # writes finds the error, whenever the encode ran; it raises before taking its frame.
+    handed = 3
+    raised: RuntimeError | None = None
+    for i in range(3, 3 + rec.in_flight + 2):
+        try:
+            rec.write(sample[i].color, sample[i].depth, i * STEP)
+        except RuntimeError as exc:
+            raised = exc
+            break
+        handed += 1
+    assert raised is not None
+    assert "call 3" in str(raised)
+    if sys.version_info >= (3, 11):
+        assert f"frame at {2 * STEP} ns" in "\n".join(getattr(raised, "__notes__", []))
+    # The writer goes on, and the error is not raised again.
+    rec.write(sample[11].color, sample[11].depth, 11 * STEP)
+    rec.close()
+    with pcdcodec.open(path) as back:
+        kept = [int(t) // STEP for t in back.timestamps]
+        assert kept == [i for i in range(handed) if i != 2] + [11]
+        assert back.verify().ok
+
+
+def test_a_background_error_is_raised_by_flush_and_close(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    path = tmp_path / "e.pcdc"
+    rec = _writer(path, sample, depth=_FailingZstd(fail_on=2))
+    rec.write(sample[0].color, sample[0].depth, 0)
+    rec.write(sample[1].color, sample[1].depth, STEP)
+    with pytest.raises(RuntimeError, match="call 2"):
+        rec.flush()
+    rec.flush()  # raised once
+    rec.close()
+    rec = _writer(tmp_path / "c.pcdc", sample, depth=_FailingZstd(fail_on=2))
+    rec.write(sample[0].color, sample[0].depth, 0)
+    rec.write(sample[1].color, sample[1].depth, STEP)
+    with pytest.raises(RuntimeError, match="call 2"):
+        rec.close()
+    with pcdcodec.open(tmp_path / "c.pcdc") as back:
+        assert back.indexed
+        assert [int(t) for t in back.timestamps] == [0]
+
+
+def test_abort_stops_the_writing_thread_before_closing_the_file(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    path = tmp_path / "a.pcdc"
+    before = set(threading.enumerate())
+    rec = _writer(path, sample)
+    for i in range(6):
+        rec.write(sample[i].color, sample[i].depth, i * STEP)
+    rec.abort()
+    assert set(threading.enumerate()) <= before  # no codec nor writer thread runs on
+    written = rec.frames_written
+    with pcdcodec.open(path) as back:
+        assert len(back) == written <= 6
+
+
+# -- a killed writer ---------------------------------------------------------------------------
+
+# Records the sample cut to 160x120, so the default codecs keep up with 30 fps on a busy
+# machine. Prints the number of each frame before handing it in; in "idle" mode, waits after
+# the last frame until the writer has written everything, then prints "idle".
+KILLED_WRITER = textwrap.dedent(
+    """
+    import sys, time, pcdcodec
+    path, mode, count = sys.argv[1], sys.argv[2], int(sys.argv[3])
+    seq = pcdcodec.load_sample()
+    i0 = seq.intrinsics
+    cam = pcdcodec.CameraIntrinsics(160, 120, i0.fx / 4, i0.fy / 4, i0.cx / 4, i0.cy / 4)
+    frames = [(f.color[::4, ::4].copy(), f.depth[::4, ::4].copy()) for f in seq]
+    with pcdcodec.open(path, "w", intrinsics=cam, depth_scale=seq.depth_scale) as rec:
+        for k in range(count):
+            time.sleep(1 / 30)  # a frame every 33 ms at most, never a burst to catch up
+            print(k, flush=True)
+            color, depth = frames[k % len(frames)]
+            rec.write(color, depth, k * 33_000_000)
+        rec.flush()  # returns once every frame is written and flushed to the file
+        print("idle", flush=True)
+        time.sleep(60)
+    """
+)
+
+
+def _kill_writer(path: Path, mode: str, count: int, after: float) -> tuple[int, int]:
+    """Run the writer, kill it ``after`` seconds into its run (or once idle), and return how
+    many frames it had begun to hand in and how many a reader finds."""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", KILLED_WRITER, str(path), mode, str(count)],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout is not None
+    lines: list[str] = []
+    try:
+        lines.append(proc.stdout.readline())  # the first frame: the writer is running
+        assert lines[0].strip() == "0", lines
+        # Past the codecs' start-up (loading depthac's compiled kernels takes a while): the
+        # kill comes while recording at a steady 30 fps.
+        assert _poll(lambda: _readable(path) >= 1, timeout=30)
+        if mode == "idle":
+            while lines[-1].strip() not in ("idle", ""):
+                lines.append(proc.stdout.readline())
+        time.sleep(after)
+    finally:
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    # Every frame number it printed, after the kill included: each was printed before its
+    # write() began.
+    lines += proc.stdout.read().splitlines()
+    handed = sum(1 for line in lines if line.strip().isdigit())
+    proc.stdout.close()
+    return handed, _readable(path)
+
+
+@pytest.mark.parametrize("kill", range(3))
+def test_sigkill_at_30_fps_loses_at_most_the_frame_being_handed_in(
+    tmp_path: Path, kill: int
+) -> None:
+    rng = random.Random(kill)
+    handed, readable = _kill_writer(tmp_path / "k.pcdc", "paced", 10_000, rng.uniform(0.2, 0.6))
+    assert handed >= 5
+    assert handed - 1 <= readable <= handed
+
+
+@pytest.mark.parametrize("count", [1, 7])
+def test_sigkill_of_an_idle_writer_loses_nothing(tmp_path: Path, count: int) -> None:
+    handed, readable = _kill_writer(tmp_path / "k.pcdc", "idle", count, random.uniform(0, 0.05))
+    assert handed == count
+    assert readable == count
