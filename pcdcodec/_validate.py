@@ -18,6 +18,7 @@ __all__ = [
     "check_choice",
     "check_color",
     "check_depth",
+    "check_depth_scale",
     "check_int",
     "check_number",
 ]
@@ -126,6 +127,17 @@ def as_uint16_depth(values: Any, *, name: str = "depth") -> npt.NDArray[np.uint1
     if hi > 65535:
         raise InputError(f"{name} has a value {hi!r} above 65535, the uint16 maximum")
     return arr.astype(np.uint16)
+
+
+def check_depth_scale(value: Any, name: str = "depth_scale") -> float:
+    """``value`` as a float depth scale (depth units per metre); raises
+    :class:`~pcdcodec.InputTypeError` for a non-number and :class:`~pcdcodec.InputError` unless
+    positive and finite, naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputTypeError(f"{name} must be a number, got {type(value).__name__}")
+    if not (np.isfinite(value) and value > 0):
+        raise InputError(f"{name} must be positive and finite, got {value}")
+    return float(value)
 
 
 def check_int(

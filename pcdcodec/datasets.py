@@ -65,8 +65,8 @@ __all__ = [
     "write_folder",
 ]
 
-_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
-_DEPTH_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff")
+DEPTH_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
 #: Depth units per metre of the TUM RGB-D benchmark's 16-bit depth PNGs.
 TUM_DEPTH_SCALE = 5000.0
 _NS_PER_S = 1_000_000_000
@@ -262,10 +262,10 @@ def _color_dir(root: Path) -> Path | None:
 
 def _subfolder_files(root: Path) -> tuple[list[Path] | None, list[Path]]:
     color_dir = _color_dir(root)
-    depths = _files(root / "depth", _DEPTH_SUFFIXES)
+    depths = _files(root / "depth", DEPTH_SUFFIXES)
     if color_dir is None:
         return None, depths  # depth only
-    colors = _files(color_dir, _IMAGE_SUFFIXES)
+    colors = _files(color_dir, IMAGE_SUFFIXES)
     if len(colors) != len(depths):
         raise InputError(
             f"{str(root)!r} holds {len(colors)} color and {len(depths)} depth images; "
@@ -275,7 +275,7 @@ def _subfolder_files(root: Path) -> tuple[list[Path] | None, list[Path]]:
 
 
 # The word that says what a file holds, and the rest of the name that pairs it up.
-_FLAT_DEPTH = re.compile(r"^(.*?)[-_.]?depth(.*)$", re.IGNORECASE)
+FLAT_DEPTH = re.compile(r"^(.*?)[-_.]?depth(.*)$", re.IGNORECASE)
 _FLAT_COLOR = re.compile(r"^(.*?)[-_.]?(?:rgb|color|colour)(.*)$", re.IGNORECASE)
 
 
@@ -319,11 +319,11 @@ def _flat_files(root: Path) -> tuple[list[Path] | None, list[Path]] | None:
             )
         found[key] = p
 
-    for p in _files(root, _DEPTH_SUFFIXES + _IMAGE_SUFFIXES):
-        key = _flat_key(_FLAT_DEPTH, p)
-        if key is not None and p.suffix.lower() in _DEPTH_SUFFIXES:
+    for p in _files(root, DEPTH_SUFFIXES + IMAGE_SUFFIXES):
+        key = _flat_key(FLAT_DEPTH, p)
+        if key is not None and p.suffix.lower() in DEPTH_SUFFIXES:
             add(depths, key, p)
-        elif p.suffix.lower() in _IMAGE_SUFFIXES and (key := _flat_key(_FLAT_COLOR, p)):
+        elif p.suffix.lower() in IMAGE_SUFFIXES and (key := _flat_key(_FLAT_COLOR, p)):
             add(colors, key, p)
     if not depths:
         return None

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from ._validate import check_depth_scale
 from .errors import InputError, InputTypeError
 
 if TYPE_CHECKING:
@@ -152,7 +153,7 @@ class Frame:
         naming both, since a legacy image made with it would not be in metres. A frame without
         a projector needs it for the legacy image of uint16 depth.
         """
-        scale = None if depth_scale is None else _scale(depth_scale)
+        scale = None if depth_scale is None else check_depth_scale(depth_scale)
         color = self.color
         if self.projector is not None:
             own = self.projector.depth_scale
@@ -243,15 +244,6 @@ def open3d_rgbd(
     )
 
 
-def _scale(value: Any, name: str = "depth_scale") -> float:
-    """``value`` as a float depth scale; raises naming ``name`` unless positive and finite."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InputTypeError(f"{name} must be a number, got {type(value).__name__}")
-    if not (np.isfinite(value) and value > 0):
-        raise InputError(f"{name} must be positive and finite, got {value}")
-    return float(value)
-
-
 def open3d_rgbd_kind(obj: Any) -> str | None:
     """``"legacy"`` or ``"tensor"`` for an Open3D RGBDImage, else ``None`` (imports nothing)."""
     cls = type(obj)
@@ -280,7 +272,7 @@ def from_open3d_rgbd(
     """
     from ._validate import check_depth
 
-    scale = _scale(depth_scale)
+    scale = check_depth_scale(depth_scale)
     kind = open3d_rgbd_kind(rgbd)
     if kind is None:
         raise InputTypeError(

@@ -16,7 +16,7 @@ from typing import IO, Any
 import numpy as np
 import numpy.typing as npt
 
-from .._validate import check_color, check_depth
+from .._validate import check_color, check_depth, check_depth_scale
 from .._version import __version__
 from ..camera import CameraIntrinsics
 from ..codec import Codec
@@ -178,11 +178,7 @@ class RecordingWriter:
             None if color_intrinsics is None else _intrinsics(color_intrinsics), depth_to_color
         )
         self.world_frame_id = world_frame_id
-        if isinstance(depth_scale, bool) or not isinstance(depth_scale, (int, float)):
-            raise InputTypeError(f"depth_scale must be a number, got {type(depth_scale).__name__}")
-        if not (np.isfinite(depth_scale) and depth_scale > 0):
-            raise InputError(f"depth_scale must be positive and finite, got {depth_scale}")
-        self.depth_scale = float(depth_scale)
+        self.depth_scale = check_depth_scale(depth_scale)
         if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 1000:
             raise InputError(f"fps must be a number in (0, 1000], got {fps!r}")
         self.fps = float(fps)
@@ -633,11 +629,11 @@ class RecordingWriter:
         self, rgbd: Any, timestamp: int | None, depth_scale: float, keyword: str
     ) -> None:
         """:meth:`write_rgbd`, its errors naming the caller's keyword for the scale."""
-        from ..frame import _scale, from_open3d_rgbd, open3d_rgbd_kind
+        from ..frame import from_open3d_rgbd, open3d_rgbd_kind
 
         kind = open3d_rgbd_kind(rgbd)
         tensor_float = kind == "tensor" and str(rgbd.depth.dtype) == "Float32"
-        scale = _scale(depth_scale, keyword)
+        scale = check_depth_scale(depth_scale, keyword)
         if kind is not None and not tensor_float and scale != self.depth_scale:
             raise InputError(
                 f"this {kind} RGBDImage holds depth at {keyword}={float(depth_scale):g} "

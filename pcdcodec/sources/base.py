@@ -342,9 +342,9 @@ class CameraDefaults:
 
     def __post_init__(self) -> None:
         if self.depth_scale is not None:
-            from ..frame import _scale
+            from .._validate import check_depth_scale
 
-            object.__setattr__(self, "depth_scale", _scale(self.depth_scale))
+            object.__setattr__(self, "depth_scale", check_depth_scale(self.depth_scale))
 
 
 def given_intrinsics(value: Any, width: int | None, height: int | None) -> CameraIntrinsics:
@@ -439,9 +439,9 @@ def open_source(
     if not p.exists():
         raise InputError(f"{str(p)!r} does not exist")
     if options.get("depth_scale") is not None:
-        from ..frame import _scale
+        from .._validate import check_depth_scale
 
-        options["depth_scale"] = _scale(options["depth_scale"])  # every reader alike
+        options["depth_scale"] = check_depth_scale(options["depth_scale"])  # every reader alike
     if kind is not None:
         if kind not in _KINDS:
             raise InputError(f"unknown source kind {kind!r}; known: {', '.join(_KINDS)}")

@@ -14,7 +14,7 @@ __all__: list[str] = []
 def _flat_depth_and_others(path: Path) -> tuple[bool, list[str]]:
     """Whether the folder holds a depth file of the flat layout (``*depth*.png``, ...), and its
     other files that are not images (which may be bags or camera recordings)."""
-    from ..datasets import _DEPTH_SUFFIXES, _FLAT_DEPTH, _IMAGE_SUFFIXES
+    from ..datasets import DEPTH_SUFFIXES, FLAT_DEPTH, IMAGE_SUFFIXES
 
     flat = False
     others: list[str] = []
@@ -23,9 +23,9 @@ def _flat_depth_and_others(path: Path) -> tuple[bool, list[str]]:
             for e in entries:
                 stem, ext = os.path.splitext(e.name)
                 ext = ext.lower()
-                if ext in _DEPTH_SUFFIXES + _IMAGE_SUFFIXES:
+                if ext in DEPTH_SUFFIXES + IMAGE_SUFFIXES:
                     flat = flat or (
-                        ext in _DEPTH_SUFFIXES and bool(_FLAT_DEPTH.match(stem)) and e.is_file()
+                        ext in DEPTH_SUFFIXES and bool(FLAT_DEPTH.match(stem)) and e.is_file()
                     )
                 elif e.is_file():
                     others.append(e.path)
