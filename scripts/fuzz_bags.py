@@ -19,19 +19,16 @@ cases) goes to ``--out/summary.json``. Exit status 1 when any case failed.
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing
 import sys
 import tempfile
-import time
-from collections import Counter
 from pathlib import Path
-from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from tests.bag_fuzz import FORMATS, OK_OUTCOMES, Clean, make_clean, run_case  # noqa: E402
+from tests.fuzz_tally import Tally  # noqa: E402
 
 _cleans: dict[str, Clean] = {}
 _work: Path = Path()
@@ -81,38 +78,14 @@ def main(argv: list[str] | None = None) -> int:
         for k in range(args.first, args.first + args.cases)
         for fmt in formats
     ]
-    by_format: dict[str, Counter[str]] = {f: Counter() for f in formats}
-    by_kind: dict[str, Counter[str]] = {}
-    failures: list[dict[str, Any]] = []
-    start = time.perf_counter()
+    tally = Tally(len(jobs), OK_OUTCOMES, formats, "format", every=500)
     with multiprocessing.get_context("spawn").Pool(
         args.jobs, initializer=_init, initargs=(formats, str(work))
     ) as pool:
-        for done, (fmt, case, kind, outcome, detail) in enumerate(
-            pool.imap_unordered(_run, jobs, chunksize=8), 1
-        ):
-            by_format[fmt][outcome] += 1
-            by_kind.setdefault(kind, Counter())[outcome] += 1
-            if outcome not in OK_OUTCOMES:
-                failures.append({"format": fmt, "case": case, "outcome": outcome, "detail": detail})
-                print(f"FAIL {outcome}: {detail}", flush=True)
-            if done % 500 == 0:
-                rate = done / (time.perf_counter() - start)
-                counts = {f: dict(c) for f, c in by_format.items()}
-                print(f"{done}/{len(jobs)} cases, {rate:.1f}/s: {counts}", flush=True)
-    summary = {
-        "cases_per_format": args.cases,
-        "seed": args.seed,
-        "first": args.first,
-        "seconds": round(time.perf_counter() - start, 1),
-        "by_format": {f: dict(c) for f, c in by_format.items()},
-        "by_kind": {k: dict(c) for k, c in sorted(by_kind.items())},
-        "failures": failures,
-    }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    print(json.dumps({k: v for k, v in summary.items() if k != "failures"}, indent=2))
-    print(f"{len(failures)} failing case(s) of {len(jobs)}; summary in {out / 'summary.json'}")
-    return 1 if failures else 0
+        for fmt, case, kind, outcome, detail in pool.imap_unordered(_run, jobs, chunksize=8):
+            tally.add(fmt, kind, case, outcome, detail)
+    head = {"cases_per_format": args.cases, "seed": args.seed, "first": args.first}
+    return tally.finish(out, head, "by_format", "by_kind")
 
 
 if __name__ == "__main__":

@@ -21,14 +21,10 @@ case failed.
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing
 import sys
 import tempfile
-import time
-from collections import Counter
 from pathlib import Path
-from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -41,6 +37,7 @@ from tests.camera_file_fuzz import (  # noqa: E402
     mutate,
     run_case,
 )
+from tests.fuzz_tally import Tally  # noqa: E402
 
 _cleans: dict[str, Clean] = {}
 _work: Path = Path()
@@ -84,45 +81,18 @@ def main(argv: list[str] | None = None) -> int:
         for k in range(args.first, args.first + args.cases)
         for name in names
     ]
-    outcomes: Counter[str] = Counter()
-    by_clean: dict[str, Counter[str]] = {n: Counter() for n in names}
-    by_kind: dict[str, Counter[str]] = {}
-    failures: list[dict[str, Any]] = []
-    start = time.perf_counter()
+    tally = Tally(len(jobs), OK_OUTCOMES, names, "clean", every=1000)
     with multiprocessing.get_context("spawn").Pool(
         args.jobs, initializer=_init, initargs=(names, str(work))
     ) as pool:
-        for done, (name, case, kind, outcome, detail) in enumerate(
-            pool.imap_unordered(_run, jobs, chunksize=8), 1
-        ):
-            outcomes[outcome] += 1
-            by_clean[name][outcome] += 1
-            by_kind.setdefault(f"{name.split('-')[0]}:{kind}", Counter())[outcome] += 1
-            if outcome not in OK_OUTCOMES:
-                failures.append({"clean": name, "case": case, "outcome": outcome, "detail": detail})
-                print(f"FAIL {outcome}: {detail}", flush=True)
+        for name, case, kind, outcome, detail in pool.imap_unordered(_run, jobs, chunksize=8):
+            if tally.add(name, f"{name.split('-')[0]}:{kind}", case, outcome, detail):
                 clean = make_clean(name, work)
                 data, _, _ = mutate(clean, args.seed, case)
                 suffix = ".bag" if clean.kind == "realsense" else ".mkv"
                 (out / f"fail-{name}-{args.seed}-{case}{suffix}").write_bytes(data)
-            if done % 1000 == 0:
-                rate = done / (time.perf_counter() - start)
-                print(f"{done}/{len(jobs)} cases, {rate:.0f}/s: {dict(outcomes)}", flush=True)
-    seconds = time.perf_counter() - start
-    summary = {
-        "cases": len(jobs),
-        "seed": args.seed,
-        "first": args.first,
-        "seconds": round(seconds, 1),
-        "outcomes": dict(outcomes),
-        "by_clean": {n: dict(c) for n, c in by_clean.items()},
-        "by_mutation": {k: dict(c) for k, c in sorted(by_kind.items())},
-        "failures": failures,
-    }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    print(json.dumps({k: v for k, v in summary.items() if k != "failures"}, indent=2))
-    print(f"{len(failures)} failing case(s) of {len(jobs)}; summary in {out / 'summary.json'}")
-    return 1 if failures else 0
+    head = {"cases": len(jobs), "seed": args.seed, "first": args.first}
+    return tally.finish(out, head, "by_clean", "by_mutation")
 
 
 if __name__ == "__main__":

@@ -20,18 +20,15 @@ when any case failed.
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing
 import sys
 import tempfile
-import time
-from collections import Counter
 from pathlib import Path
-from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from tests.fuzz_tally import Tally  # noqa: E402
 from tests.recording_fuzz import (  # noqa: E402
     CONFIGS,
     OK_OUTCOMES,
@@ -86,46 +83,17 @@ def main(argv: list[str] | None = None) -> int:
         (names[k % len(names)], args.seed, k, args.timeout)
         for k in range(args.first, args.first + args.cases)
     ]
-    outcomes: Counter[str] = Counter()
-    by_config: dict[str, Counter[str]] = {n: Counter() for n in names}
-    by_kind: dict[str, Counter[str]] = {}
-    failures: list[dict[str, Any]] = []
-    start = time.perf_counter()
+    tally = Tally(len(jobs), OK_OUTCOMES, names, "config", every=1000)
     with multiprocessing.get_context("spawn").Pool(
         args.jobs, initializer=_init, initargs=(paths, str(work))
     ) as pool:
-        for done, (name, case, kind, outcome, detail) in enumerate(
-            pool.imap_unordered(_run, jobs, chunksize=16), 1
-        ):
-            outcomes[outcome] += 1
-            by_config[name][outcome] += 1
-            by_kind.setdefault(kind, Counter())[outcome] += 1
-            if outcome not in OK_OUTCOMES:
-                failures.append(
-                    {"config": name, "case": case, "outcome": outcome, "detail": detail}
-                )
-                print(f"FAIL {outcome}: {detail}", flush=True)
+        for name, case, kind, outcome, detail in pool.imap_unordered(_run, jobs, chunksize=16):
+            if tally.add(name, kind, case, outcome, detail):
                 clean = load_clean(name, Path(paths[name]))
                 data, _ = mutate(clean, args.seed, case)
                 (out / f"fail-{name.replace('+', '-')}-{args.seed}-{case}.pcdc").write_bytes(data)
-            if done % 1000 == 0:
-                rate = done / (time.perf_counter() - start)
-                print(f"{done}/{len(jobs)} cases, {rate:.0f}/s: {dict(outcomes)}", flush=True)
-    seconds = time.perf_counter() - start
-    summary = {
-        "cases": len(jobs),
-        "seed": args.seed,
-        "first": args.first,
-        "seconds": round(seconds, 1),
-        "outcomes": dict(outcomes),
-        "by_config": {n: dict(c) for n, c in by_config.items()},
-        "by_region": {k: dict(c) for k, c in sorted(by_kind.items())},
-        "failures": failures,
-    }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    print(json.dumps({k: v for k, v in summary.items() if k != "failures"}, indent=2))
-    print(f"{len(failures)} failing case(s) of {len(jobs)}; summary in {out / 'summary.json'}")
-    return 1 if failures else 0
+    head = {"cases": len(jobs), "seed": args.seed, "first": args.first}
+    return tally.finish(out, head, "by_config", "by_region")
 
 
 if __name__ == "__main__":
