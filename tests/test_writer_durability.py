@@ -23,6 +23,8 @@ from pcdcodec.color.base import Packet, StreamCodec
 from pcdcodec.datasets import RGBDSequence, load_sample
 from pcdcodec.depth import Zstd
 
+from .test_write_safety import _FailingZstd
+
 STEP = 33_000_000  # ns between frames
 
 
@@ -168,23 +170,6 @@ def test_a_caller_faster_than_the_codecs_waits_on_the_bounded_queue(
 
 
 # -- errors met in the background are raised --------------------------------------------------
-
-
-class _FailingZstd(Zstd):
-    def __init__(self, fail_on: int) -> None:
-        super().__init__()
-        self._calls = 0
-        self._fail_on = fail_on
-
-    @classmethod
-    def param_names(cls) -> tuple[str, ...]:
-        return ("level",)
-
-    def encode(self, depth: npt.ArrayLike) -> bytes:
-        self._calls += 1
-        if self._calls == self._fail_on:
-            raise RuntimeError(f"encoder failure on call {self._calls}")
-        return super().encode(depth)
 
 
 def test_a_background_encode_error_is_raised_by_a_later_write(
