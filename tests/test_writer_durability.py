@@ -326,3 +326,33 @@ def test_sigkill_of_an_idle_writer_loses_nothing(tmp_path: Path, count: int) -> 
     handed, readable = _kill_writer(tmp_path / "k.pcdc", "idle", count, random.uniform(0, 0.05))
     assert handed == count
     assert readable == count
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"pts": -5},  # MCAP times are unsigned: met on the writing thread, it damaged the file
+        {"pts": 2**64},
+        {"dts": 2**63},
+        {"data": "not bytes"},
+        {"keyframe": "yes"},
+    ],
+)
+def test_write_encoded_refuses_a_packet_the_file_cannot_hold_before_taking_it(
+    tmp_path: Path, sample: RGBDSequence, bad: dict[str, Any]
+) -> None:
+    path = tmp_path / "p.pcdc"
+    groups = _encoded_groups(sample, 4)
+    with _writer(path, sample, color="h264") as rec:
+        for i in range(4):
+            if i == 2:
+                p = groups[i][0]
+                fields = {"data": p.data, "pts": p.pts, "dts": p.dts, "keyframe": p.keyframe}
+                broken = Packet(**{**fields, **bad})
+                with pytest.raises(pcdcodec.InputError, match="packet 0"):
+                    rec.write_encoded([broken], sample[i].depth, i * STEP)
+            rec.write_encoded(groups[i], sample[i].depth, i * STEP)
+    with pcdcodec.open(path) as back:
+        assert back.verify().ok
+        assert [int(t) // STEP for t in back.timestamps] == [0, 1, 2, 3]
+        assert all(np.array_equal(back[i].depth, sample[i].depth) for i in range(4))

@@ -119,6 +119,38 @@ def _transform(matrix: npt.NDArray[np.float64], timestamp: int, parent: str, chi
     ).encode()
 
 
+def _checked_packet(k: int, packet: Any) -> Packet:
+    """Packet ``k`` of a group for :meth:`RecordingWriter.write_encoded`, checked on the
+    caller's thread: a value the file cannot hold, met on the writing thread, would be raised
+    only later, after part of the frame was written."""
+    if not isinstance(packet, Packet):
+        raise InputTypeError(f"packet {k} is a {type(packet).__name__}, expected a Packet")
+    data = packet.data
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise InputTypeError(f"packet {k}: data is a {type(data).__name__}, expected bytes")
+    for name, value, low in (("pts", packet.pts, 0), ("dts", packet.dts, -MAX_TIMESTAMP_NS)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise InputTypeError(
+                f"packet {k}: {name} is a {type(value).__name__}, expected an int (ns)"
+            )
+        if not low <= int(value) <= MAX_TIMESTAMP_NS:
+            raise InputError(
+                f"packet {k}: {name} {int(value)} ns is outside what a recording holds "
+                f"({low} to {MAX_TIMESTAMP_NS} ns)"
+            )
+    if not isinstance(packet.keyframe, (bool, np.bool_)):
+        raise InputTypeError(
+            f"packet {k}: keyframe is a {type(packet.keyframe).__name__}, expected a bool"
+        )
+    if isinstance(data, bytes) and all(
+        type(v) is t for v, t in ((packet.pts, int), (packet.dts, int), (packet.keyframe, bool))
+    ):
+        return packet
+    return Packet(
+        bytes(data), int(packet.pts), int(packet.dts), bool(packet.keyframe), packet.checksum
+    )
+
+
 def _intrinsics(value: Any) -> CameraIntrinsics:
     if value is None:
         raise InputError(
@@ -490,10 +522,7 @@ class RecordingWriter:
                              "packets these are")  # fmt: skip
         if self._mode == "frames":
             raise InputError("this recording encodes images (write); it cannot take packets too")
-        group = list(packets)
-        for k, p in enumerate(group):
-            if not isinstance(p, Packet):
-                raise InputTypeError(f"packet {k} is a {type(p).__name__}, expected a Packet")
+        group = [_checked_packet(k, p) for k, p in enumerate(packets)]
         timestamp = self._next_timestamp(timestamp)
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
         self._check_shape(d, timestamp, encoded=True, extradata=extradata)
