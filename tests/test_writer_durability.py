@@ -356,3 +356,34 @@ def test_write_encoded_refuses_a_packet_the_file_cannot_hold_before_taking_it(
         assert back.verify().ok
         assert [int(t) // STEP for t in back.timestamps] == [0, 1, 2, 3]
         assert all(np.array_equal(back[i].depth, sample[i].depth) for i in range(4))
+
+
+def test_a_background_error_loses_no_pair_of_write_color_and_write_depth(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    path = tmp_path / "s.pcdc"
+    # Frame 0's depth fails; with in_flight=1 the failure is known before the third pair is
+    # handed in, so it surfaces while the synchronizer hands pairs out.
+    rec = _writer(path, sample, depth=_FailingZstd(fail_on=1), in_flight=1)
+    raised: list[str] = []
+
+    def hand_in(method: Callable[[Any, int], None], image: Any, timestamp: int) -> None:
+        try:
+            method(image, timestamp)
+        except RuntimeError as exc:  # raised before the image is taken: hand it in again
+            raised.append(str(exc))
+            method(image, timestamp)
+
+    for i in range(10):
+        hand_in(rec.write_depth, sample[i].depth, i * STEP)
+        hand_in(rec.write_color, sample[i].color, i * STEP + 1_000_000)
+    try:
+        rec.close()
+    except RuntimeError as exc:
+        raised.append(str(exc))
+    assert len(raised) == 1
+    assert "call 1" in raised[0]
+    assert rec.unpaired == {"color": [], "depth": []}
+    with pcdcodec.open(path) as back:
+        assert [int(t) // STEP for t in back.timestamps] == list(range(1, 10))
+        assert back.verify().ok

@@ -460,6 +460,10 @@ class RecordingWriter:
         """
         self._check_open()
         self._raise_background_error()
+        self._take(color, depth, timestamp, pose)
+
+    def _take(self, color: Any, depth: Any, timestamp: int | None, pose: Any) -> None:
+        """:meth:`write` past its checks for an open writer and earlier errors."""
         rigid = None if pose is None else as_rigid(pose, "pose")
         if self._mode == "encoded":
             raise InputError("this recording takes encoded color (write_encoded), not images")
@@ -789,14 +793,29 @@ class RecordingWriter:
         timestamp. Images that find no partner are dropped and counted in :attr:`unpaired`.
         """
         self._check_open()
-        for _, rgb, depth_ts, depth in self._synchronizer().add_color(timestamp, color):
-            self.write(rgb, depth, depth_ts)
+        # Raised before the image is taken (call again to hand it in), not between the pairs
+        # it completes: those are already out of the synchronizer.
+        self._raise_background_error()
+        self._write_pairs(self._synchronizer().add_color(timestamp, color))
 
     def write_depth(self, depth: Any, timestamp: int) -> None:
         """Add a depth image that arrives on its own (see :meth:`write_color`)."""
         self._check_open()
-        for _, rgb, depth_ts, d in self._synchronizer().add_depth(timestamp, depth):
-            self.write(rgb, d, depth_ts)
+        self._raise_background_error()
+        self._write_pairs(self._synchronizer().add_depth(timestamp, depth))
+
+    def _write_pairs(self, pairs: Iterable[Any]) -> None:
+        """Write the pairs a synchronizer made final, each of them whatever another raises
+        (a pair not written is lost: it is in neither the file nor :attr:`unpaired`); the
+        first error is raised at the end."""
+        first: Exception | None = None
+        for _, rgb, depth_ts, depth in pairs:
+            try:
+                self._take(rgb, depth, depth_ts, None)
+            except Exception as exc:
+                first = first or exc
+        if first is not None:
+            raise first
 
     @property
     def unpaired(self) -> dict[str, list[int]]:
@@ -906,8 +925,7 @@ class RecordingWriter:
                 errors.append(exc)
 
         def flush_sync() -> None:
-            for _, rgb, depth_ts, depth in self._sync.flush():
-                self.write(rgb, depth, depth_ts)
+            self._write_pairs(self._sync.flush())
 
         if self._sync is not None:
             attempt(flush_sync)
