@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import random
 import signal
@@ -387,3 +388,63 @@ def test_a_background_error_loses_no_pair_of_write_color_and_write_depth(
     with pcdcodec.open(path) as back:
         assert [int(t) // STEP for t in back.timestamps] == list(range(1, 10))
         assert back.verify().ok
+
+
+class _StrZstd(Zstd):
+    """Returns a str for its third frame, as a faulty codec might."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._calls = 0
+
+    @classmethod
+    def param_names(cls) -> tuple[str, ...]:
+        return ("level",)
+
+    def encode(self, depth: npt.ArrayLike) -> bytes:
+        self._calls += 1
+        return "not bytes" if self._calls == 3 else super().encode(depth)  # type: ignore[return-value]
+
+
+def test_a_depth_codec_returning_no_bytes_fails_its_frame_only(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    path = tmp_path / "d.pcdc"
+    rec = _writer(path, sample, depth=_StrZstd())
+    for i in range(5):
+        with contextlib.suppress(pcdcodec.PcdcodecError):
+            rec.write(sample[i].color, sample[i].depth, i * STEP)
+    with pytest.raises(pcdcodec.PcdcodecError, match="returned a str"):
+        rec.close()
+    with pcdcodec.open(path) as back:
+        assert back.verify().ok
+        assert [int(t) // STEP for t in back.timestamps] == [0, 1, 3, 4]
+
+
+def test_an_error_inside_the_file_writer_leaves_the_file_unfinished_not_damaged(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    path = tmp_path / "w.pcdc"
+    rec = _writer(path, sample)
+    real = rec._mcap.add_message
+    calls = 0
+
+    def failing(channel: int, log_time: int, data: bytes, publish: int, seq: int = 0) -> None:
+        nonlocal calls
+        calls += 1
+        if calls == 12:  # a message of the fourth frame: MCAP's writer fails part way
+            real(channel, log_time, "half a record", publish, seq)  # type: ignore[arg-type]
+        real(channel, log_time, data, publish, seq)
+
+    rec._mcap.add_message = failing  # type: ignore[method-assign]
+    for i in range(8):
+        with contextlib.suppress(TypeError, pcdcodec.PcdcodecError):
+            rec.write(sample[i].color, sample[i].depth, i * STEP)
+    with pytest.raises(TypeError):
+        rec.close()
+    # Not sealed over the damage: the file reads as unfinished, with every frame before it.
+    with pcdcodec.open(path) as back:
+        assert not back.indexed
+        assert [int(t) // STEP for t in back.timestamps] == [0, 1, 2]
+        assert all(np.array_equal(back[i].depth, sample[i].depth) for i in range(3))
+    assert pcdcodec.recording.recover(path, tmp_path / "r.pcdc") == 3

@@ -24,7 +24,7 @@ from ..color import DEFAULT_COLOR_CODEC
 from ..color.base import Packet, StreamCodec, VideoEncoder
 from ..depth import DEFAULT_DEPTH_CODEC
 from ..depth.base import FrameCodec
-from ..errors import InputError, InputTypeError
+from ..errors import InputError, InputTypeError, PcdcodecError
 from ..frame import OPEN3D_DEPTH_SCALE
 from ..projector import check_color_camera
 from ..registry import get_codec
@@ -279,6 +279,10 @@ class RecordingWriter:
         self._unwritten = 0
         self._errors: list[BaseException] = []
         self._aborted = False
+        # The error that stopped the writing of the file part way through a record: MCAP's
+        # writer may hold part of a message, so nothing more is written and the file is left
+        # unfinished (every frame before stays readable) rather than sealed and damaged.
+        self._broken: BaseException | None = None
         self._channels: dict[str, int] = {}
         self._sequence = 0
         # Frames count as complete once their depth and their color packet are both written.
@@ -824,24 +828,45 @@ class RecordingWriter:
             return {"color": [], "depth": []}
         return {"color": list(self._sync.dropped_color), "depth": list(self._sync.dropped_depth)}
 
-    def _write_packets(self, packets: list[Packet]) -> None:
-        mcap = self._mcap
+    def _color_messages(self, packets: list[Packet]) -> list[tuple[Packet, int, bytes]]:
+        """Each packet with the publish time and data of its message, made before any is
+        written (a packet that fails leaves no message of its group half written)."""
         video_format = self.color_codec.video_format if self.color_codec else None
+        out = []
         for packet in packets:
-            if packet.keyframe:
-                mcap.add_message(
-                    self._channels["key"], packet.pts, b"", max(packet.dts, 0), self._sequence
-                )
-                self._sealer.note(fmt.TOPIC_KEYFRAMES, packet.pts)
-            if video_format:
-                data = CompressedVideo(
-                    packet.pts, self.frame_id, packet.data, video_format
-                ).encode()
-            else:
-                data = packet.data
+            data = (
+                CompressedVideo(packet.pts, self.frame_id, packet.data, video_format).encode()
+                if video_format
+                else bytes(packet.data)
+            )
             # B-frames give the first packets decoding times before the first frame; MCAP times
             # are unsigned, so those are stored as 0 (decoders only need the order).
-            dts = max(packet.dts, 0)
+            out.append((packet, max(packet.dts, 0), data))
+        return out
+
+    def _to_file(self, step: Callable[[], None]) -> None:
+        """Run ``step``, which writes to the file; an error in it stops all writing."""
+        if self._broken is not None:
+            raise PcdcodecError(
+                f"{str(self._writing)!r} is not written further: writing it failed before "
+                f"({self._broken!r})"
+            )
+        try:
+            step()
+        except BaseException as exc:
+            self._broken = exc
+            raise
+
+    def _write_packets(self, packets: list[Packet]) -> None:
+        messages = self._color_messages(packets)
+        self._to_file(lambda: self._write_color(messages))
+
+    def _write_color(self, messages: list[tuple[Packet, int, bytes]]) -> None:
+        mcap = self._mcap
+        for packet, dts, data in messages:
+            if packet.keyframe:
+                mcap.add_message(self._channels["key"], packet.pts, b"", dts, self._sequence)
+                self._sealer.note(fmt.TOPIC_KEYFRAMES, packet.pts)
             mcap.add_message(self._channels["color"], packet.pts, data, dts, self._sequence)
             self._sealer.note(fmt.TOPIC_COLOR, packet.pts)
             self._sealer.packet(packet.pts, dts, packet.keyframe, data)
@@ -859,8 +884,19 @@ class RecordingWriter:
     def _drain_one(self) -> None:
         timestamp, fut_color, fut_depth = self._pending.popleft()
         if fut_color is not None:
+            # Written even when the depth failed: later frames' packets may refer to these.
             self._write_packets(fut_color.result())
         data = fut_depth.result()
+        if not isinstance(data, (bytes, bytearray, memoryview)):
+            raise PcdcodecError(
+                f"depth codec {self.depth_codec.name!r} returned a {type(data).__name__} for "
+                f"the frame at {timestamp} ns, expected bytes"
+            )
+        depth = data if isinstance(data, bytes) else bytes(data)
+        self._to_file(lambda: self._write_frame(timestamp, depth))
+
+    def _write_frame(self, timestamp: int, data: bytes) -> None:
+        """The rest of a frame after its color packets: depth, pose and digest."""
         self._mcap.add_message(
             self._channels["depth"], timestamp, data, timestamp, self.frames_written
         )
@@ -942,10 +978,12 @@ class RecordingWriter:
         self._color_pool.shutdown(wait=True)
         self._depth_pool.shutdown(wait=True)
         encoder = self._encoder
-        if encoder is not None:
+        if encoder is not None and self._broken is None:
             attempt(lambda: self._write_packets(encoder.flush()))
-        attempt(self._seal)
-        attempt(self._mcap.finish)
+        if self._broken is None:
+            attempt(lambda: self._to_file(self._seal))
+        if self._broken is None:
+            attempt(lambda: self._to_file(self._mcap.finish))
         attempt(self._file.close)
         if errors:
             add_note = getattr(errors[0], "add_note", None)  # Python 3.11+
