@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import multiprocessing
+import os
 import sys
 import tempfile
 import time
@@ -48,7 +49,10 @@ _work: Path = Path()
 
 def _init(names: list[str], work: str) -> None:
     global _work
-    _work = Path(work)
+    # A folder of its own: workers building the same clean file in one folder read each
+    # other's half-written bags, and then judged every mutant against a wrong clean.
+    _work = Path(work) / f"worker-{os.getpid()}"
+    _work.mkdir()
     for name in names:
         _cleans[name] = make_clean(name, _work)
 
@@ -79,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out or Path(tempfile.mkdtemp(prefix="pcdcodec-camera-fuzz-"))
     out.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="pcdcodec-camera-fuzz-work-"))
+    (work / "failures").mkdir()
     jobs = [
         (name, args.seed, k, args.timeout)
         for k in range(args.first, args.first + args.cases)
@@ -101,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
             if outcome not in OK_OUTCOMES:
                 failures.append({"clean": name, "case": case, "outcome": outcome, "detail": detail})
                 print(f"FAIL {outcome}: {detail}", flush=True)
-                clean = make_clean(name, work)
+                clean = make_clean(name, work / "failures")
                 data, _, _ = mutate(clean, args.seed, case)
                 suffix = ".bag" if clean.kind == "realsense" else ".mkv"
                 (out / f"fail-{name}-{args.seed}-{case}{suffix}").write_bytes(data)
