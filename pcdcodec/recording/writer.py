@@ -795,6 +795,9 @@ class RecordingWriter:
         """Add a color image that arrives on its own; it is paired with the depth image nearest
         in time (within :attr:`max_sync_difference`) and written as one frame at the depth's
         timestamp. Images that find no partner are dropped and counted in :attr:`unpaired`.
+        An error met encoding or writing an earlier frame is raised before the image is taken
+        (call again to hand it in); the pairs it completes are all written, and the first
+        error among them is raised after.
         """
         self._check_open()
         # Raised before the image is taken (call again to hand it in), not between the pairs
