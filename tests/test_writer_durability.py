@@ -411,11 +411,18 @@ def test_a_depth_codec_returning_no_bytes_fails_its_frame_only(
 ) -> None:
     path = tmp_path / "d.pcdc"
     rec = _writer(path, sample, depth=_StrZstd())
+    raised: list[str] = []
     for i in range(5):
-        with contextlib.suppress(pcdcodec.PcdcodecError):
+        try:
             rec.write(sample[i].color, sample[i].depth, i * STEP)
-    with pytest.raises(pcdcodec.PcdcodecError, match="returned a str"):
+        except pcdcodec.PcdcodecError as exc:  # raised by a later write() or by close()
+            raised.append(str(exc))
+    try:
         rec.close()
+    except pcdcodec.PcdcodecError as exc:
+        raised.append(str(exc))
+    assert len(raised) == 1
+    assert "returned a str" in raised[0]
     with pcdcodec.open(path) as back:
         assert back.verify().ok
         assert [int(t) // STEP for t in back.timestamps] == [0, 1, 3, 4]
@@ -437,11 +444,19 @@ def test_an_error_inside_the_file_writer_leaves_the_file_unfinished_not_damaged(
         real(channel, log_time, data, publish, seq)
 
     rec._mcap.add_message = failing  # type: ignore[method-assign]
+    raised: list[Exception] = []
     for i in range(8):
-        with contextlib.suppress(TypeError, pcdcodec.PcdcodecError):
+        try:
             rec.write(sample[i].color, sample[i].depth, i * STEP)
-    with pytest.raises(TypeError):
+        except (TypeError, pcdcodec.PcdcodecError) as exc:  # raised by write() or by close()
+            raised.append(exc)
+    try:
         rec.close()
+    except (TypeError, pcdcodec.PcdcodecError) as exc:
+        raised.append(exc)
+    assert isinstance(raised[0], TypeError)
+    # Raised once; a later write() or close() says the frames after it were not written.
+    assert all("not written further" in str(exc) for exc in raised[1:])
     # Not sealed over the damage: the file reads as unfinished, with every frame before it.
     with pcdcodec.open(path) as back:
         assert not back.indexed
