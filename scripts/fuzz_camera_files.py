@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -45,7 +46,10 @@ _work: Path = Path()
 
 def _init(names: list[str], work: str) -> None:
     global _work
-    _work = Path(work)
+    # A folder of its own: workers building the same clean file in one folder read each
+    # other's half-written bags, and then judged every mutant against a wrong clean.
+    _work = Path(work) / f"worker-{os.getpid()}"
+    _work.mkdir()
     for name in names:
         _cleans[name] = make_clean(name, _work)
 
@@ -76,6 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out or Path(tempfile.mkdtemp(prefix="pcdcodec-camera-fuzz-"))
     out.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="pcdcodec-camera-fuzz-work-"))
+    (work / "failures").mkdir()
     jobs = [
         (name, args.seed, k, args.timeout)
         for k in range(args.first, args.first + args.cases)
@@ -87,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     ) as pool:
         for name, case, kind, outcome, detail in pool.imap_unordered(_run, jobs, chunksize=8):
             if tally.add(name, f"{name.split('-')[0]}:{kind}", case, outcome, detail):
-                clean = make_clean(name, work)
+                clean = make_clean(name, work / "failures")
                 data, _, _ = mutate(clean, args.seed, case)
                 suffix = ".bag" if clean.kind == "realsense" else ".mkv"
                 (out / f"fail-{name}-{args.seed}-{case}{suffix}").write_bytes(data)

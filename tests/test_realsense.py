@@ -368,3 +368,49 @@ def test_stamps_after_2_to_the_31_seconds_read_one_way(tmp_path: Path) -> None:
     assert stamps[0] == (2**31 + 100) * 10**9 + 0
     assert stamps == [int(t) for t in index.timestamps]
     assert late == stamps[1:]
+
+
+def _index_redirected(tmp_path: Path) -> Path:
+    """The small bag with the depth topic's first index record filed under connection 2053,
+    which the bag does not have (one damaged byte of the record's ``conn`` field)."""
+    import struct
+
+    from rosbags.rosbag1 import Reader
+
+    path = _bag(tmp_path, compression="")
+    with Reader(path) as reader:
+        depth = next(c.id for c in reader.connections if c.topic.endswith("Depth_0/image/data"))
+    data = bytearray(path.read_bytes())
+    field = b"op=\x04" + b"\x08\x00\x00\x00ver=\x01\x00\x00\x00\t\x00\x00\x00conn="
+    at = data.index(field + struct.pack("<I", depth)) + len(field)
+    data[at + 1] = 8
+    bad = tmp_path / "redirected.bag"
+    bad.write_bytes(bytes(data))
+    return bad
+
+
+def test_index_record_of_an_unknown_connection_is_damage_not_fewer_frames(
+    tmp_path: Path,
+) -> None:
+    # rosbags drops the record's messages without a word: 1 of 3 frames was read, none dropped.
+    bad = _index_redirected(tmp_path)
+    with (
+        pytest.raises(PcdcodecError, match=r"index is damaged.*Depth_0/image/data") as info,
+        pcdcodec.open_source(bad) as src,
+    ):
+        list(src)
+    assert str(bad) in str(info.value)
+
+
+def test_index_record_of_an_unknown_connection_in_a_plain_ros1_bag(tmp_path: Path) -> None:
+    from pcdcodec.sources.rosbag import RosbagSource
+
+    bad = _index_redirected(tmp_path)
+    cam = pcdcodec.CameraIntrinsics(8, 6, 4.0, 4.0, 4.0, 3.0)
+    topic = "/device_0/sensor_0/Depth_0/image/data"
+    with (
+        pytest.raises(PcdcodecError, match=r"index is damaged.*Depth_0/image/data") as info,
+        RosbagSource(bad, depth_topic=topic, color_topic="", intrinsics=cam, depth_scale=1000),
+    ):
+        pass
+    assert str(bad) in str(info.value)

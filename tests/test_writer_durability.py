@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import random
 import signal
@@ -311,3 +312,185 @@ def test_sigkill_of_an_idle_writer_loses_nothing(tmp_path: Path, count: int) -> 
     handed, readable = _kill_writer(tmp_path / "k.pcdc", "idle", count, random.uniform(0, 0.05))
     assert handed == count
     assert readable == count
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"pts": -5},  # MCAP times are unsigned: met on the writing thread, it damaged the file
+        {"pts": 2**64},
+        {"dts": 2**63},
+        {"data": "not bytes"},
+        {"keyframe": "yes"},
+    ],
+)
+def test_write_encoded_refuses_a_packet_the_file_cannot_hold_before_taking_it(
+    tmp_path: Path, sample: RGBDSequence, bad: dict[str, Any]
+) -> None:
+    path = tmp_path / "p.pcdc"
+    groups = _encoded_groups(sample, 4)
+    with _writer(path, sample, color="h264") as rec:
+        for i in range(4):
+            if i == 2:
+                p = groups[i][0]
+                fields = {"data": p.data, "pts": p.pts, "dts": p.dts, "keyframe": p.keyframe}
+                broken = Packet(**{**fields, **bad})
+                with pytest.raises(pcdcodec.InputError, match="packet 0"):
+                    rec.write_encoded([broken], sample[i].depth, i * STEP)
+            rec.write_encoded(groups[i], sample[i].depth, i * STEP)
+    with pcdcodec.open(path) as back:
+        assert back.verify().ok
+        assert [int(t) // STEP for t in back.timestamps] == [0, 1, 2, 3]
+        assert all(np.array_equal(back[i].depth, sample[i].depth) for i in range(4))
+
+
+def test_a_background_error_loses_no_pair_of_write_color_and_write_depth(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    path = tmp_path / "s.pcdc"
+    # Frame 0's depth fails; with in_flight=1 the failure is known before the third pair is
+    # handed in, so it surfaces while the synchronizer hands pairs out.
+    rec = _writer(path, sample, depth=_FailingZstd(fail_on=1), in_flight=1)
+    raised: list[str] = []
+
+    def hand_in(method: Callable[[Any, int], None], image: Any, timestamp: int) -> None:
+        try:
+            method(image, timestamp)
+        except RuntimeError as exc:  # raised before the image is taken: hand it in again
+            raised.append(str(exc))
+            method(image, timestamp)
+
+    for i in range(10):
+        hand_in(rec.write_depth, sample[i].depth, i * STEP)
+        hand_in(rec.write_color, sample[i].color, i * STEP + 1_000_000)
+    try:
+        rec.close()
+    except RuntimeError as exc:
+        raised.append(str(exc))
+    assert len(raised) == 1
+    assert "call 1" in raised[0]
+    assert rec.unpaired == {"color": [], "depth": []}
+    with pcdcodec.open(path) as back:
+        assert [int(t) // STEP for t in back.timestamps] == list(range(1, 10))
+        assert back.verify().ok
+
+
+class _StrZstd(Zstd):
+    """Returns a str for its third frame, as a faulty codec might."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._calls = 0
+
+    @classmethod
+    def param_names(cls) -> tuple[str, ...]:
+        return ("level",)
+
+    def encode(self, depth: npt.ArrayLike) -> bytes:
+        self._calls += 1
+        return "not bytes" if self._calls == 3 else super().encode(depth)  # type: ignore[return-value]
+
+
+def test_a_depth_codec_returning_no_bytes_fails_its_frame_only(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    path = tmp_path / "d.pcdc"
+    rec = _writer(path, sample, depth=_StrZstd())
+    raised: list[str] = []
+    for i in range(5):
+        try:
+            rec.write(sample[i].color, sample[i].depth, i * STEP)
+        except pcdcodec.PcdcodecError as exc:  # raised by a later write() or by close()
+            raised.append(str(exc))
+    try:
+        rec.close()
+    except pcdcodec.PcdcodecError as exc:
+        raised.append(str(exc))
+    assert len(raised) == 1
+    assert "returned a str" in raised[0]
+    with pcdcodec.open(path) as back:
+        assert back.verify().ok
+        assert [int(t) // STEP for t in back.timestamps] == [0, 1, 3, 4]
+
+
+def test_an_error_inside_the_file_writer_leaves_the_file_unfinished_not_damaged(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    path = tmp_path / "w.pcdc"
+    rec = _writer(path, sample)
+    real = rec._mcap.add_message
+    calls = 0
+
+    def failing(channel: int, log_time: int, data: bytes, publish: int, seq: int = 0) -> None:
+        nonlocal calls
+        calls += 1
+        if calls == 12:  # a message of the fourth frame: MCAP's writer fails part way
+            real(channel, log_time, "half a record", publish, seq)  # type: ignore[arg-type]
+        real(channel, log_time, data, publish, seq)
+
+    rec._mcap.add_message = failing  # type: ignore[method-assign]
+    raised: list[Exception] = []
+    for i in range(8):
+        try:
+            rec.write(sample[i].color, sample[i].depth, i * STEP)
+        except (TypeError, pcdcodec.PcdcodecError) as exc:  # raised by write() or by close()
+            raised.append(exc)
+    try:
+        rec.close()
+    except (TypeError, pcdcodec.PcdcodecError) as exc:
+        raised.append(exc)
+    assert isinstance(raised[0], TypeError)
+    # Raised once; a later write() or close() says the frames after it were not written.
+    assert all("not written further" in str(exc) for exc in raised[1:])
+    # Not sealed over the damage: the file reads as unfinished, with every frame before it.
+    with pcdcodec.open(path) as back:
+        assert not back.indexed
+        assert [int(t) // STEP for t in back.timestamps] == [0, 1, 2]
+        assert all(np.array_equal(back[i].depth, sample[i].depth) for i in range(3))
+    assert pcdcodec.recording.recover(path, tmp_path / "r.pcdc") == 3
+
+
+def test_a_file_cut_at_any_byte_reads_every_frame_written_before_the_cut(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    """As after a kill at any point: the frames whose messages all precede the cut read back
+    exactly, and recover copies the same frames. Frame 3's depth fails (its color packet stays
+    in the file, with the next frame's group) and odd frames carry a pose."""
+    step = 8
+    i0 = sample.intrinsics
+    cam = pcdcodec.CameraIntrinsics(
+        i0.width // step, i0.height // step, i0.fx / step, i0.fy / step, i0.cx / step, i0.cy / step
+    )
+    frames = [(f.color[::step, ::step].copy(), f.depth[::step, ::step].copy()) for f in sample]
+    path = tmp_path / "full.pcdc"
+    rec = pcdcodec.open(
+        path, "w", intrinsics=cam, depth_scale=sample.depth_scale, depth=_FailingZstd(fail_on=4)
+    )
+    sizes = []  # the file's size once each frame is written
+    for k, (color, depth) in enumerate(frames[:7]):
+        pose = np.eye(4)
+        pose[0, 3] = k / 10
+        rec.write(color, depth, k * STEP, pose=pose if k % 2 else None)
+        with contextlib.suppress(RuntimeError):
+            rec.flush()
+        sizes.append(path.stat().st_size)
+    rec.abort()
+    with pcdcodec.open(path) as back:
+        full = [(f.color.copy(), f.depth.copy()) for f in back]
+        assert [int(t) // STEP for t in back.timestamps] == [0, 1, 2, 4, 5, 6]
+    written = [s for k, s in enumerate(sizes) if k != 3]
+    data = path.read_bytes()
+    rng = random.Random(5)
+    cuts = {s for s in written} | {s - 1 for s in written}
+    cuts |= {rng.randrange(written[0], len(data)) for _ in range(25)}
+    cut = tmp_path / "cut.pcdc"
+    for at in sorted(cuts):
+        cut.write_bytes(data[:at])
+        with pcdcodec.open(cut) as back:
+            n = len(back)
+            # The frame is whole once its digest is written; MCAP's index of the chunk follows.
+            assert sum(s <= at for s in written) <= n <= sum(s <= at + 64 for s in written)
+            for i, f in enumerate(back):
+                assert np.array_equal(f.depth, full[i][1])
+                assert np.array_equal(f.color, full[i][0])
+        assert pcdcodec.recording.recover(cut, tmp_path / "r.pcdc", overwrite=True) == n

@@ -24,7 +24,7 @@ from ..color import DEFAULT_COLOR_CODEC
 from ..color.base import Packet, StreamCodec, VideoEncoder
 from ..depth import DEFAULT_DEPTH_CODEC
 from ..depth.base import FrameCodec
-from ..errors import InputError, InputTypeError
+from ..errors import InputError, InputTypeError, PcdcodecError
 from ..frame import OPEN3D_DEPTH_SCALE
 from ..projector import check_color_camera
 from ..registry import get_codec
@@ -117,6 +117,38 @@ def _transform(matrix: npt.NDArray[np.float64], timestamp: int, parent: str, chi
         (float(t[0]), float(t[1]), float(t[2])),
         (float(q[0]), float(q[1]), float(q[2]), float(q[3])),
     ).encode()
+
+
+def _checked_packet(k: int, packet: Any) -> Packet:
+    """Packet ``k`` of a group for :meth:`RecordingWriter.write_encoded`, checked on the
+    caller's thread: a value the file cannot hold, met on the writing thread, would be raised
+    only later, after part of the frame was written."""
+    if not isinstance(packet, Packet):
+        raise InputTypeError(f"packet {k} is a {type(packet).__name__}, expected a Packet")
+    data = packet.data
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise InputTypeError(f"packet {k}: data is a {type(data).__name__}, expected bytes")
+    for name, value, low in (("pts", packet.pts, 0), ("dts", packet.dts, -MAX_TIMESTAMP_NS)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise InputTypeError(
+                f"packet {k}: {name} is a {type(value).__name__}, expected an int (ns)"
+            )
+        if not low <= int(value) <= MAX_TIMESTAMP_NS:
+            raise InputError(
+                f"packet {k}: {name} {int(value)} ns is outside what a recording holds "
+                f"({low} to {MAX_TIMESTAMP_NS} ns)"
+            )
+    if not isinstance(packet.keyframe, (bool, np.bool_)):
+        raise InputTypeError(
+            f"packet {k}: keyframe is a {type(packet.keyframe).__name__}, expected a bool"
+        )
+    if isinstance(data, bytes) and all(
+        type(v) is t for v, t in ((packet.pts, int), (packet.dts, int), (packet.keyframe, bool))
+    ):
+        return packet
+    return Packet(
+        bytes(data), int(packet.pts), int(packet.dts), bool(packet.keyframe), packet.checksum
+    )
 
 
 def _intrinsics(value: Any) -> CameraIntrinsics:
@@ -243,6 +275,10 @@ class RecordingWriter:
         self._unwritten = 0
         self._errors: list[BaseException] = []
         self._aborted = False
+        # The error that stopped the writing of the file part way through a record: MCAP's
+        # writer may hold part of a message, so nothing more is written and the file is left
+        # unfinished (every frame before stays readable) rather than sealed and damaged.
+        self._broken: BaseException | None = None
         self._channels: dict[str, int] = {}
         self._sequence = 0
         # Frames count as complete once their depth and their color packet are both written.
@@ -424,6 +460,10 @@ class RecordingWriter:
         """
         self._check_open()
         self._raise_background_error()
+        self._take(color, depth, timestamp, pose)
+
+    def _take(self, color: Any, depth: Any, timestamp: int | None, pose: Any) -> None:
+        """:meth:`write` past its checks for an open writer and earlier errors."""
         rigid = None if pose is None else as_rigid(pose, "pose")
         if self._mode == "encoded":
             raise InputError("this recording takes encoded color (write_encoded), not images")
@@ -486,10 +526,7 @@ class RecordingWriter:
                              "packets these are")  # fmt: skip
         if self._mode == "frames":
             raise InputError("this recording encodes images (write); it cannot take packets too")
-        group = list(packets)
-        for k, p in enumerate(group):
-            if not isinstance(p, Packet):
-                raise InputTypeError(f"packet {k} is a {type(p).__name__}, expected a Packet")
+        group = [_checked_packet(k, p) for k, p in enumerate(packets)]
         timestamp = self._next_timestamp(timestamp)
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
         self._check_shape(d, timestamp, encoded=True, extradata=extradata)
@@ -754,16 +791,34 @@ class RecordingWriter:
         """Add a color image that arrives on its own; it is paired with the depth image nearest
         in time (within :attr:`max_sync_difference`) and written as one frame at the depth's
         timestamp. Images that find no partner are dropped and counted in :attr:`unpaired`.
+        An error met encoding or writing an earlier frame is raised before the image is taken
+        (call again to hand it in); the pairs it completes are all written, and the first
+        error among them is raised after.
         """
         self._check_open()
-        for _, rgb, depth_ts, depth in self._synchronizer().add_color(timestamp, color):
-            self.write(rgb, depth, depth_ts)
+        # Raised before the image is taken (call again to hand it in), not between the pairs
+        # it completes: those are already out of the synchronizer.
+        self._raise_background_error()
+        self._write_pairs(self._synchronizer().add_color(timestamp, color))
 
     def write_depth(self, depth: Any, timestamp: int) -> None:
         """Add a depth image that arrives on its own (see :meth:`write_color`)."""
         self._check_open()
-        for _, rgb, depth_ts, d in self._synchronizer().add_depth(timestamp, depth):
-            self.write(rgb, d, depth_ts)
+        self._raise_background_error()
+        self._write_pairs(self._synchronizer().add_depth(timestamp, depth))
+
+    def _write_pairs(self, pairs: Iterable[Any]) -> None:
+        """Write the pairs a synchronizer made final, each of them whatever another raises
+        (a pair not written is lost: it is in neither the file nor :attr:`unpaired`); the
+        first error is raised at the end."""
+        first: Exception | None = None
+        for _, rgb, depth_ts, depth in pairs:
+            try:
+                self._take(rgb, depth, depth_ts, None)
+            except Exception as exc:
+                first = first or exc
+        if first is not None:
+            raise first
 
     @property
     def unpaired(self) -> dict[str, list[int]]:
@@ -772,24 +827,45 @@ class RecordingWriter:
             return {"color": [], "depth": []}
         return {"color": list(self._sync.dropped_color), "depth": list(self._sync.dropped_depth)}
 
-    def _write_packets(self, packets: list[Packet]) -> None:
-        mcap = self._mcap
+    def _color_messages(self, packets: list[Packet]) -> list[tuple[Packet, int, bytes]]:
+        """Each packet with the publish time and data of its message, made before any is
+        written (a packet that fails leaves no message of its group half written)."""
         video_format = self.color_codec.video_format if self.color_codec else None
+        out = []
         for packet in packets:
-            if packet.keyframe:
-                mcap.add_message(
-                    self._channels["key"], packet.pts, b"", max(packet.dts, 0), self._sequence
-                )
-                self._sealer.note(fmt.TOPIC_KEYFRAMES, packet.pts)
-            if video_format:
-                data = CompressedVideo(
-                    packet.pts, self.frame_id, packet.data, video_format
-                ).encode()
-            else:
-                data = packet.data
+            data = (
+                CompressedVideo(packet.pts, self.frame_id, packet.data, video_format).encode()
+                if video_format
+                else bytes(packet.data)
+            )
             # B-frames give the first packets decoding times before the first frame; MCAP times
             # are unsigned, so those are stored as 0 (decoders only need the order).
-            dts = max(packet.dts, 0)
+            out.append((packet, max(packet.dts, 0), data))
+        return out
+
+    def _to_file(self, step: Callable[[], None]) -> None:
+        """Run ``step``, which writes to the file; an error in it stops all writing."""
+        if self._broken is not None:
+            raise PcdcodecError(
+                f"{str(self._writing)!r} is not written further: writing it failed before "
+                f"({self._broken!r})"
+            )
+        try:
+            step()
+        except BaseException as exc:
+            self._broken = exc
+            raise
+
+    def _write_packets(self, packets: list[Packet]) -> None:
+        messages = self._color_messages(packets)
+        self._to_file(lambda: self._write_color(messages))
+
+    def _write_color(self, messages: list[tuple[Packet, int, bytes]]) -> None:
+        mcap = self._mcap
+        for packet, dts, data in messages:
+            if packet.keyframe:
+                mcap.add_message(self._channels["key"], packet.pts, b"", dts, self._sequence)
+                self._sealer.note(fmt.TOPIC_KEYFRAMES, packet.pts)
             mcap.add_message(self._channels["color"], packet.pts, data, dts, self._sequence)
             self._sealer.note(fmt.TOPIC_COLOR, packet.pts)
             self._sealer.packet(packet.pts, dts, packet.keyframe, data)
@@ -807,8 +883,19 @@ class RecordingWriter:
     def _drain_one(self) -> None:
         timestamp, fut_color, fut_depth = self._pending.popleft()
         if fut_color is not None:
+            # Written even when the depth failed: later frames' packets may refer to these.
             self._write_packets(fut_color.result())
         data = fut_depth.result()
+        if not isinstance(data, (bytes, bytearray, memoryview)):
+            raise PcdcodecError(
+                f"depth codec {self.depth_codec.name!r} returned a {type(data).__name__} for "
+                f"the frame at {timestamp} ns, expected bytes"
+            )
+        depth = data if isinstance(data, bytes) else bytes(data)
+        self._to_file(lambda: self._write_frame(timestamp, depth))
+
+    def _write_frame(self, timestamp: int, data: bytes) -> None:
+        """The rest of a frame after its color packets: depth, pose and digest."""
         self._mcap.add_message(
             self._channels["depth"], timestamp, data, timestamp, self.frames_written
         )
@@ -873,8 +960,7 @@ class RecordingWriter:
                 errors.append(exc)
 
         def flush_sync() -> None:
-            for _, rgb, depth_ts, depth in self._sync.flush():
-                self.write(rgb, depth, depth_ts)
+            self._write_pairs(self._sync.flush())
 
         if self._sync is not None:
             attempt(flush_sync)
@@ -891,10 +977,12 @@ class RecordingWriter:
         self._color_pool.shutdown(wait=True)
         self._depth_pool.shutdown(wait=True)
         encoder = self._encoder
-        if encoder is not None:
+        if encoder is not None and self._broken is None:
             attempt(lambda: self._write_packets(encoder.flush()))
-        attempt(self._seal)
-        attempt(self._mcap.finish)
+        if self._broken is None:
+            attempt(lambda: self._to_file(self._seal))
+        if self._broken is None:
+            attempt(lambda: self._to_file(self._mcap.finish))
         attempt(self._file.close)
         if errors:
             add_note = getattr(errors[0], "add_note", None)  # Python 3.11+

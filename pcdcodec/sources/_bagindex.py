@@ -61,6 +61,33 @@ def bounded_path(path: str | os.PathLike[str]) -> Path:
     return _BoundedPath(path)
 
 
+def check_ros1_index(reader: Any, where: str) -> None:
+    """Raise :class:`~pcdcodec.DecodeError` naming ``where`` when an open ROS 1 bag reader's
+    index records disagree with its chunk infos on how many messages each connection has.
+
+    rosbags files the index records of each chunk under the connection they name and keeps only
+    the bag's connections: a damaged connection id there moves messages to no connection, and
+    they would be left out of every read without a word. A reader that is not a ROS 1 one (no
+    chunk infos) passes.
+    """
+    infos = getattr(reader, "chunk_infos", None)
+    indexes = getattr(reader, "indexes", None)
+    if infos is None or indexes is None:
+        return
+    counted: dict[int, int] = {}
+    for info in infos:
+        for conn_id, count in info.connection_counts.items():
+            counted[conn_id] = counted.get(conn_id, 0) + count
+    for conn in reader.connections:
+        indexed = len(indexes.get(conn.id, ()))
+        if indexed != counted.get(conn.id, 0):
+            raise DecodeError(
+                f"{where}: the bag's index is damaged: its chunk infos count "
+                f"{counted.get(conn.id, 0)} message(s) on {conn.topic} (connection {conn.id}), "
+                f"its index records {indexed}"
+            )
+
+
 def stamp_value(sec: int, nanosec: int, where: str) -> int:
     """A header stamp in nanoseconds, the one reading of stamps for every path through a bag.
 

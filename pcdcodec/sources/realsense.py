@@ -32,6 +32,7 @@ import numpy.typing as npt
 
 from ..camera import CameraIntrinsics
 from ..errors import DecodeError, InputError, PcdcodecError
+from ._bagindex import check_ros1_index
 from .base import FrameIndex, Source, given_intrinsics, read_magic, register_source
 
 __all__ = ["RealSenseBagSource", "open_realsense"]
@@ -200,6 +201,7 @@ class RealSenseBagSource(Source):
         except Exception as exc:
             raise InputError(f"{name!r} is not a readable ROS 1 bag: {exc}") from exc
         try:
+            check_ros1_index(reader, repr(name))
             self._read_header(reader, name, depth_scale)
         finally:
             reader.close()
@@ -399,6 +401,7 @@ class RealSenseBagSource(Source):
         except Exception as exc:
             raise DecodeError(f"{str(self.path)!r} is not a readable ROS 1 bag: {exc}") from exc
         try:
+            check_ros1_index(reader, repr(str(self.path)))
             yield reader
         finally:
             reader.close()

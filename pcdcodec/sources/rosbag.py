@@ -255,6 +255,12 @@ class RosbagSource(Source):
             reader.open()
         except Exception as exc:
             raise _wrap(exc, p) from exc
+        try:
+            for bag in reader.readers:
+                _bagindex.check_ros1_index(bag, repr(str(p)))
+        except BaseException:
+            reader.close()
+            raise
         return reader
 
     def _first(self, conn: Any) -> Any:
