@@ -346,11 +346,14 @@ def test_a_killed_writer_leaves_the_frames_whose_digest_was_written(tmp_path: Pa
     items = frames(6)
     for c, d, ts in items:
         w.write(c, d, ts)
-    complete = w.frames_complete
     w.abort()
+    # The writing thread is done once abort() returns: the count is final, and how many frames
+    # it reached before the abort depends only on timing.
+    complete = w.frames_complete
     with pcdcodec.open(path) as rec:
         assert not rec.indexed
-        assert len(rec) == complete == 5
+        assert len(rec) == complete
+        assert 1 <= complete <= 6
         for f, (c, _, ts) in zip(rec, items, strict=False):
             assert f.timestamp_ns == ts
             np.testing.assert_array_equal(f.color, c)
