@@ -1089,9 +1089,24 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The command line as parsed by :func:`build_parser`, with each command's options taken
+    anywhere among its positional arguments (``export run.pcdc --layout paper out/``)."""
+    parser = build_parser()
+    words = list(sys.argv[1:] if argv is None else argv)
+    commands: dict[str, argparse.ArgumentParser] = next(
+        a for a in parser._actions if isinstance(a, argparse._SubParsersAction)
+    ).choices
+    if not words or words[0] not in commands:  # --help, --version, or a missing command
+        return parser.parse_args(words)
+    args = commands[words[0]].parse_intermixed_args(words[1:])
+    args.command = words[0]
+    return args
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    args = build_parser().parse_args(argv)
+    args = parse_args(argv)
     try:
         status: int = args.func(args)
     except PcdcodecError as exc:

@@ -347,3 +347,25 @@ def test_info_on_a_recording_refuses_input_flags(
     err = capsys.readouterr().err
     assert "--camera --depth-scale describe how to read an input" in err
     assert main(["info", str(encoded)]) == 0
+
+
+def test_options_go_anywhere_among_a_commands_arguments() -> None:
+    from pcdcodec.cli import build_parser, parse_args
+
+    args = parse_args(["export", "run.pcdc", "--layout", "paper", "out/"])
+    assert (args.command, args.input, args.output_pos, args.layout) == (
+        "export",
+        "run.pcdc",
+        "out/",
+        "paper",
+    )
+    args = parse_args(["archive", "a/", "--verify", "b.bag", "-o", "out"])
+    assert args.src == ["a/", "b.bag"]
+    assert args.verify
+    # Every command can be parsed this way (argparse refuses some layouts for it).
+    commands = next(a for a in build_parser()._actions if a.dest == "command").choices
+    assert commands
+    for name in commands:
+        with pytest.raises(SystemExit) as done:
+            parse_args([name, "--help"])
+        assert done.value.code == 0, name
