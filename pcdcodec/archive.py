@@ -1131,6 +1131,10 @@ def _archive(
             finally:
                 bar.close()
                 manifest.save()
+    # The cluster is closed, so no task of a failed input writes any more: its parts go.
+    for rel, item in items.items():
+        if item.state == "failed":
+            shutil.rmtree(out / PARTS / rel, ignore_errors=True)
     if stopped is None and manifest.disk_full is not None:
         stopped = manifest.disk_full
     return ArchiveSummary(
@@ -1233,6 +1237,10 @@ def _run(
         rel, step, seg = what.pop(fut.key)
         job = jobs[rel]
         if items[rel].state == "failed" or fut.status == "cancelled":
+            if items[rel].state == "failed":
+                # A segment already running when its input failed cannot be cancelled: what it
+                # wrote after the failure goes now.
+                shutil.rmtree(out / PARTS / rel, ignore_errors=True)
             continue
         exc = fut.exception() if fut.status == "error" else None
         if exc is not None:
