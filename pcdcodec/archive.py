@@ -22,8 +22,9 @@ How a run is organised:
   content hash (BLAKE2b), frame count, segments, state and error. A rerun skips inputs that are
   done and unchanged (same size and modification time, same codecs), keeps the segments of a
   half-done input whose hash and plan are unchanged, and redoes the rest.
-* **Atomic outputs.** Every file is written under a hidden ``.NAME.partial-PID-…`` name and
-  renamed when complete, so a final name never holds a half-written file.
+* **Atomic outputs.** Every file is written under a hidden name beside it (see
+  :mod:`pcdcodec._atomic`; unique per writer) and renamed when complete, so a final name never
+  holds a half-written file.
 * **Lock.** ``OUT/pcdcodec-archive.lock`` (an OS file lock, released by the kernel if the run
   dies) refuses a second run on the same folder.
 * **Verification.** With ``verify``, every output is decoded: depth and timestamps are compared
@@ -52,6 +53,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from ._atomic import is_partial, partial_path
 from ._version import __version__
 from .depth import DEFAULT_DEPTH_CODEC
 from .errors import (
@@ -68,7 +70,6 @@ __all__ = ["ArchiveItem", "ArchiveSummary", "archive", "find_inputs", "segment_p
 MANIFEST = "pcdcodec-archive.json"
 LOCK = "pcdcodec-archive.lock"
 PARTS = ".pcdcodec-parts"
-_PARTIAL = ".partial-"
 
 #: default segment size: about this many bytes of source per segment ...
 SEGMENT_BYTES = 1_000_000_000
@@ -451,10 +452,6 @@ def _probe(
     }
 
 
-def _partial(path: Path) -> Path:
-    return path.with_name(f".{path.name}{_PARTIAL}{os.getpid()}-{uuid.uuid4().hex[:8]}")
-
-
 def _encode_segment(
     src: str,
     options: dict[str, Any],
@@ -472,7 +469,7 @@ def _encode_segment(
 
     target = Path(part)
     target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _partial(target)
+    tmp = partial_path(target, unique=True)
     try:
         with open_source(src, **options) as source:
             frames = source.frames_at(index) if index is not None else source.frames(start, stop)
@@ -702,7 +699,7 @@ class _Manifest:
         if not self._dirty or (not force and time.monotonic() - self._last < self.interval):
             return
         data = {"pcdcodec": __version__, "inputs": self.entries}
-        tmp = _partial(self.path)
+        tmp = partial_path(self.path, unique=True)
         try:
             with tmp.open("w") as f:
                 json.dump(data, f, indent=1, sort_keys=True)
@@ -727,7 +724,7 @@ def _sweep(out: Path) -> None:
     """Remove half-written files a dead run left (only names this module writes)."""
     for dirpath, _, filenames in os.walk(out):
         for name in filenames:
-            if name.startswith(".") and _PARTIAL in name:
+            if is_partial(name):
                 with contextlib.suppress(OSError):
                     os.unlink(os.path.join(dirpath, name))
 

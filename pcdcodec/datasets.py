@@ -951,9 +951,9 @@ def write_folder(
     and moved into place when complete; an existing non-empty folder needs ``overwrite``.
     ``progress`` is called with the number of frames written. Returns that number.
     """
-    import shutil
-
     import imagecodecs
+
+    from ._atomic import atomic_output  # not loaded by `import pcdcodec`
 
     out = Path(path)
     for fmt_name in clouds:
@@ -964,9 +964,7 @@ def write_folder(
     if out.is_dir() and any(out.iterdir()) and not overwrite:
         raise InputError(f"{str(out)!r} is not empty; pass overwrite=True to write into it")
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)
-    try:
+    with atomic_output(out, place=_place_folder) as tmp:
         (tmp / "rgb").mkdir(parents=True)
         (tmp / "depth").mkdir()
         if clouds:
@@ -1012,20 +1010,21 @@ def write_folder(
                         depth_to_color, "depth_to_color"
                     ).tolist()
             (tmp / "camera.json").write_text(json.dumps(camera, indent=2) + "\n")
-        if not out.exists():
-            os.replace(tmp, out)
-        elif not any(out.iterdir()):
-            out.rmdir()
-            os.replace(tmp, out)
-        else:  # overwrite: replace the files written, leave others alone
-            for item in sorted(tmp.rglob("*")):
-                target = out / item.relative_to(tmp)
-                if item.is_dir():
-                    target.mkdir(exist_ok=True)
-                else:
-                    os.replace(item, target)
-            shutil.rmtree(tmp)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return count
+
+
+def _place_folder(tmp: Path, out: Path) -> None:
+    """Put the folder written at ``tmp`` in place as ``out``: moved there when ``out`` is absent
+    or empty; otherwise (overwrite) the files written replace theirs and others are left."""
+    if not out.exists():
+        os.replace(tmp, out)
+    elif not any(out.iterdir()):
+        out.rmdir()
+        os.replace(tmp, out)
+    else:
+        for item in sorted(tmp.rglob("*")):
+            target = out / item.relative_to(tmp)
+            if item.is_dir():
+                target.mkdir(exist_ok=True)
+            else:
+                os.replace(item, target)

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ._atomic import partial_path
 from .errors import InputError, PcdcodecError
 
 __all__ = ["view", "view_open3d"]
@@ -107,7 +108,7 @@ def view(
         stream = rr.RecordingStream("pcdcodec", recording_id=str(recording.path.resolve()))
         partial = None
         if target is not None:
-            partial = target.with_name(f".{target.name}.partial-{os.getpid()}")
+            partial = partial_path(target)
             stream.save(str(partial))
         else:
             stream.spawn()

@@ -438,11 +438,11 @@ class _OpenCVWriter(VideoFileWriter):
             raise InputError(f"folder {str(path.parent)!r} of {str(path)!r} does not exist")
         # Written under a temporary name in the same folder (so the final move is a rename);
         # the name keeps the extension, from which FFmpeg picks the container.
-        fd, tmp = tempfile.mkstemp(
-            dir=path.parent, prefix=f".{path.stem}.", suffix=f".partial{codec.suffix}"
-        )
-        os.close(fd)
-        self._tmp = Path(tmp)
+        from .._atomic import partial_path  # not loaded by `import pcdcodec`
+
+        self._tmp = partial_path(path, unique=True, suffix=codec.suffix)
+        self._tmp.touch(exist_ok=False)
+        tmp = str(self._tmp)
         try:
             writer = cv2.VideoWriter(
                 tmp, cv2.CAP_FFMPEG, _fourcc_code(codec.fourcc), self.fps, (self.width, self.height)

@@ -126,10 +126,10 @@ def encode(
             )
         # Written beside the final name and moved there once complete: a failed conversion
         # leaves nothing under the final name (and an older file there intact).
-        partial = target.with_name(f".{target.name}.partial-{os.getpid()}")
-        partial.unlink(missing_ok=True)
-        start = time.perf_counter()
-        try:
+        from .._atomic import atomic_output  # not loaded by `import pcdcodec`
+
+        with atomic_output(target) as partial:
+            start = time.perf_counter()
             if passthrough:
                 count, writer = _passthrough(
                     source, partial, passthrough, depth=depth, fps=fps, metadata=meta,
@@ -152,9 +152,6 @@ def encode(
                 raise InputError(
                     f"{str(source.path)!r} gave no frames" + _why_empty(source.describe())
                 )
-            os.replace(partial, target)
-        finally:
-            partial.unlink(missing_ok=True)
         seconds = time.perf_counter() - start
         return EncodeSummary(
             target,

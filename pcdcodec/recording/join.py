@@ -11,6 +11,7 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
+from .._atomic import atomic_output
 from ..errors import DecodeError, InputError
 from . import _index as fmt
 
@@ -115,9 +116,8 @@ def join(
         if times:
             last_time = max(times)
 
-    tmp = dst_path.with_name(f".{dst_path.name}.partial-{os.getpid()}")
     frames = 0
-    try:
+    with atomic_output(dst_path) as tmp:  # noqa: SIM117 - the file closes before the rename
         with tmp.open("wb") as out:
             writer = Writer(
                 out, chunk_size=0, compression=CompressionType.NONE, enable_data_crcs=True
@@ -188,10 +188,6 @@ def join(
             writer.finish()  # type: ignore[no-untyped-call]
             out.flush()
             os.fsync(out.fileno())
-        os.replace(tmp, dst_path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
     return frames
 
 

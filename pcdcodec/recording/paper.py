@@ -33,6 +33,7 @@ from typing import IO, Any
 import numpy as np
 import numpy.typing as npt
 
+from .._atomic import partial_path
 from .._validate import check_depth
 from ..camera import CameraIntrinsics
 from ..color.base import Packet, StreamCodec
@@ -118,7 +119,7 @@ def export_paper(
         names = [DEPTH_FILE, FRAMES_FILE]  # frames.json is renamed into place last
         if container_format is not None:
             names.insert(1, VIDEO_FILES[container_format])
-        partial = {name: out / f".{name}.partial-{os.getpid()}" for name in names}
+        partial = {name: partial_path(out / name) for name in names}
         try:
             spans, dtype = _write_depth(rec, partial[DEPTH_FILE], progress)
             video: dict[str, Any] | None = None

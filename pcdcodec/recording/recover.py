@@ -25,6 +25,7 @@ def recover(
     """
     from mcap.writer import CompressionType, Writer
 
+    from .._atomic import atomic_output, partial_path  # not loaded by `import pcdcodec`
     from .reader import Recording
 
     src_path, dst_path = Path(src), Path(dst)
@@ -34,13 +35,13 @@ def recover(
         raise InputError("recover writes a new file: the destination must differ from the source")
     if dst_path.exists() and not overwrite:
         raise InputError(f"{str(dst_path)!r} already exists; pass overwrite=True to replace it")
-    tmp = dst_path.with_name(f".{dst_path.name}.partial-{os.getpid()}")
+    tmp = partial_path(dst_path)
     try:
-        with src_path.open("rb") as f:
-            _copy(f, tmp, src_path, Writer, CompressionType)
-        with Recording(tmp) as rec:
-            count = len(rec)
-        os.replace(tmp, dst_path)
+        with atomic_output(dst_path) as tmp:
+            with src_path.open("rb") as f:
+                _copy(f, tmp, src_path, Writer, CompressionType)
+            with Recording(tmp) as rec:
+                count = len(rec)
     except PcdcodecError as exc:
         # Name the files the caller gave, never the temporary one.
         text = (
@@ -53,8 +54,6 @@ def recover(
         raise InputError(
             f"recovering {str(src_path)!r} into {str(dst_path)!r} failed: {exc.strerror or exc}"
         ) from exc
-    finally:
-        tmp.unlink(missing_ok=True)
     return count
 
 

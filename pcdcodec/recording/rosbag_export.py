@@ -370,6 +370,7 @@ def _write(
     max_frames: int | None,
     progress: Callable[[int], None] | None,
 ) -> dict[str, Any]:
+    from .._atomic import atomic_output  # not loaded by `import pcdcodec`
     from ..projector import Projector
 
     intr = inp.intrinsics
@@ -413,14 +414,11 @@ def _write(
     t_cinfo = f"{namespace}/color/camera_info"
     t_cloud = f"{namespace}/depth_registered/points"
 
-    staging = target.parent / f".{target.name}.partial-{os.getpid()}"
-    if staging.exists():
-        shutil.rmtree(staging)
-    staging.mkdir(parents=True)
-    tmp_out = staging / target.name
     count = 0
     topics: list[str] = []
-    try:
+    with atomic_output(target, place=_swap_in) as staging:
+        staging.mkdir(parents=True)
+        tmp_out = staging / target.name
         bag = _BagWriter(tmp_out, to, storage, msgs)
         try:
             for color, depth, ts, pose in inp.frames:
@@ -492,21 +490,25 @@ def _write(
                 bag.writer.abort()
             raise
         bag.close()
-        if target.exists():
-            trash = target.parent / f".{target.name}.old-{os.getpid()}"
-            os.replace(target, trash)
-            os.replace(tmp_out, target)
-            if trash.is_dir():
-                shutil.rmtree(trash)
-            else:
-                trash.unlink()
-        else:
-            os.replace(tmp_out, target)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
     size = (
         sum(f.stat().st_size for f in target.rglob("*") if f.is_file())
         if target.is_dir()
         else target.stat().st_size
     )
     return {"frames": count, "path": str(target), "topics": topics, "bytes": size, "format": to}
+
+
+def _swap_in(staging: Path, target: Path) -> None:
+    """Move the bag written as ``staging/NAME`` onto ``target``, replacing a bag there (a file
+    or a folder)."""
+    tmp_out = staging / target.name
+    if target.exists():
+        trash = target.parent / f".{target.name}.old-{os.getpid()}"
+        os.replace(target, trash)
+        os.replace(tmp_out, target)
+        if trash.is_dir():
+            shutil.rmtree(trash)
+        else:
+            trash.unlink()
+    else:
+        os.replace(tmp_out, target)

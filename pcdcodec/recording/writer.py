@@ -246,12 +246,10 @@ class RecordingWriter:
             raise InputError(f"{str(self.path)!r} is a folder, not a file")
         # Replacing a file: write beside it and swap at the end, so the old one survives
         # until the new one is complete.
+        from .._atomic import partial_path  # not loaded by `import pcdcodec`
+
         self._target = self.path
-        self._writing = (
-            self.path.with_name(f".{self.path.name}.partial-{os.getpid()}")
-            if self.path.exists()
-            else self.path
-        )
+        self._writing = partial_path(self.path) if self.path.exists() else self.path
         mode = "xb" if self._writing == self.path else "wb"
         self._file: IO[bytes] = open(self._writing, mode)  # noqa: SIM115 - closed by close()
         try:
