@@ -44,7 +44,7 @@ def bag_clouds(bag: Path) -> Any:
     """The bag's clouds as structured arrays, one at a time."""
     from rosbags.highlevel import AnyReader
 
-    from pcdcodec.sources import _rosmsg as rm
+    from pcdcodec.ros import messages as rm
 
     with AnyReader([bag]) as reader:
         conns = [c for c in reader.connections if c.msgtype == "sensor_msgs/msg/PointCloud2"]

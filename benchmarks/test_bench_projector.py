@@ -17,8 +17,8 @@ import open3d as o3d
 import pytest
 
 from benchmarks.data import SEQUENCES, load_colors, load_depths
-from pcdcodec.camera import CameraIntrinsics
-from pcdcodec.projector import Projector
+from pcdcodec.geometry.camera import CameraIntrinsics
+from pcdcodec.geometry.projector import Projector
 
 #: Intrinsics per sequence (TUM's recommended values; typical D435 and 7-Scenes values).
 CAMERAS = {

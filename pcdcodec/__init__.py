@@ -15,10 +15,18 @@ Importing pcdcodec does not import open3d, av or cv2; they are imported where th
 
 from __future__ import annotations
 
+import importlib
+import importlib.abc
+import importlib.util
+import sys
+import warnings
+from importlib.machinery import ModuleSpec
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
 from . import metrics
 from ._validate import as_uint16_depth
 from ._version import __version__
-from .camera import CameraIntrinsics
 from .codec import KINDS, Codec, ColorCodec
 from .color import DEFAULT_COLOR_CODEC
 from .datasets import RGBDFrame, RGBDSequence, load_folder, load_sample
@@ -34,20 +42,82 @@ from .errors import (
     UnknownCodecError,
     VerificationError,
 )
-from .evaluation import Evaluation, evaluate
 from .frame import Frame
-from .projector import Projector, Reprojection
+from .geometry.camera import CameraIntrinsics
+from .geometry.projector import Projector, Reprojection
 from .recording import (
     EncodeSummary,
     Recording,
     RecordingWriter,
     encode,
-    export_bag,
     open,
     recover,
 )
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
+
+if TYPE_CHECKING:
+    from .bench.evaluation import Evaluation, evaluate
+    from .convert.rosbag import export_bag
+
+#: Public names whose modules load on first use, so that ``import pcdcodec`` stays light.
+_LAZY = {
+    "Evaluation": "pcdcodec.bench.evaluation",
+    "evaluate": "pcdcodec.bench.evaluation",
+    "export_bag": "pcdcodec.convert.rosbag",
+}
+
+#: Module paths of earlier releases, and where their contents live now. Importing an old path
+#: still works, with a DeprecationWarning naming the new one; the old paths go in 0.3.
+MOVED_MODULES = {
+    "pcdcodec.camera": "pcdcodec.geometry.camera",
+    "pcdcodec.transform": "pcdcodec.geometry.transform",
+    "pcdcodec.projector": "pcdcodec.geometry.projector",
+    "pcdcodec.evaluation": "pcdcodec.bench.evaluation",
+    "pcdcodec.peers": "pcdcodec.bench.peers",
+    "pcdcodec.recording.rosbag_export": "pcdcodec.convert.rosbag",
+    "pcdcodec.recording.paper": "pcdcodec.convert.paper",
+}
+
+
+def _moved_module(old: str) -> ModuleType:
+    new = MOVED_MODULES[old]
+    warnings.warn(
+        f"{old} has moved to {new}; import it from there ({old} goes in a later release)",
+        DeprecationWarning,
+        stacklevel=3,
+    )
+    return importlib.import_module(new)
+
+
+class _MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Answers imports of :data:`MOVED_MODULES` with the module at its new path."""
+
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> ModuleSpec | None:
+        if fullname not in MOVED_MODULES:
+            return None
+        return importlib.util.spec_from_loader(fullname, self)
+
+    def create_module(self, spec: ModuleSpec) -> ModuleType:
+        return _moved_module(spec.name)
+
+    def exec_module(self, module: ModuleType) -> None:
+        """The module was imported at its new path; there is nothing left to run."""
+
+
+if not any(isinstance(f, _MovedModuleFinder) for f in sys.meta_path):
+    sys.meta_path.insert(0, _MovedModuleFinder())
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    if f"pcdcodec.{name}" in MOVED_MODULES:
+        return importlib.import_module(f"pcdcodec.{name}")
+    raise AttributeError(f"module 'pcdcodec' has no attribute {name!r}")
+
 
 __all__ = [
     "DEFAULT_COLOR_CODEC",

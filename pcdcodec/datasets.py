@@ -24,7 +24,7 @@ the file order, at ``fps``. The source's ``metadata["timestamps"]`` says which.
 
 Intrinsics and depth scale come from the arguments or, when not given, from the folder: a
 ``camera.json`` (see :func:`read_camera_json`), or an intrinsics file it ships with
-(:data:`~pcdcodec.camera.INTRINSICS_FILE_NAMES`). Without a depth scale there, a TUM RGB-D
+(:data:`~pcdcodec.geometry.camera.INTRINSICS_FILE_NAMES`). Without a depth scale there, a TUM RGB-D
 dataset folder (its ``depth.txt`` names the dataset's ``rgbd_dataset_…`` bag) gets TUM's 5000
 units per metre and a 7-Scenes folder (``frame-NNNNNN.depth.png`` with
 ``camera-intrinsics.txt``) 1000; for any other folder the scale cannot be known, and opening it
@@ -51,7 +51,7 @@ from .frame import Frame
 from .sources.base import Source
 
 if TYPE_CHECKING:
-    from .camera import CameraIntrinsics
+    from .geometry.camera import CameraIntrinsics
 
 __all__ = [
     "FolderSource",
@@ -545,7 +545,7 @@ def read_camera_json(path: str | os.PathLike[str]) -> dict[str, Any]:
 
 def _as_camera(value: Any, what: str, width: int | None, height: int | None) -> CameraIntrinsics:
     """A camera given as CameraIntrinsics, a dict (camera.json keys) or an intrinsics file."""
-    from .camera import CameraIntrinsics, read_intrinsics
+    from .geometry.camera import CameraIntrinsics, read_intrinsics
 
     if isinstance(value, CameraIntrinsics):
         return value
@@ -635,7 +635,7 @@ class FolderSource(Source):
         shape: tuple[int, ...] | None = None
         projector = None
         if self.intrinsics is not None:
-            from .projector import Projector
+            from .geometry.projector import Projector
 
             projector = Projector(
                 self.intrinsics,
@@ -810,11 +810,11 @@ def open_folder(
         camera = _as_camera(own, str(camera_file), *depth_size())
         camera_from = "camera.json"
     else:
-        from .camera import find_intrinsics_file
+        from .geometry.camera import find_intrinsics_file
 
         found = find_intrinsics_file(root)
         if found is not None:
-            from .camera import read_intrinsics
+            from .geometry.camera import read_intrinsics
 
             camera, camera_from = read_intrinsics(found, *depth_size()), found.name
 
@@ -837,7 +837,7 @@ def open_folder(
     if d2c is not None:
         d2c = _as_transform(d2c, "depth_to_color")
     if color_camera is not None and has_color:
-        from .projector import check_color_camera
+        from .geometry.projector import check_color_camera
 
         color_camera, d2c = check_color_camera(color_camera, d2c)
     elif color_intrinsics is None and d2c is not None and has_color:
@@ -891,7 +891,7 @@ def load_folder(
     (:func:`read_camera_json`); without a depth scale there, a TUM RGB-D or 7-Scenes dataset
     folder gets its dataset's and any other folder raises :class:`~pcdcodec.InputError` asking
     for ``depth_scale``. ``intrinsics`` may also be an intrinsics file
-    (:func:`~pcdcodec.camera.read_intrinsics`), and without either, a file the folder ships
+    (:func:`~pcdcodec.geometry.camera.read_intrinsics`), and without either, a file the folder ships
     with (``intrinsics.K.txt``, ``camera-intrinsics.txt``, a CameraInfo YAML, an Open3D
     intrinsic JSON) is read. ``color_intrinsics`` (a camera or a file) and ``depth_to_color``
     (a 4 × 4 rigid transform in metres, or a text file of its 16 numbers; default identity)

@@ -25,7 +25,7 @@ from ._validate import check_depth_scale
 from .errors import InputError, InputTypeError
 
 if TYPE_CHECKING:
-    from .projector import Projector
+    from .geometry.projector import Projector
 
 __all__ = ["OPEN3D_DEPTH_SCALE", "Frame", "from_open3d_rgbd", "open3d_rgbd"]
 

@@ -125,7 +125,7 @@ def main() -> int:
                 write(path, name, frames, args.threads)
                 read(path, rng)
                 if name in EXPORTED and not args.no_export:
-                    from pcdcodec.recording.paper import export_paper
+                    from pcdcodec.convert.paper import export_paper
 
                     export_paper(path, work / f"{name}-paper", overwrite=True)
             faulthandler.cancel_dump_traceback_later()

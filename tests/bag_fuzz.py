@@ -120,8 +120,8 @@ def build_messages(fmt: str) -> list[list[Any]]:
 def _build_messages(fmt: str) -> list[list[Any]]:
     import imagecodecs
 
-    from pcdcodec.recording.rosbag_export import cloud_array
-    from pcdcodec.sources._rosmsg import compressed_depth_encode
+    from pcdcodec.convert.rosbag import cloud_array
+    from pcdcodec.ros.messages import compressed_depth_encode
 
     ros2 = fmt != "ros1"
     store = _store(ros2)

@@ -99,7 +99,7 @@ def test_ros1_index_from_first_bytes_equals_one_from_whole_messages(tmp_path: Pa
     (and ROS 2 bags) from the messages read whole. Both give the same index."""
     from rosbags.rosbag1 import Reader, Writer
 
-    from pcdcodec.sources import _bagindex
+    from pcdcodec.ros import bagindex as _bagindex
 
     bag = awkward_bag(tmp_path / "plain.bag", False)
     packed = tmp_path / "lz4.bag"

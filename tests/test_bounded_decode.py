@@ -197,7 +197,7 @@ def test_the_default_limit_admits_large_real_frames() -> None:
 
 @pytest.fixture
 def paper_layout(tmp_path: Path) -> Path:
-    from pcdcodec.recording.paper import export_paper
+    from pcdcodec.convert.paper import export_paper
 
     seq = pcdcodec.load_sample(max_frames=3)
     rec = tmp_path / "a.pcdc"
@@ -232,7 +232,7 @@ def test_paper_import_bounds_a_huge_lz4_depth_frame(
 ) -> None:
     import lz4.frame
 
-    from pcdcodec.recording.paper import import_paper
+    from pcdcodec.convert.paper import import_paper
 
     if declare:  # declares 8 GiB, as a 17.7 MB frame of the report did
         blob = _lz4_declaring(8 << 30, bytes(1000))

@@ -11,8 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from pcdcodec.camera import CameraIntrinsics
 from pcdcodec.errors import InputError, InputTypeError, PcdcodecError
+from pcdcodec.geometry.camera import CameraIntrinsics
 
 TUM = CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
 # Every value distinct, so a swapped field cannot go unnoticed.
@@ -239,7 +239,7 @@ def test_from_dict_errors() -> None:
 
 def test_importing_does_not_import_heavy_backends() -> None:
     code = (
-        "import sys, pcdcodec, pcdcodec.camera, pcdcodec.projector\n"
+        "import sys, pcdcodec, pcdcodec.geometry.camera, pcdcodec.geometry.projector\n"
         "heavy = sorted(m for m in ('open3d', 'av', 'cv2') if m in sys.modules)\n"
         "print(','.join(heavy))\n"
     )
@@ -254,8 +254,8 @@ def test_docs_list_every_preset_and_the_readme_uses_the_samples_camera() -> None
     import re
     from pathlib import Path
 
-    from pcdcodec.camera import CAMERA_PRESETS
     from pcdcodec.datasets import sample_dir
+    from pcdcodec.geometry.camera import CAMERA_PRESETS
 
     root = Path(__file__).resolve().parents[1]
     ingest = (root / "docs" / "ingest.md").read_text()

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 import pcdcodec
+from pcdcodec.convert.paper import export_paper, import_paper
 from pcdcodec.recording import _index as fmt
-from pcdcodec.recording.paper import export_paper, import_paper
 from pcdcodec.registry import codec_for_reading
 
 from .golden.make_layout_golden import PAPER, RECORDING, SEALED, write_recording

@@ -117,7 +117,7 @@ def test_cli_depth_rd_takes_a_depth_only_recording(
 
 
 def test_bench_reads_a_bag_as_encode_does() -> None:
-    from pcdcodec.evaluation import _frames_of
+    from pcdcodec.bench.evaluation import _frames_of
     from tests.conftest import SHARED_DATA
 
     bag = SHARED_DATA / "bags" / "spot" / "raw.bag"

@@ -181,7 +181,7 @@ def test_peer_rows(tiny: RGBDSequence) -> None:
 
 
 def _depth_row(codec: str, ratio: float, ms: float, exact: bool = True) -> Any:
-    from pcdcodec.evaluation import DepthRow
+    from pcdcodec.bench.evaluation import DepthRow
 
     err = 0.0 if exact else 0.002
     return DepthRow(
@@ -191,14 +191,14 @@ def _depth_row(codec: str, ratio: float, ms: float, exact: bool = True) -> Any:
 
 
 def _color_row(codec: str, ratio: float, ms: float, lossless: bool) -> Any:
-    from pcdcodec.evaluation import ColorRow
+    from pcdcodec.bench.evaluation import ColorRow
 
     psnr = float("inf") if lossless else 35.0
     return ColorRow(codec, {"id": codec}, 4, 1000.0, 0.1, ratio, ms, ms, psnr, 0.9, lossless)
 
 
 def test_recommendation_and_columns_constant_by_construction() -> None:
-    from pcdcodec.evaluation import Evaluation
+    from pcdcodec.bench.evaluation import Evaluation
 
     ev = Evaluation("s", 4, 640, 480)
     ev.depth = [_depth_row("jpegxl", 15.0, 4.0), _depth_row("lz4", 4.0, 0.5)]

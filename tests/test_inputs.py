@@ -381,7 +381,7 @@ def test_name_patterns_with_character_classes(tmp_path: Path) -> None:
         depth_pattern="depth/00000[0-2].png",
         color_pattern="rgb/00000[!3-9].png",
         depth_scale=5000.0,
-        intrinsics=pcdcodec.camera.camera_preset("tum-ros").intrinsics,
+        intrinsics=pcdcodec.geometry.camera.camera_preset("tum-ros").intrinsics,
     )
     with src:
         frames = list(src)

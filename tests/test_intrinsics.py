@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 
 import pcdcodec
-from pcdcodec.camera import (
+from pcdcodec.cli import cli_message, main
+from pcdcodec.datasets import open_folder, sample_dir, write_folder
+from pcdcodec.geometry.camera import (
     CAMERA_PRESETS,
     CameraIntrinsics,
     camera_preset,
     find_intrinsics_file,
     read_intrinsics,
 )
-from pcdcodec.cli import cli_message, main
-from pcdcodec.datasets import open_folder, sample_dir, write_folder
 from pcdcodec.registry import parse_codec_specs
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"

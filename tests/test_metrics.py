@@ -429,8 +429,8 @@ def test_point_to_point_accepts_open3d_clouds() -> None:
 
 
 def test_point_to_point_real_frame(depth: np.ndarray[Any, Any]) -> None:
-    from pcdcodec.camera import CameraIntrinsics
-    from pcdcodec.projector import Projector
+    from pcdcodec.geometry.camera import CameraIntrinsics
+    from pcdcodec.geometry.projector import Projector
 
     cam = json.loads((SAMPLE / "camera.json").read_text())
     keys = ("width", "height", "fx", "fy", "cx", "cy")

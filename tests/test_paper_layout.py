@@ -14,8 +14,8 @@ import pytest
 
 import pcdcodec
 from pcdcodec.color import PyAVCodec
+from pcdcodec.convert.paper import export_paper, import_paper
 from pcdcodec.errors import DecodeError, InputError
-from pcdcodec.recording.paper import export_paper, import_paper
 
 av = pytest.importorskip("av")
 lz4_frame = pytest.importorskip("lz4.frame")

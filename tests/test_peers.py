@@ -1,4 +1,4 @@
-"""Peer-library comparison rows (pcdcodec.peers): Draco through DracoPy, RVL through ``rvl``."""
+"""Peer-library comparison rows (pcdcodec.bench.peers): Draco through DracoPy, RVL through rvl."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import pcdcodec
-from pcdcodec import peers
+from pcdcodec.bench import peers
 from pcdcodec.depth.rvl import RVL
 
 # Measured with rvl 1.0.4 on the bundled sample: after its 4-byte pixel count, the package
@@ -266,7 +266,7 @@ def test_available_peers_lists_installed_packages_as_usable() -> None:
 
 def test_importing_peers_imports_no_peer_package() -> None:
     code = (
-        "import sys, pcdcodec.peers; "
+        "import sys, pcdcodec.bench.peers; "
         "loaded = [m for m in ('DracoPy', 'rvl', 'open3d') if m in sys.modules]; "
         "assert not loaded, loaded"
     )

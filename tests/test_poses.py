@@ -10,7 +10,7 @@ import pytest
 import pcdcodec
 from pcdcodec import InputError
 from pcdcodec.datasets import open_folder, sample_dir
-from pcdcodec.transform import (
+from pcdcodec.geometry.transform import (
     as_rigid,
     interpolate_poses,
     matrix_to_quaternion,
@@ -268,7 +268,7 @@ def _rz(angle: float, t: tuple[float, float, float]) -> np.ndarray:
 
 @pytest.mark.parametrize("ros2", [False, True])
 def test_tf_chain_is_composed_and_interpolated_at_frame_stamps(tmp_path: Path, ros2: bool) -> None:
-    from pcdcodec.transform import slerp
+    from pcdcodec.geometry.transform import slerp
 
     ms = 1_000_000
     base_in_odom = [_rz(0.1 * k, (k * 0.5, 0.0, 0.0)) for k in range(3)]

@@ -15,9 +15,9 @@ import numpy.typing as npt
 import open3d as o3d
 import pytest
 
-from pcdcodec.camera import CameraIntrinsics
 from pcdcodec.errors import InputError, InputTypeError
-from pcdcodec.projector import Projector, Reprojection
+from pcdcodec.geometry.camera import CameraIntrinsics
+from pcdcodec.geometry.projector import Projector, Reprojection
 
 TUM_DIR = Path(__file__).resolve().parents[1] / "pcdcodec" / "data" / "tum_fr1_rpy"
 TUM_SCALE = 5000.0

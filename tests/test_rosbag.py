@@ -14,7 +14,7 @@ import pytest
 
 import pcdcodec
 from pcdcodec.errors import DecodeError, InputError, PcdcodecError
-from pcdcodec.sources import _rosmsg as rm
+from pcdcodec.ros import messages as rm
 from pcdcodec.sources.base import detect_kind
 
 from .conftest import SHARED_DATA, load_colors, load_depths, to_metres
@@ -429,7 +429,7 @@ def test_cloud_bag_round_trip_rebuilds_every_point(tmp_path: Path, to: str, info
 
 
 def test_cloud_whose_z_stops_being_whole_units_says_how_to_keep_float32(tmp_path: Path) -> None:
-    from pcdcodec.recording.rosbag_export import CLOUD_DTYPE, cloud_array
+    from pcdcodec.convert.rosbag import CLOUD_DTYPE, cloud_array
 
     store = _store(False)
     frames = _small(2)
@@ -700,7 +700,7 @@ def test_real_sequence_cloud_bag_colors_exact_and_xyz_within_1e6(tmp_path: Path)
     colors = load_colors("realsense_d435", 2)
     intr = pcdcodec.CameraIntrinsics(640, 480, 615.0, 615.5, 320.25, 240.75)
     projector = pcdcodec.Projector(intr, depth_scale=1000.0)
-    from pcdcodec.recording.rosbag_export import cloud_array
+    from pcdcodec.convert.rosbag import cloud_array
 
     store = _store(True)
     msgs = []

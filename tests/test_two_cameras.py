@@ -11,7 +11,7 @@ import pytest
 
 import pcdcodec
 from pcdcodec import CameraIntrinsics, InputError, Projector
-from pcdcodec.transform import as_rigid, rigid_from_quaternion
+from pcdcodec.geometry.transform import as_rigid, rigid_from_quaternion
 
 DEPTH_CAM = CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
 # A wider color camera with its own lens, a little to the side and turned.

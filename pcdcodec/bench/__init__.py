@@ -1,5 +1,5 @@
 """Comparison tooling research code imports: the pytest-benchmark plugin, and (through
-:mod:`pcdcodec.evaluation`) codec evaluation, peers and plots.
+:mod:`pcdcodec.bench.evaluation`) codec evaluation, peers and plots.
 
 The core (codecs, recordings, projector, sources) never imports this package.
 """

@@ -6,15 +6,27 @@ See ``docs/format.md`` for the layout and :func:`open` for use.
 from __future__ import annotations
 
 import os
-from typing import Any, Literal, overload
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 from ..errors import InputError
 from ._index import FORMAT_VERSION
 from .encode import EncodeSummary, encode
 from .reader import Frame, Recording, VerifyReport
 from .recover import recover
-from .rosbag_export import export_bag
 from .writer import RecordingWriter
+
+if TYPE_CHECKING:
+    from ..convert.rosbag import export_bag
+
+
+def __getattr__(name: str) -> Any:
+    # export_bag lives in pcdcodec.convert.rosbag; it is named here too, and loaded on first use
+    if name == "export_bag":
+        from ..convert.rosbag import export_bag
+
+        return export_bag
+    raise AttributeError(f"module 'pcdcodec.recording' has no attribute {name!r}")
+
 
 __all__ = [
     "FORMAT_VERSION",

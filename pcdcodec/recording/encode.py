@@ -226,7 +226,7 @@ def _why_empty(info: dict[str, Any]) -> str:
 
 
 def _as_intrinsics(value: Any) -> Any:
-    from ..camera import CameraIntrinsics
+    from ..geometry.camera import CameraIntrinsics
 
     if isinstance(value, CameraIntrinsics):
         return value

@@ -16,16 +16,16 @@ from typing import IO, Any
 import numpy as np
 import numpy.typing as npt
 
-from ..camera import CameraIntrinsics
 from ..color.base import Packet, StreamCodec, VideoDecoder
 from ..depth.base import FrameCodec, read_header
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
 from ..frame import Frame
-from ..projector import Projector
+from ..geometry.camera import CameraIntrinsics
+from ..geometry.projector import Projector
+from ..geometry.transform import as_rigid, quaternion_to_matrix
 from ..registry import codec_for_reading
-from ..transform import as_rigid, quaternion_to_matrix
+from ..ros.foxglove import CameraCalibration, CompressedVideo, FrameTransform
 from . import _index as fmt
-from ._ros import CameraCalibration, CompressedVideo, FrameTransform
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
 

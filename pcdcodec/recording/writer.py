@@ -18,7 +18,6 @@ import numpy.typing as npt
 
 from .._validate import check_color, check_depth, check_depth_scale
 from .._version import __version__
-from ..camera import CameraIntrinsics
 from ..codec import Codec
 from ..color import DEFAULT_COLOR_CODEC
 from ..color.base import Packet, StreamCodec, VideoEncoder
@@ -26,12 +25,11 @@ from ..depth import DEFAULT_DEPTH_CODEC
 from ..depth.base import FrameCodec
 from ..errors import InputError, InputTypeError, PcdcodecError
 from ..frame import OPEN3D_DEPTH_SCALE
-from ..projector import check_color_camera
+from ..geometry.camera import CameraIntrinsics
+from ..geometry.projector import check_color_camera
+from ..geometry.transform import as_rigid, matrix_to_quaternion
 from ..registry import get_codec
-from ..sources.base import Source
-from ..transform import as_rigid, matrix_to_quaternion
-from . import _index as fmt
-from ._ros import (
+from ..ros.foxglove import (
     CAMERA_CALIBRATION,
     CAMERA_CALIBRATION_SCHEMA,
     COMPRESSED_VIDEO,
@@ -42,6 +40,8 @@ from ._ros import (
     CompressedVideo,
     FrameTransform,
 )
+from ..sources.base import Source
+from . import _index as fmt
 
 __all__ = ["RecordingWriter"]
 

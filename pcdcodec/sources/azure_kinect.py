@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..camera import CameraIntrinsics
 from ..errors import DecodeError, InputError
+from ..geometry.camera import CameraIntrinsics
 from .base import Source, given_intrinsics, read_magic, register_source
 
 __all__ = ["DEPTH_MODES", "AzureKinectSource", "open_azure_kinect"]

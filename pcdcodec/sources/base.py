@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING, Any
 from ..errors import InputError, PcdcodecError
 
 if TYPE_CHECKING:
-    from ..camera import CameraIntrinsics
     from ..datasets import RGBDFrame
+    from ..geometry.camera import CameraIntrinsics
 
 __all__ = [
     "CameraDefaults",
@@ -350,12 +350,12 @@ class CameraDefaults:
 def given_intrinsics(value: Any, width: int | None, height: int | None) -> CameraIntrinsics:
     """A reader's ``intrinsics`` option as a camera: a :class:`~pcdcodec.CameraIntrinsics`, a
     dict of its :meth:`~pcdcodec.CameraIntrinsics.to_dict` keys, or an intrinsics file (see
-    :func:`~pcdcodec.camera.read_intrinsics`), whose bare 3 x 3 matrix takes the depth
+    :func:`~pcdcodec.geometry.camera.read_intrinsics`), whose bare 3 x 3 matrix takes the depth
     images' ``width`` x ``height`` (pixels), as a folder's does.
 
     Raises :class:`~pcdcodec.InputError` for a file that cannot be read or a bad dict.
     """
-    from ..camera import CameraIntrinsics, read_intrinsics
+    from ..geometry.camera import CameraIntrinsics, read_intrinsics
 
     if isinstance(value, CameraIntrinsics):
         return value

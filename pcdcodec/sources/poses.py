@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InputError
-from ..transform import as_rigid, interpolate_poses, rigid_from_quaternion
+from ..geometry.transform import as_rigid, interpolate_poses, rigid_from_quaternion
 
 __all__ = ["MAX_GAP_NS", "folder_poses", "read_tum_trajectory"]
 

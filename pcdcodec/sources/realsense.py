@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..camera import CameraIntrinsics
 from ..errors import DecodeError, InputError, PcdcodecError
-from ._bagindex import check_ros1_index
+from ..geometry.camera import CameraIntrinsics
+from ..ros.bagindex import check_ros1_index
 from .base import FrameIndex, Source, given_intrinsics, read_magic, register_source
 
 __all__ = ["RealSenseBagSource", "open_realsense"]
@@ -48,7 +48,7 @@ def _is_realsense(path: Path) -> bool:
     try:
         from rosbags.rosbag1 import Reader
 
-        from ._bagindex import bounded_path
+        from ..ros.bagindex import bounded_path
 
         with Reader(bounded_path(path)) as reader:
             return any(_IMAGE.match(c.topic) for c in reader.connections)
@@ -294,7 +294,7 @@ class RealSenseBagSource(Source):
                 raise InputError(f"{name!r}: camera info of {prefix}: {exc}") from None
 
         def tf(prefix: str) -> npt.NDArray[np.float64]:
-            from ..transform import rigid_from_quaternion
+            from ..geometry.transform import rigid_from_quaternion
 
             msg = found.get(f"{prefix}/tf/0")
             if msg is None:
@@ -474,7 +474,7 @@ class RealSenseBagSource(Source):
         pass that reads each image message's header stamp but decodes no image (see
         :meth:`pcdcodec.sources.rosbag.RosbagSource.frame_index` for the columns). Kept."""
 
-        from . import _bagindex
+        from ..ros import bagindex as _bagindex
 
         if self._index is not None:
             return self._index
@@ -526,7 +526,7 @@ class RealSenseBagSource(Source):
         missing (the index is another bag's)."""
 
         from ..datasets import RGBDFrame
-        from . import _bagindex
+        from ..ros import bagindex as _bagindex
 
         rows = _bagindex.check_rows(index.rows)
         if rows.shape[0] == 0:

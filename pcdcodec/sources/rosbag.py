@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DecodeError, InputError, PcdcodecError
-from . import _rosmsg as rm
+from ..ros import messages as rm
 from .base import FrameIndex, Source, given_intrinsics, read_magic, register_source
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
@@ -227,7 +227,7 @@ class RosbagSource(Source):
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
 
-        from . import _bagindex
+        from ..ros import bagindex as _bagindex
 
         p = self.path
         if not p.exists():
@@ -575,7 +575,7 @@ class RosbagSource(Source):
     def _stamp(self, msg: Any, log_time: int, topic: str) -> int:
         """A message's time: its header stamp, or its log time where the stamp is 0 (unset).
         Every path (iteration, :meth:`frame_index`, :meth:`frames_at`) reads stamps through
-        :func:`~pcdcodec.sources._bagindex.stamp_value`, so they agree."""
+        :func:`~pcdcodec.ros.bagindex.stamp_value`, so they agree."""
         ns = rm.stamp_ns(msg, topic, ros1=not self._reader.is2)
         return ns if ns > 0 else int(log_time)
 
@@ -648,7 +648,7 @@ class RosbagSource(Source):
         """The camera-to-world pose at stamp ``ts`` from the bag's /tf and /tf_static (see
         ``_tf``), or ``None``."""
         if self._tf is None:
-            from . import _tf
+            from ..ros import tf as _tf
 
             frame = ""
             if any(_tf.is_tf(c) for c in self._reader.connections):
@@ -776,7 +776,7 @@ class RosbagSource(Source):
     def _raw_stamp(self, raw: bytes, conn: Any, log_time: int) -> int:
         """The header stamp of a serialised message, read from its first bytes (every message
         read here starts with a std_msgs/Header), or the log time where the stamp is 0."""
-        from . import _bagindex
+        from ..ros import bagindex as _bagindex
 
         where = f"topic {conn.topic!r}"
         ns = (
@@ -811,7 +811,7 @@ class RosbagSource(Source):
         """``(connection, log time, stamp)`` of each message of ``conns``, in bag order: from
         the first bytes of each message (uncompressed ROS 1 bags: read through the bag's index,
         a few kilobytes per message), else from the messages read whole."""
-        from . import _bagindex
+        from ..ros import bagindex as _bagindex
 
         readers = getattr(self._reader, "readers", [])
         if not self._reader.is2 and len(readers) == 1:
@@ -878,14 +878,14 @@ class RosbagSource(Source):
         whatever k is. Raises :class:`~pcdcodec.DecodeError` when a listed message is not in
         the bag (the index was made from another bag, or the bag changed).
         """
-        from . import _bagindex
+        from ..ros import bagindex as _bagindex
 
         rows = _bagindex.check_rows(index.rows)
         self.stats = _Stats()
         return self._emit(self._indexed(rows, index.first), None)
 
     def _indexed(self, rows: Any, first: int) -> Iterator[tuple[Any, Any, int]]:
-        from . import _bagindex
+        from ..ros import bagindex as _bagindex
 
         if rows.shape[0] == 0:
             return
@@ -929,8 +929,8 @@ class RosbagSource(Source):
     def _pick_units(self, z: Any) -> None:
         """Drivers compute z from integer depth (millimetres): such clouds are stored as uint16
         units, which rebuild every z bit for bit and encode several times faster than float32."""
-        from ..camera import CameraIntrinsics
-        from ..projector import Projector
+        from ..geometry.camera import CameraIntrinsics
+        from ..geometry.projector import Projector
 
         h, w = z.shape
         for scale in (1000.0, 5000.0, 4000.0, 10000.0):

@@ -41,7 +41,7 @@ def write_recording(path: Path) -> None:
 
 
 def main() -> int:
-    from pcdcodec.recording.paper import export_paper
+    from pcdcodec.convert.paper import export_paper
 
     if SEALED.exists():
         print(f"{SEALED} exists; goldens are never rewritten")

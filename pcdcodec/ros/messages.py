@@ -54,10 +54,10 @@ def stamp_ns(msg: Any, topic: str, *, ros1: bool) -> int:
 
     ROS 1 seconds are unsigned: rosbags gives them as int32, so a stamp at or after 2**31 s
     comes back negative and is turned back here, as the raw readers of
-    :mod:`~pcdcodec.sources._bagindex` read it. Raises :class:`~pcdcodec.DecodeError` for a
-    damaged stamp (see :func:`~pcdcodec.sources._bagindex.stamp_value`).
+    :mod:`~pcdcodec.ros.bagindex` read it. Raises :class:`~pcdcodec.DecodeError` for a
+    damaged stamp (see :func:`~pcdcodec.ros.bagindex.stamp_value`).
     """
-    from ._bagindex import stamp_value
+    from .bagindex import stamp_value
 
     s = msg.header.stamp if hasattr(msg, "header") else msg.timestamp
     sec, nsec = int(s.sec), int(s.nanosec)
@@ -205,7 +205,7 @@ class _Compressed:
 def _take_apart(msg: Any, role: str, topic: str) -> _Compressed:
     """Check a CompressedImage's format and structure and read its declared size, decoding
     nothing (see :func:`decode_compressed`)."""
-    from ._images import image_header
+    from ..sources._images import image_header
 
     fmt = str(msg.format)
     data = bytes(msg.data) if not isinstance(msg.data, bytes) else msg.data
@@ -395,7 +395,7 @@ def camera_info(msg: Any, topic: str) -> tuple[Any, str, list[float]]:
 
     Reads ``K``/``k`` and ``D``/``d``; the distortion is returned, not applied.
     """
-    from ..camera import CameraIntrinsics
+    from ..geometry.camera import CameraIntrinsics
 
     k = getattr(msg, "k", None)
     if k is None:
@@ -554,7 +554,7 @@ def fit_intrinsics(pts: npt.NDArray[Any], topic: str) -> tuple[Any, float]:
     Returns the intrinsics and the fit residual: the largest distance, in pixels, between a
     valid point's pixel and where the fitted camera projects it.
     """
-    from ..camera import CameraIntrinsics
+    from ..geometry.camera import CameraIntrinsics
 
     h, w = pts.shape
     x = pts["x"].astype(np.float64)

@@ -1,4 +1,5 @@
-"""PNG plots of an :class:`~pcdcodec.evaluation.Evaluation` (matplotlib, imported here only)."""
+"""PNG plots of an :class:`~pcdcodec.bench.evaluation.Evaluation` (matplotlib, imported here
+only)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .errors import CodecUnavailableError
+from ..errors import CodecUnavailableError
 
 if TYPE_CHECKING:
     from .evaluation import Evaluation
@@ -27,8 +28,8 @@ def _pyplot() -> Any:
 
 def _default_setting(codec: str) -> str | None:
     """``"crf=23"``: the swept setting at the codec's default, as RD points name it."""
+    from ..registry import codec_class
     from .evaluation import RD_SETTINGS
-    from .registry import codec_class
 
     if codec not in RD_SETTINGS:
         return None
@@ -66,7 +67,7 @@ def plot_all(ev: Evaluation, out_dir: Path) -> list[Path]:
         written.append(path)
 
     if ev.depth:
-        from .depth import DEFAULT_DEPTH_CODEC
+        from ..depth import DEFAULT_DEPTH_CODEC
 
         fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.4), sharey=True)
         for ax, attr, what in ((axes[0], "encode_ms", "encode"), (axes[1], "decode_ms", "decode")):
@@ -98,8 +99,8 @@ def plot_all(ev: Evaluation, out_dir: Path) -> list[Path]:
         written.append(path)
 
     if ev.streams:
-        from .color import DEFAULT_COLOR_CODEC
-        from .depth import DEFAULT_DEPTH_CODEC
+        from ..color import DEFAULT_COLOR_CODEC
+        from ..depth import DEFAULT_DEPTH_CODEC
 
         color_kib = {c.codec: c.bytes_per_frame / kib for c in ev.color}
         depth_kib = {d.codec: d.bytes_per_frame / kib for d in ev.depth}

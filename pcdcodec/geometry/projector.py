@@ -32,10 +32,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ._validate import check_color, check_depth
+from .._validate import check_color, check_depth
+from ..errors import InputError, InputTypeError
+from ..frame import open3d_rgbd_kind
 from .camera import CameraIntrinsics
-from .errors import InputError, InputTypeError
-from .frame import open3d_rgbd_kind
 from .transform import as_rigid
 
 __all__ = ["Projector", "Reprojection"]

@@ -25,14 +25,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .camera import CameraIntrinsics
-from .codec import Codec
-from .color import DEFAULT_COLOR_CODEC
-from .color.base import StreamCodec, decode_packets, encode_frames
-from .datasets import RGBDFrame, RGBDSequence, open_folder
-from .depth.base import FrameCodec
-from .errors import InputError
-from .registry import codec_class, get_codec, list_codecs
+from ..codec import Codec
+from ..color import DEFAULT_COLOR_CODEC
+from ..color.base import StreamCodec, decode_packets, encode_frames
+from ..datasets import RGBDFrame, RGBDSequence, open_folder
+from ..depth.base import FrameCodec
+from ..errors import InputError
+from ..geometry.camera import CameraIntrinsics
+from ..registry import codec_class, get_codec, list_codecs
 
 __all__ = [
     "RD_SETTINGS",
@@ -326,7 +326,7 @@ class Evaluation:
 
     def plot(self, out_dir: Path) -> list[Path]:
         """Write the PNG plots; needs matplotlib (``pip install "pcdcodec[bench]"``)."""
-        from ._plots import plot_all
+        from .plots import plot_all
 
         return plot_all(self, out_dir)
 
@@ -384,9 +384,9 @@ def _frames_of(
         )
     path = Path(source)
     if path.is_file():
-        from .recording import open as open_recording
-        from .sources import open_source
-        from .sources.base import detect_kind
+        from ..recording import open as open_recording
+        from ..sources import open_source
+        from ..sources.base import detect_kind
 
         no_color = f"{str(path)!r} has no color stream to compare codecs on"
         if detect_kind(path) is not None:  # a bag or a camera recording, read as encode reads it
@@ -436,7 +436,8 @@ def evaluate(
     ``color`` name codecs or give configs (default: every available depth codec, and
     ``h264``). ``frames`` limits the frames used (``None`` for all). ``rd`` adds the color
     rate-distortion sweep (:data:`RD_SETTINGS`); ``peers`` adds the optional peer rows
-    (:mod:`pcdcodec.peers`, when installed). ``progress`` is called with a short description of
+    (:mod:`pcdcodec.bench.peers`, when installed). ``progress`` is called with a short description
+    of
     each step. Raises :class:`~pcdcodec.InputError` for an empty source or unknown codecs.
     """
     say = progress or (lambda _msg: None)
@@ -493,7 +494,7 @@ def evaluate(
     if peers:
         import importlib
 
-        peer_module: Any = importlib.import_module("pcdcodec.peers")
+        peer_module: Any = importlib.import_module("pcdcodec.bench.peers")
         result.peers = peer_module.evaluate_peers(items, cam, scale)
     return result
 
@@ -504,7 +505,7 @@ def _depth_row(
     scale: float,
     cam: CameraIntrinsics | None,
 ) -> DepthRow:
-    from .metrics import depth_error, point_to_point
+    from ..metrics import depth_error, point_to_point
 
     enc_times, dec_times, sizes = [], [], []
     exact = True
@@ -537,7 +538,7 @@ def _depth_row(
     cloud_rmse = 0.0
     if not exact and cam is not None:
         # Exact depth rebuilds identical clouds; otherwise compare the middle frame's clouds.
-        from .projector import Projector
+        from ..geometry.projector import Projector
 
         proj = Projector(cam, depth_scale=scale)
         mid = depths[len(depths) // 2]
@@ -576,7 +577,7 @@ def _units_to_m(err: Any, field_name: str, scale: float) -> float:
 def _color_row(
     codec: StreamCodec, colors: list[npt.NDArray[np.uint8]], *, quality: bool = True
 ) -> ColorRow:
-    from .metrics import psnr, ssim
+    from ..metrics import psnr, ssim
 
     height, width = colors[0].shape[:2]
     t0 = time.perf_counter()

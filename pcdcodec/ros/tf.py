@@ -28,8 +28,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import DecodeError
-from ..transform import quaternion_to_matrix, slerp
-from . import _rosmsg as rm
+from ..geometry.transform import quaternion_to_matrix, slerp
+from . import messages as rm
 
 __all__ = ["MAX_GAP_NS", "TF_TOPICS", "TF_TYPES", "TfPoses", "is_tf", "read_tf_poses"]
 

@@ -64,8 +64,8 @@ class _Input:
 
 
 def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
+    from ..recording.reader import Recording
     from ..sources.base import Source, open_source
-    from .reader import Recording
 
     if isinstance(src, (str, os.PathLike)):
         p = Path(src)
@@ -73,7 +73,7 @@ def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
         if p.is_file():
             with p.open("rb") as f:
                 head = f.read(8)
-        from . import _index as fmt
+        from ..recording import _index as fmt
 
         if head == fmt.MAGIC:
             try:
@@ -230,7 +230,7 @@ class _Messages:
 
     def tf(self, ns: int, pose: npt.NDArray[np.float64], parent: str) -> bytes:
         """A ``tf2_msgs/TFMessage`` placing this camera frame in ``parent`` (camera-to-world)."""
-        from ..transform import matrix_to_quaternion
+        from ..geometry.transform import matrix_to_quaternion
 
         t = self.types
         q = matrix_to_quaternion(pose[:3, :3])
@@ -371,7 +371,7 @@ def _write(
     progress: Callable[[int], None] | None,
 ) -> dict[str, Any]:
     from .._atomic import atomic_output  # not loaded by `import pcdcodec`
-    from ..projector import Projector
+    from ..geometry.projector import Projector
 
     intr = inp.intrinsics
     scale = inp.depth_scale
@@ -448,7 +448,7 @@ def _write(
                     )
                 if images:
                     if compressed_depth:
-                        from ..sources._rosmsg import compressed_depth_encode
+                        from ..ros.messages import compressed_depth_encode
 
                         payload = compressed_depth_encode(np.asarray(depth, np.uint16))
                         fmt = "16UC1; compressedDepth png"

@@ -16,13 +16,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from . import __version__
-from ._progress import Progress
-from .codec import KINDS
-from .color import DEFAULT_COLOR_CODEC
-from .depth import DEFAULT_DEPTH_CODEC
-from .errors import InputError, PcdcodecError
-from .registry import codec_class, list_codecs, parse_codec_spec, parse_codec_specs
+from .. import __version__
+from .._progress import Progress
+from ..codec import KINDS
+from ..color import DEFAULT_COLOR_CODEC
+from ..depth import DEFAULT_DEPTH_CODEC
+from ..errors import InputError, PcdcodecError
+from ..registry import codec_class, list_codecs, parse_codec_spec, parse_codec_specs
 
 # -- helpers ---------------------------------------------------------------------------------
 
@@ -32,7 +32,7 @@ parse_codec = parse_codec_spec
 
 
 def _intrinsics_from_args(args: argparse.Namespace, width: int, height: int) -> Any:
-    from .camera import CameraIntrinsics
+    from ..geometry.camera import CameraIntrinsics
 
     given = {k: getattr(args, k) for k in ("fx", "fy", "cx", "cy")}
     if all(v is None for v in given.values()):
@@ -47,15 +47,15 @@ def _frame_size(
     src: str, depth_scale: float | None, options: dict[str, Any] | None = None
 ) -> tuple[int, int]:
     """(width, height) of the input's frames: a recording's camera, or a folder's first frame."""
-    from .sources.base import detect_kind
+    from ..sources.base import detect_kind
 
     path = Path(src)
     if path.is_file() and detect_kind(src) is None:
-        from .recording import open as open_recording
+        from ..recording import open as open_recording
 
         with open_recording(path) as rec:
             return rec.intrinsics.width, rec.intrinsics.height
-    from .sources import open_source
+    from ..sources import open_source
 
     opts = {**(options or {}), "max_frames": 1, "depth_scale": depth_scale or 1000.0}
     with open_source(path, **opts) as source:
@@ -71,7 +71,7 @@ def _camera_from_args(args: argparse.Namespace) -> tuple[Any, float | None]:
     --intrinsics FILE and --camera NAME; without them the input's own camera (a recording's, or
     the intrinsics file a folder ships with). Returns (intrinsics or None, depth scale or None);
     --depth-scale wins over a preset's."""
-    from .camera import camera_preset, read_intrinsics
+    from ..geometry.camera import camera_preset, read_intrinsics
 
     by_values = any(getattr(args, k) is not None for k in ("fx", "fy", "cx", "cy"))
     chosen = [
@@ -146,7 +146,7 @@ class _CameraFlag(argparse.Action):
 
 
 def _add_camera_options(p: argparse.ArgumentParser) -> None:
-    from .camera import CAMERA_PRESETS
+    from ..geometry.camera import CAMERA_PRESETS
 
     g = p.add_argument_group(
         "camera (default: the input's own: a recording's camera, or a folder's camera.json, "
@@ -214,7 +214,7 @@ def _folder_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _print_presets() -> int:
-    from .camera import CAMERA_PRESETS
+    from ..geometry.camera import CAMERA_PRESETS
 
     print(f"{'name':10} {'size':8} {'fx':>7} {'fy':>7} {'cx':>7} {'cy':>7} {'scale':>6}  source")
     for name, c in CAMERA_PRESETS.items():
@@ -272,9 +272,9 @@ def _cmd_codecs(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .bench.roundtrip import measure_roundtrip
-    from .datasets import load_sample
-    from .recording import open as open_recording
+    from ..bench.roundtrip import measure_roundtrip
+    from ..datasets import load_sample
+    from ..recording import open as open_recording
 
     seq = load_sample(max_frames=args.frames)
     n = len(seq)
@@ -317,7 +317,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _source_options(args: argparse.Namespace) -> dict[str, Any]:
-    from .sources.base import detect_kind
+    from ..sources.base import detect_kind
 
     opts: dict[str, Any] = {}
     if args.max_frames is not None:
@@ -354,8 +354,8 @@ def _source_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _cmd_encode(args: argparse.Namespace) -> int:
-    from .recording import encode
-    from .sources import open_source
+    from ..recording import encode
+    from ..sources import open_source
 
     camera, depth_scale = _camera_from_args(args)
     options = _source_options(args)
@@ -420,8 +420,8 @@ def _cmd_encode(args: argparse.Namespace) -> int:
 
 
 def _cmd_decode(args: argparse.Namespace) -> int:
-    from .datasets import write_folder
-    from .recording import open as open_recording
+    from ..datasets import write_folder
+    from ..recording import open as open_recording
 
     clouds = tuple(ext for ext, on in (("ply", args.ply), ("pcd", args.pcd)) if on)
     with (
@@ -466,7 +466,7 @@ def _info(rec: Any) -> dict[str, Any]:
 
 
 def _cmd_info_source(args: argparse.Namespace) -> int:
-    from .sources import CameraDefaults, open_source
+    from ..sources import CameraDefaults, open_source
 
     args.src = args.input
     camera, depth_scale = _camera_from_args(args)
@@ -558,8 +558,8 @@ _INPUT_FLAGS = (
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    from .recording import open as open_recording
-    from .sources.base import detect_kind
+    from ..recording import open as open_recording
+    from ..sources.base import detect_kind
 
     path = Path(args.input)
     # A ROS 2 bag stored as MCAP starts with the same magic as a recording: the readers'
@@ -623,7 +623,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
-    from .recording import open as open_recording
+    from ..recording import open as open_recording
 
     with open_recording(args.input) as rec:
         report = rec.verify()
@@ -637,7 +637,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 
 
 def _cmd_recover(args: argparse.Namespace) -> int:
-    from .recording import recover
+    from ..recording import recover
 
     count = recover(args.input, args.output, overwrite=args.overwrite)
     print(f"recovered {count} frames into {args.output}")
@@ -651,7 +651,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     if args.output is None:
         raise InputError("export needs an output: a second argument or -o/--output")
     if args.to is not None:
-        from .recording.rosbag_export import export_bag
+        from ..convert.rosbag import export_bag
 
         with Progress(None, "exporting", enabled=None if not args.quiet else False) as bar:
             summary = export_bag(
@@ -670,7 +670,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
             + f", {_mib(summary['bytes'])}): {', '.join(summary['topics'])}"
         )
         return 0
-    from .recording.paper import export_paper
+    from ..convert.paper import export_paper
 
     if args.layout != "paper":
         raise InputError(f"unknown layout {args.layout!r}; known layouts: paper")
@@ -687,8 +687,8 @@ def _depth_rd(
     depth_scale: float | None,
     say: Any,
 ) -> int:
-    from .bench.depth_rd import depth_rd, plot_depth_rd, rd_markdown, write_rd_csv
-    from .evaluation import _frames_of
+    from ..bench.depth_rd import depth_rd, plot_depth_rd, rd_markdown, write_rd_csv
+    from ..bench.evaluation import _frames_of
 
     name, items, _, scale = _frames_of(source, frames, intrinsics, depth_scale, need_color=False)
     depths = [f.depth for f in items]
@@ -707,7 +707,7 @@ def _depth_rd(
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from .evaluation import evaluate
+    from ..bench.evaluation import evaluate
 
     frames = args.frames
     if frames < 1:
@@ -716,7 +716,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     intrinsics, depth_scale = _camera_from_args(args)
     folder = _folder_options(args)
     if folder:  # a folder read with the folder flags, then compared as a sequence
-        from .datasets import load_folder
+        from ..datasets import load_folder
 
         source = load_folder(
             args.src, max_frames=frames, intrinsics=intrinsics, depth_scale=depth_scale, **folder
@@ -748,7 +748,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_import(args: argparse.Namespace) -> int:
-    from .recording.paper import import_paper
+    from ..convert.paper import import_paper
 
     count = import_paper(
         args.input, args.output, depth=parse_codec(args.depth, "depth"), overwrite=args.overwrite
@@ -759,8 +759,8 @@ def _cmd_import(args: argparse.Namespace) -> int:
 
 def _archive_defaults(args: argparse.Namespace) -> Any:
     """The camera of inputs that lack one: --camera NAME or --intrinsics FILE, --depth-scale."""
-    from .camera import camera_preset, read_intrinsics
-    from .sources.base import CameraDefaults
+    from ..geometry.camera import camera_preset, read_intrinsics
+    from ..sources.base import CameraDefaults
 
     if args.camera is not None and args.intrinsics is not None:
         raise InputError("give the camera one way: --camera and --intrinsics were both given")
@@ -796,7 +796,7 @@ def _archive_defaults(args: argparse.Namespace) -> Any:
 def _input_camera(spec: str) -> tuple[str, dict[str, Any]]:
     """``INPUT=CAMERA[,depth_scale=N]`` (CAMERA: a preset name or an intrinsics file) to the
     input and its reader options."""
-    from .camera import CAMERA_PRESETS, read_intrinsics
+    from ..geometry.camera import CAMERA_PRESETS, read_intrinsics
 
     path, sep, what = spec.partition("=")
     if not sep or not path or not what:
@@ -837,7 +837,7 @@ def _input_camera(spec: str) -> tuple[str, dict[str, Any]]:
 
 
 def _cmd_archive(args: argparse.Namespace) -> int:
-    from .archive import archive
+    from ..archive import archive
 
     input_options = dict(_input_camera(s) for s in args.input_camera or ())
     summary = archive(
@@ -864,7 +864,7 @@ def _cmd_archive(args: argparse.Namespace) -> int:
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
-    from .viewer import view, view_open3d
+    from ..viewer import view, view_open3d
 
     if args.open3d:
         view_open3d(args.input, every=args.every)
@@ -1010,7 +1010,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_camera_options(p)
     p.set_defaults(func=_cmd_bench)
 
-    from .camera import CAMERA_PRESETS
+    from ..geometry.camera import CAMERA_PRESETS
 
     p = sub.add_parser("archive", help="compress many inputs on a Dask cluster, resumably")
     p.add_argument("src", nargs="+", help="inputs, or folders searched for inputs")

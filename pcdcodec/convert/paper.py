@@ -35,14 +35,14 @@ import numpy.typing as npt
 
 from .._atomic import partial_path
 from .._validate import check_depth
-from ..camera import CameraIntrinsics
 from ..color.base import Packet, StreamCodec
 from ..color.pyav import PyAVCodec, ffmpeg_packet
 from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import CodecUnavailableError, DecodeError, InputError, PcdcodecError
+from ..geometry.camera import CameraIntrinsics
+from ..recording.reader import Recording
+from ..recording.writer import RecordingWriter
 from ..registry import codec_class, get_codec
-from .reader import Recording
-from .writer import RecordingWriter
 
 __all__ = ["FORMAT_NAME", "LAYOUT_VERSION", "export_paper", "import_paper"]
 

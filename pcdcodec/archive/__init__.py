@@ -53,10 +53,10 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from ._atomic import is_partial, partial_path
-from ._version import __version__
-from .depth import DEFAULT_DEPTH_CODEC
-from .errors import (
+from .._atomic import is_partial, partial_path
+from .._version import __version__
+from ..depth import DEFAULT_DEPTH_CODEC
+from ..errors import (
     ArchiveLockedError,
     CodecUnavailableError,
     DiskFullError,
@@ -250,7 +250,7 @@ class ArchiveSummary:
 
 
 def _is_input(path: Path) -> bool:
-    from .sources.base import source_kinds
+    from ..sources.base import source_kinds
 
     for kind in source_kinds():
         with contextlib.suppress(Exception):
@@ -415,7 +415,7 @@ def _probe(
     """Size, hash and frame count of one input, and its frame index where it needs one."""
     import operator
 
-    from .sources import open_source
+    from ..sources import open_source
 
     path = Path(src)
     size, mtime = _stat(path)
@@ -464,8 +464,8 @@ def _encode_segment(
 ) -> dict[str, Any]:
     """Write frames ``start:stop`` of ``src`` into the recording ``part`` (atomically); with
     ``index`` (a :class:`~pcdcodec.sources.FrameIndex` slice), the frames it lists."""
-    from .recording import Recording, RecordingWriter
-    from .sources import open_source
+    from ..recording import Recording, RecordingWriter
+    from ..sources import open_source
 
     target = Path(part)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -508,7 +508,7 @@ def _encode_segment(
 
 def _existing_segment(part: str, digests: bool) -> dict[str, Any]:
     """What :func:`_encode_segment` returns, for a segment an earlier run wrote."""
-    from .recording import Recording
+    from ..recording import Recording
 
     with Recording(part) as rec:
         count = len(rec)
@@ -531,7 +531,7 @@ def _digest(array: Any) -> str:
 
 def _join_parts(parts: list[str], output: str) -> dict[str, Any]:
     """Join the segments into ``output`` (atomically) and return its size."""
-    from .recording.join import join
+    from ..recording.join import join
 
     target = Path(output)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -554,8 +554,8 @@ def _verify(
 ) -> dict[str, Any]:
     """Decode ``output`` and compare it with ``src`` read again; raise on any difference."""
 
-    from .recording import Recording
-    from .sources import open_source
+    from ..recording import Recording
+    from ..sources import open_source
 
     name = Path(output).name
     n = 0
@@ -592,8 +592,8 @@ def _verify(
 
 def _depth_bound(config: dict[str, Any]) -> Any:
     """The error bound a depth codec config states, or ``None`` for lossless coding."""
-    from .depth import FrameCodec
-    from .registry import get_codec
+    from ..depth import FrameCodec
+    from ..registry import get_codec
 
     codec = get_codec(config)
     return codec._bound() if isinstance(codec, FrameCodec) else None
@@ -874,7 +874,8 @@ def archive(
 
     Cameras: an input's own camera and depth scale (recorded in it, in its folder's
     ``camera.json`` or intrinsics file, or its dataset's convention) always win. ``camera``
-    fills in only what an input lacks: a preset name (:data:`~pcdcodec.camera.CAMERA_PRESETS`,
+    fills in only what an input lacks: a preset name
+    (:data:`~pcdcodec.geometry.camera.CAMERA_PRESETS`,
     camera and depth scale), a :class:`~pcdcodec.CameraIntrinsics`, or a
     :class:`~pcdcodec.sources.CameraDefaults`; ``intrinsics`` and ``depth_scale`` in
     ``source_options`` are taken the same way. Where it contradicts what an input carries, the
@@ -893,7 +894,7 @@ def archive(
     that cannot be found, and :class:`~pcdcodec.DiskFullError` when not even the manifest can
     be written.
     """
-    from .recording.writer import _codec
+    from ..recording.writer import _codec
 
     started = time.perf_counter()
     if scheduler is not None and workers is not None:
@@ -970,8 +971,8 @@ def archive(
 def _camera_defaults(camera: Any, common: dict[str, Any]) -> Any:
     """The :class:`~pcdcodec.sources.CameraDefaults` for inputs that lack a camera, from
     ``camera`` and the ``intrinsics``/``depth_scale`` taken out of ``common``; or None."""
-    from .camera import CameraIntrinsics, camera_preset
-    from .sources.base import CameraDefaults
+    from ..geometry.camera import CameraIntrinsics, camera_preset
+    from ..sources.base import CameraDefaults
 
     intrinsics = common.pop("intrinsics", None)
     scale = common.pop("depth_scale", None)
