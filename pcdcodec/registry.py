@@ -10,7 +10,6 @@ found through the entry-point group ``pcdcodec.codecs``; each entry point names 
 
 from __future__ import annotations
 
-import importlib
 import threading
 import warnings
 from collections.abc import Mapping
@@ -75,9 +74,8 @@ def _ensure_loaded() -> None:
         if _loaded:
             return
         _loaded = True
-        # Importing the packages registers the built-in codecs.
-        importlib.import_module("pcdcodec.depth")
-        importlib.import_module("pcdcodec.color")
+        # The built-in codecs registered themselves when pcdcodec/__init__ imported the depth and
+        # color packages (importing this module imports pcdcodec first); plugins load here.
         _load_entry_points()
 
 
@@ -215,3 +213,20 @@ def codec_for_reading(
     if threads is not None and "threads" in codec.runtime_params:
         stored["threads"] = threads
     return get_codec(stored, kind=kind)
+
+
+def as_codec(spec: Any, kind: str) -> Codec:
+    """The ``kind`` codec ``spec`` names: a codec (checked to be of that kind), a name, a
+    ``"name:key=value"`` spec or a config dict. Raises :class:`InputError` for a codec of the other
+    kind and :class:`InputTypeError` for anything else."""
+    if isinstance(spec, Codec):
+        if spec.kind != kind:
+            raise InputError(f"{spec.name!r} is a {spec.kind} codec, expected a {kind} codec")
+        return spec
+    if isinstance(spec, str) and ":" in spec:
+        return parse_codec_spec(spec, kind)  # "depthac:max_rel_error=0.005"
+    if isinstance(spec, (str, dict)):
+        return get_codec(spec, kind=kind)
+    raise InputTypeError(
+        f"{kind} codec must be a name, a config dict or a codec, got {type(spec).__name__}"
+    )

@@ -117,7 +117,7 @@ def test_cli_depth_rd_takes_a_depth_only_recording(
 
 
 def test_bench_reads_a_bag_as_encode_does() -> None:
-    from pcdcodec.bench.evaluation import _frames_of
+    from pcdcodec.bench.evaluation import frames_of
     from tests.conftest import SHARED_DATA
 
     bag = SHARED_DATA / "bags" / "spot" / "raw.bag"
@@ -126,7 +126,7 @@ def test_bench_reads_a_bag_as_encode_does() -> None:
     import pcdcodec
 
     cam = pcdcodec.CameraIntrinsics(424, 240, 300.0, 300.0, 212.0, 120.0)
-    name, frames, intrinsics, scale = _frames_of(bag, 1, cam, None, need_color=False)
+    name, frames, intrinsics, scale = frames_of(bag, 1, cam, None, need_color=False)
     assert name == "raw"
     assert len(frames) == 1
     assert frames[0].depth.shape == (240, 424)

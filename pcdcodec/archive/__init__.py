@@ -894,7 +894,7 @@ def archive(
     that cannot be found, and :class:`~pcdcodec.DiskFullError` when not even the manifest can
     be written.
     """
-    from ..recording.writer import _codec
+    from ..registry import as_codec
 
     started = time.perf_counter()
     if scheduler is not None and workers is not None:
@@ -910,12 +910,12 @@ def archive(
     ):
         raise InputError(f"segment_frames must be a positive int, got {segment_frames!r}")
     verify = verify or delete_source_after_verify
-    color_codec = _codec(color, "color") if color is not None else None
+    color_codec = as_codec(color, "color") if color is not None else None
     color_config = color_codec.get_config() if color_codec is not None else None
     # Segments are cut on the color codec's keyframe interval (one for intra-only codecs).
     gop = getattr(color_codec, "_gop", None)
     keyframes = int(gop(float(fps))) if callable(gop) else 1
-    depth_config = _codec(depth, "depth").get_config()
+    depth_config = as_codec(depth, "depth").get_config()
     writer_options = {"color": color_config, "depth": depth_config, "fps": float(fps)}
     common = dict(source_options or {})
     defaults = _camera_defaults(camera, common)

@@ -366,7 +366,7 @@ def _median_ms(times: list[float]) -> float:
     return 1000.0 * statistics.median(times) if times else float("nan")
 
 
-def _frames_of(
+def frames_of(
     source: Any,
     frames: int | None,
     intrinsics: CameraIntrinsics | None,
@@ -374,6 +374,8 @@ def _frames_of(
     *,
     need_color: bool = True,
 ) -> tuple[str, list[RGBDFrame], CameraIntrinsics | None, float]:
+    """The name, first ``frames`` frames (all for ``None``), intrinsics and depth scale of
+    ``source``: an :class:`RGBDSequence`, a folder or a file any source reads."""
     if isinstance(source, RGBDSequence):
         seq = source.frames[:frames] if frames else source.frames
         return (
@@ -441,7 +443,7 @@ def evaluate(
     each step. Raises :class:`~pcdcodec.InputError` for an empty source or unknown codecs.
     """
     say = progress or (lambda _msg: None)
-    name, items, cam, scale = _frames_of(source, frames, intrinsics, depth_scale)
+    name, items, cam, scale = frames_of(source, frames, intrinsics, depth_scale)
     if not items:
         raise InputError(f"{source!r} holds no frames to evaluate")
     height, width = items[0].depth.shape

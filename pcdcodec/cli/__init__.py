@@ -688,9 +688,9 @@ def _depth_rd(
     say: Any,
 ) -> int:
     from ..bench.depth_rd import depth_rd, plot_depth_rd, rd_markdown, write_rd_csv
-    from ..bench.evaluation import _frames_of
+    from ..bench.evaluation import frames_of
 
-    name, items, _, scale = _frames_of(source, frames, intrinsics, depth_scale, need_color=False)
+    name, items, _, scale = frames_of(source, frames, intrinsics, depth_scale, need_color=False)
     depths = [f.depth for f in items]
     if not depths or str(depths[0].dtype) != "uint16":
         raise InputError(f"{source!r} holds no uint16 depth frames for the depth RD comparison")

@@ -112,7 +112,8 @@ def _segment_mask(lengths: npt.NDArray[np.intp]) -> npt.NDArray[np.bool_]:
     return np.repeat(pattern, lengths)
 
 
-def _encode(flat: npt.NDArray[np.uint16]) -> bytes:
+def rvl_encode(flat: npt.NDArray[np.uint16]) -> bytes:
+    """The RVL body of a flat uint16 depth image (no header; ROS compressedDepth uses it too)."""
     npix = flat.size
     nonzero = flat != 0
     # Where the non-zero runs start and end (exclusive), alternately.
@@ -174,7 +175,8 @@ def _encode(flat: npt.NDArray[np.uint16]) -> bytes:
     return packed.view(">u4").astype("<u4").tobytes()
 
 
-def _decode(body: memoryview, npix: int) -> npt.NDArray[np.uint16]:
+def rvl_decode(body: memoryview, npix: int) -> npt.NDArray[np.uint16]:
+    """The ``npix`` flat uint16 depth values of an RVL body; :class:`DecodeError` when malformed."""
     if npix > _MAX_PIXELS:
         raise DecodeError(f"RVL frame has {npix} pixels, more than RVL's limit of {_MAX_PIXELS}")
     if body.nbytes == 0 or body.nbytes % 4:
@@ -320,9 +322,9 @@ class RVL(FrameCodec):
                 f"RVL counts are 32-bit: an image of {image.size} pixels is larger than "
                 f"{_MAX_PIXELS}"
             )
-        return _encode(image.reshape(-1))
+        return rvl_encode(image.reshape(-1))
 
     def _decode_body(
         self, body: memoryview, shape: tuple[int, int], dtype: np.dtype[Any]
     ) -> npt.NDArray[Any]:
-        return _decode(body, shape[0] * shape[1]).reshape(shape)
+        return rvl_decode(body, shape[0] * shape[1]).reshape(shape)

@@ -18,7 +18,6 @@ import numpy.typing as npt
 
 from .._validate import check_color, check_depth, check_depth_scale
 from .._version import __version__
-from ..codec import Codec
 from ..color import DEFAULT_COLOR_CODEC
 from ..color.base import Packet, StreamCodec, VideoEncoder
 from ..depth import DEFAULT_DEPTH_CODEC
@@ -28,7 +27,7 @@ from ..frame import OPEN3D_DEPTH_SCALE
 from ..geometry.camera import CameraIntrinsics
 from ..geometry.projector import check_color_camera
 from ..geometry.transform import as_rigid, matrix_to_quaternion
-from ..registry import get_codec
+from ..registry import as_codec
 from ..ros.foxglove import (
     CAMERA_CALIBRATION,
     CAMERA_CALIBRATION_SCHEMA,
@@ -74,22 +73,6 @@ def _user_metadata(metadata: Any) -> dict[str, str]:
                 f"metadata[{key!r}] = {value!r} is not a str and cannot be stored as JSON ({exc})"
             ) from None
     return out
-
-
-def _codec(spec: Any, kind: str) -> Codec:
-    if isinstance(spec, Codec):
-        if spec.kind != kind:
-            raise InputError(f"{spec.name!r} is a {spec.kind} codec, expected a {kind} codec")
-        return spec
-    if isinstance(spec, str) and ":" in spec:
-        from ..registry import parse_codec_spec
-
-        return parse_codec_spec(spec, kind)  # "depthac:max_rel_error=0.005"
-    if isinstance(spec, (str, dict)):
-        return get_codec(spec, kind=kind)
-    raise InputTypeError(
-        f"{kind} codec must be a name, a config dict or a codec, got {type(spec).__name__}"
-    )
 
 
 def _calibration(intr: CameraIntrinsics, frame_id: str, timestamp: int) -> bytes:
@@ -220,13 +203,13 @@ class RecordingWriter:
         if not isinstance(frame_id, str):
             raise InputTypeError(f"frame_id must be a str, got {frame_id!r}")
         self.frame_id = frame_id
-        depth_codec = _codec(depth, "depth")
+        depth_codec = as_codec(depth, "depth")
         if not isinstance(depth_codec, FrameCodec):
             raise InputTypeError(f"depth codec {depth_codec.name!r} is not a frame codec")
         self.depth_codec = depth_codec
         self.color_codec: StreamCodec | None = None
         if color is not None:
-            color_codec = _codec(color, "color")
+            color_codec = as_codec(color, "color")
             if not isinstance(color_codec, StreamCodec):
                 raise InputError(
                     f"color codec {color_codec.name!r} writes whole video files, not packets; "

@@ -311,10 +311,10 @@ def decode_compressed(
             return np.repeat(img[..., :1], 3, axis=2)
         return np.ascontiguousarray(img[..., :3])
     if c.kind == "cdepth-rvl":
-        from ..depth.rvl import _decode
+        from ..depth.rvl import rvl_decode
 
         try:
-            image = _decode(memoryview(c.body), c.width * c.height).reshape(c.height, c.width)
+            image = rvl_decode(memoryview(c.body), c.width * c.height).reshape(c.height, c.width)
         except DecodeError as exc:
             raise DecodeError(f"{where}: {exc}") from None
     else:
@@ -376,13 +376,13 @@ def compressed_depth_encode(depth: npt.NDArray[np.uint16], *, rvl: bool = False)
     nothing for 16-bit depth.
     """
     if rvl:
-        from ..depth.rvl import _encode
+        from ..depth.rvl import rvl_encode
 
         h, w = depth.shape
         return (
             struct.pack("<iff", 2, 0.0, 0.0)
             + struct.pack("<II", w, h)
-            + _encode(np.ascontiguousarray(depth).reshape(-1))
+            + rvl_encode(np.ascontiguousarray(depth).reshape(-1))
         )
     import imagecodecs
 

@@ -359,7 +359,7 @@ class RealSenseBagSource(Source):
 
     def __iter__(self) -> Iterator[Any]:
 
-        from ..datasets import RGBDFrame
+        from ..frame import Frame as RGBDFrame
 
         with self._reader() as reader:
             conns = [c for c in reader.connections if c.topic in self._image_topics()]
@@ -525,7 +525,7 @@ class RealSenseBagSource(Source):
         listed ones decoded. Raises :class:`~pcdcodec.DecodeError` when a listed message is
         missing (the index is another bag's)."""
 
-        from ..datasets import RGBDFrame
+        from ..frame import Frame as RGBDFrame
         from ..ros import bagindex as _bagindex
 
         rows = _bagindex.check_rows(index.rows)
