@@ -11,14 +11,17 @@ from __future__ import annotations
 from ..registry import register_codec
 from .base import (
     DecodedFrame,
+    FileVideoCodec,
     Packet,
     StreamCodec,
     VideoDecoder,
     VideoEncoder,
+    VideoFileReader,
+    VideoFileWriter,
     decode_packets,
     encode_frames,
 )
-from .opencv import FileVideoCodec, OpenCVVideo, VideoFileReader, VideoFileWriter
+from .opencv import OpenCVVideo
 from .pyav import (
     AV1,
     FFV1,
