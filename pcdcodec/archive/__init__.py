@@ -894,6 +894,7 @@ def archive(
     that cannot be found, and :class:`~pcdcodec.DiskFullError` when not even the manifest can
     be written.
     """
+    from ..codec import ColorCodec
     from ..registry import as_codec
 
     started = time.perf_counter()
@@ -913,8 +914,9 @@ def archive(
     color_codec = as_codec(color, "color") if color is not None else None
     color_config = color_codec.get_config() if color_codec is not None else None
     # Segments are cut on the color codec's keyframe interval (one for intra-only codecs).
-    gop = getattr(color_codec, "_gop", None)
-    keyframes = int(gop(float(fps))) if callable(gop) else 1
+    keyframes = (
+        color_codec.keyframe_interval(float(fps)) if isinstance(color_codec, ColorCodec) else 1
+    )
     depth_config = as_codec(depth, "depth").get_config()
     writer_options = {"color": color_config, "depth": depth_config, "fps": float(fps)}
     common = dict(source_options or {})

@@ -138,6 +138,10 @@ class PyAVCodec(StreamCodec):
         """The keyframe interval; ``None``: one second of frames."""
         return self.gop
 
+    def keyframe_interval(self, fps: float) -> int:
+        gop = self._gop()
+        return int(gop) if gop is not None else max(1, round(fps))
+
     def _pad(self) -> tuple[int, int]:
         """Multiples the width and height must be padded to for :attr:`pix_fmt`."""
         if "420" in self.pix_fmt:
