@@ -58,6 +58,18 @@ def test_bad_arguments_exit_non_zero_with_a_message() -> None:
     assert pcdcodec.__version__ in version.stdout
 
 
+def test_the_cli_package_runs_as_a_module() -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "pcdcodec.cli", "--version"],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=600,
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout == f"pcdcodec {pcdcodec.__version__}\n"
+
+
 def test_demo(tmp_path: Path) -> None:
     out = run("demo", "--frames", "5", "-o", str(tmp_path / "demo"))
     assert out.returncode == 0, out.stderr
