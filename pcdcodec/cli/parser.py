@@ -38,6 +38,7 @@ class _CameraFlag(argparse.Action):
 
 
 def _add_camera_options(p: argparse.ArgumentParser) -> None:
+    """The camera flags and the RGB-D folder flags, for the commands that read an input."""
     from ..geometry.camera import CAMERA_PRESETS
 
     g = p.add_argument_group(
@@ -95,6 +96,7 @@ def _add_camera_options(p: argparse.ArgumentParser) -> None:
 
 
 def _print_presets() -> int:
+    """The camera presets as a table (``--camera list``)."""
     from ..geometry.camera import CAMERA_PRESETS
 
     print(f"{'name':10} {'size':8} {'fx':>7} {'fy':>7} {'cx':>7} {'cy':>7} {'scale':>6}  source")
@@ -109,6 +111,7 @@ def _print_presets() -> int:
 
 
 def _add_topic_options(p: argparse.ArgumentParser) -> None:
+    """The bag topic flags, for the commands that read an input."""
     g = p.add_argument_group("bag topics (default: chosen by type and namespace)")
     g.add_argument("--depth-topic", help="depth Image or CompressedImage topic")
     g.add_argument("--color-topic", help="color topic ('' for depth only)")
@@ -175,7 +178,7 @@ def _info_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate of a folder")
     _add_camera_options(p)
     _add_topic_options(p)
-    p.set_defaults(max_frames=None)
+    p.set_defaults(max_frames=None)  # options.source_options reads it; info has no flag for it
 
 
 def _verify_options(p: argparse.ArgumentParser) -> None:
