@@ -565,7 +565,7 @@ class AzureKinectSource(Source):
     def __iter__(self) -> Iterator[Any]:
         import av
 
-        from ..datasets import RGBDFrame
+        from ..frame import Frame as RGBDFrame
 
         name = str(self.path)
         where = repr(name)
