@@ -150,7 +150,7 @@ def load_folder(
     color_pattern: str | None = None,
     color: bool = True,
 ) -> RGBDSequence:
-    """Load an RGB-D sequence from a folder (see the module docstring for the layouts).
+    """Load an RGB-D sequence from a folder (see :mod:`pcdcodec.sources.folder` for the layouts).
 
     ``layout`` is ``"auto"``, ``"tum"``, ``"folders"`` or ``"flat"``; ``depth_pattern`` and
     ``color_pattern`` (glob patterns relative to the folder) pick the files instead, paired by

@@ -7,7 +7,8 @@ implement it, and the recording writer consumes it through one path
 (:meth:`pcdcodec.RecordingWriter.write_source`).
 
 :func:`open_source` picks the reader from the content of the path (magic bytes, folder
-layout), never from its name. Readers register themselves with :func:`register_source`.
+layout), never from its name. Readers register themselves with :func:`register_source`; this
+module imports none of them (:mod:`pcdcodec.sources` loads the built-in ones on first use).
 """
 
 from __future__ import annotations

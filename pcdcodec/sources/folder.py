@@ -255,7 +255,8 @@ def open_folder(
 ) -> FolderSource:
     """Find the color/depth pairs of an RGB-D folder without reading the images.
 
-    Arguments as :func:`load_folder`; iterate the result to read the frames one at a time.
+    Arguments as :func:`~pcdcodec.datasets.load_folder`; iterate the result to read the frames
+    one at a time.
     """
     root = Path(path)
     if not root.is_dir():
