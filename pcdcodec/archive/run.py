@@ -20,7 +20,14 @@ from ..errors import CodecUnavailableError, InputError, PcdcodecError
 from .discover import _stat, find_inputs
 from .manifest import DONE_STATES, PARTS, _disk_full, _Lock, _Manifest, _prune, _sweep
 from .plan import segment_plan
-from .settings import RunSettings, _camera_defaults, _input_options, _jsonable
+from .settings import (
+    RunSettings,
+    _camera_defaults,
+    _check_counts,
+    _input_options,
+    _jsonable,
+    _writer_options,
+)
 from .summary import ArchiveItem, ArchiveSummary, _ByteProgress, _take_camera
 from .tasks import _encode_segment, _existing_segment, _join_parts, _probe, _verify
 
@@ -80,32 +87,13 @@ def archive(
     that cannot be found, and :class:`~pcdcodec.DiskFullError` when not even the manifest can
     be written.
     """
-    from ..registry import as_codec
-
     started = time.perf_counter()
-    if scheduler is not None and workers is not None:
-        raise InputError("give either a scheduler address or a number of workers, not both")
-    if workers is not None and (
-        isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
-    ):
-        raise InputError(f"workers must be a positive int, got {workers!r}")
-    if segment_frames is not None and (
-        isinstance(segment_frames, bool)
-        or not isinstance(segment_frames, int)
-        or segment_frames < 1
-    ):
-        raise InputError(f"segment_frames must be a positive int, got {segment_frames!r}")
+    _check_counts(scheduler, workers, segment_frames)
     verify = verify or delete_source_after_verify
-    color_codec = as_codec(color, "color") if color is not None else None
-    color_config = color_codec.get_config() if color_codec is not None else None
-    # Segments are cut on the color codec's keyframe interval (one for intra-only codecs).
-    gop = getattr(color_codec, "_gop", None)
-    keyframes = int(gop(float(fps))) if callable(gop) else 1
-    depth_config = as_codec(depth, "depth").get_config()
-    writer_options = {"color": color_config, "depth": depth_config, "fps": float(fps)}
+    writer_options, keyframes = _writer_options(color, depth, fps)
     common = dict(source_options or {})
     defaults = _camera_defaults(camera, common)
-    settings_all = {"color": color_config, "depth": depth_config, "fps": float(fps)}
+    settings_all = dict(writer_options)
     if defaults is not None:
         # Another default camera may change what inputs without one record.
         settings_all["camera"] = {

@@ -46,6 +46,35 @@ class RunSettings:
     warn: Callable[[str], None]
 
 
+def _check_counts(scheduler: str | None, workers: int | None, segment_frames: int | None) -> None:
+    """Refuse a scheduler together with a number of workers, and counts that are not positive."""
+    if scheduler is not None and workers is not None:
+        raise InputError("give either a scheduler address or a number of workers, not both")
+    if workers is not None and (
+        isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
+    ):
+        raise InputError(f"workers must be a positive int, got {workers!r}")
+    if segment_frames is not None and (
+        isinstance(segment_frames, bool)
+        or not isinstance(segment_frames, int)
+        or segment_frames < 1
+    ):
+        raise InputError(f"segment_frames must be a positive int, got {segment_frames!r}")
+
+
+def _writer_options(color: Any, depth: Any, fps: float) -> tuple[dict[str, Any], int]:
+    """The writer's codec configs and rate (``color``, ``depth``, ``fps``), and the color
+    codec's keyframe interval, on which segments are cut (one for intra-only codecs)."""
+    from ..registry import as_codec
+
+    color_codec = as_codec(color, "color") if color is not None else None
+    color_config = color_codec.get_config() if color_codec is not None else None
+    gop = getattr(color_codec, "_gop", None)
+    keyframes = int(gop(float(fps))) if callable(gop) else 1
+    depth_config = as_codec(depth, "depth").get_config()
+    return {"color": color_config, "depth": depth_config, "fps": float(fps)}, keyframes
+
+
 def _camera_defaults(camera: Any, common: dict[str, Any]) -> Any:
     """The :class:`~pcdcodec.sources.CameraDefaults` for inputs that lack a camera, from
     ``camera`` and the ``intrinsics``/``depth_scale`` taken out of ``common``; or None."""
