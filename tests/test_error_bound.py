@@ -430,3 +430,12 @@ def test_any_float32_image_keeps_any_bound(
     codec = Zstd(max_error=max_error, max_rel_error=max_rel_error)
     back = codec.decode(codec.encode(image))
     assert_within_bound(image, back, max_error, max_rel_error)
+
+
+def test_error_bound_is_public_on_every_depth_codec() -> None:
+    from pcdcodec.registry import get_codec
+
+    assert get_codec("depthac").error_bound is None
+    bound = get_codec({"id": "depthac", "max_error": 3}).error_bound
+    assert bound is not None
+    assert bound == ErrorBound(3.0, 0.0)
