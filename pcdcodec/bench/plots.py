@@ -1,16 +1,31 @@
-"""PNG plots of an :class:`~pcdcodec.bench.evaluation.Evaluation` (matplotlib, imported here
+"""PNG plots of an :class:`~pcdcodec.bench.report.Evaluation` (matplotlib, imported here
 only)."""
 
 from __future__ import annotations
 
 from collections import defaultdict
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from ..errors import CodecUnavailableError
+from .results import ColorRow, DepthRow, RDPoint, StreamRow, default_setting
 
-if TYPE_CHECKING:
-    from .evaluation import Evaluation
+
+class Plottable(Protocol):
+    """What the plots read of an :class:`~pcdcodec.bench.report.Evaluation`."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def depth(self) -> list[DepthRow]: ...
+    @property
+    def color(self) -> list[ColorRow]: ...
+    @property
+    def streams(self) -> list[StreamRow]: ...
+    @property
+    def rd(self) -> list[RDPoint]: ...
+    @property
+    def pointcloud2_bytes_per_frame(self) -> int: ...
 
 
 def _pyplot() -> Any:
@@ -26,19 +41,7 @@ def _pyplot() -> Any:
     return plt
 
 
-def _default_setting(codec: str) -> str | None:
-    """``"crf=23"``: the swept setting at the codec's default, as RD points name it."""
-    from ..registry import codec_class
-    from .evaluation import RD_SETTINGS
-
-    if codec not in RD_SETTINGS:
-        return None
-    key = RD_SETTINGS[codec][0]
-    cls = codec_class(codec)
-    return f"{key}={cls().get_config().get(key)}" if cls.is_available() else None
-
-
-def plot_all(ev: Evaluation, out_dir: Path) -> list[Path]:
+def plot_all(ev: Plottable, out_dir: Path) -> list[Path]:
     plt = _pyplot()
     written = []
     kib = 1024.0
@@ -51,7 +54,7 @@ def plot_all(ev: Evaluation, out_dir: Path) -> list[Path]:
         for codec, points in sorted(curves.items()):
             points.sort(key=lambda p: p.bits_per_pixel)
             ax.plot([p.bits_per_pixel for p in points], [p.psnr for p in points], "o-", label=codec)
-            default = _default_setting(codec)
+            default = default_setting(codec)
             for p in points:
                 if p.setting == default:
                     ax.plot(p.bits_per_pixel, p.psnr, "k*", markersize=12)
