@@ -41,6 +41,13 @@ def _pyplot() -> Any:
     return plt
 
 
+def _save(plt: Any, fig: Any, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def plot_all(ev: Plottable, out_dir: Path) -> list[Path]:
     plt = _pyplot()
     written = []
@@ -63,11 +70,7 @@ def plot_all(ev: Plottable, out_dir: Path) -> list[Path]:
         ax.set_title(f"Color rate-distortion: {ev.name} (defaults starred)")
         ax.grid(True, alpha=0.3)
         ax.legend()
-        path = out_dir / "color_rd.png"
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.append(_save(plt, fig, out_dir / "color_rd.png"))
 
     if ev.depth:
         from ..depth import DEFAULT_DEPTH_CODEC
@@ -95,11 +98,7 @@ def plot_all(ev: Plottable, out_dir: Path) -> list[Path]:
         axes[0].set_ylabel("ratio against raw uint16")
         axes[0].set_ylim(bottom=0)
         fig.suptitle(f"Depth codecs: {ev.name} (the default starred)")
-        path = out_dir / "depth_ratio_speed.png"
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.append(_save(plt, fig, out_dir / "depth_ratio_speed.png"))
 
     if ev.streams:
         from ..color import DEFAULT_COLOR_CODEC
@@ -148,9 +147,5 @@ def plot_all(ev: Plottable, out_dir: Path) -> list[Path]:
         ax.margins(x=0.12)
         ax.legend(loc="upper right")
         ax.invert_yaxis()
-        path = out_dir / "stream_sizes.png"
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.append(_save(plt, fig, out_dir / "stream_sizes.png"))
     return written

@@ -98,6 +98,14 @@ def _skip(what: Path) -> NoReturn:
     pytest.skip(f"{what} is not present")
 
 
+def _present(name: str) -> Sequence:
+    """Sequence ``name``; skips the calling test when its data is absent."""
+    seq = SEQUENCES[name]
+    if not seq.present:
+        _skip(seq.root)
+    return seq
+
+
 def read_image(path: Path) -> np.ndarray[Any, Any]:
     """An image file as an array (imagecodecs: PNG, JPEG, ...)."""
     import imagecodecs
@@ -110,9 +118,7 @@ _cache: dict[tuple[str, str, int], list[np.ndarray[Any, Any]]] = {}
 
 def load_depths(name: str, count: int) -> list[np.ndarray[Any, Any]]:
     """``count`` depth frames spread evenly over sequence ``name``; skips when it is absent."""
-    seq = SEQUENCES[name]
-    if not seq.present:
-        _skip(seq.root)
+    seq = _present(name)
     key = ("depth", name, count)
     if key not in _cache:
         paths = seq.depth_paths()
@@ -123,9 +129,7 @@ def load_depths(name: str, count: int) -> list[np.ndarray[Any, Any]]:
 
 def load_colors(name: str, count: int) -> list[np.ndarray[Any, Any]]:
     """The first ``count`` consecutive RGB frames of sequence ``name``; skips when absent."""
-    seq = SEQUENCES[name]
-    if not seq.present:
-        _skip(seq.root)
+    seq = _present(name)
     key = ("color", name, count)
     if key not in _cache:
         paths = sorted(seq.root.glob(seq.color_glob))[:count]
