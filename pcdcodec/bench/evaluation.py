@@ -29,7 +29,13 @@ from ..datasets import RGBDFrame, RGBDSequence, open_folder
 from ..depth.base import FrameCodec
 from ..errors import InputError
 from ..geometry.camera import CameraIntrinsics
+from ..geometry.projector import Projector
+from ..metrics import depth_error, point_to_point, psnr, ssim
+from ..recording import open as open_recording
 from ..registry import get_codec, list_codecs
+from ..sources import open_source
+from ..sources.base import detect_kind
+from .peers import evaluate_peers
 from .report import Evaluation
 from .results import (
     POINTCLOUD2_BYTES_PER_POINT,
@@ -79,10 +85,6 @@ def frames_of(
         )
     path = Path(source)
     if path.is_file():
-        from ..recording import open as open_recording
-        from ..sources import open_source
-        from ..sources.base import detect_kind
-
         no_color = f"{str(path)!r} has no color stream to compare codecs on"
         if detect_kind(path) is not None:  # a bag or a camera recording, read as encode reads it
             options: dict[str, Any] = {}
@@ -187,10 +189,7 @@ def evaluate(
                 )
             )
     if peers:
-        import importlib
-
-        peer_module: Any = importlib.import_module("pcdcodec.bench.peers")
-        result.peers = peer_module.evaluate_peers(items, cam, scale)
+        result.peers = evaluate_peers(items, cam, scale)
     return result
 
 
@@ -200,8 +199,6 @@ def _depth_row(
     scale: float,
     cam: CameraIntrinsics | None,
 ) -> DepthRow:
-    from ..metrics import depth_error, point_to_point
-
     enc_times, dec_times, sizes = [], [], []
     exact = True
     worst: Any = None
@@ -233,8 +230,6 @@ def _depth_row(
     cloud_rmse = 0.0
     if not exact and cam is not None:
         # Exact depth rebuilds identical clouds; otherwise compare the middle frame's clouds.
-        from ..geometry.projector import Projector
-
         proj = Projector(cam, depth_scale=scale)
         mid = depths[len(depths) // 2]
         decoded = codec.decode(codec.encode(mid))
@@ -272,8 +267,6 @@ def _units_to_m(err: Any, field_name: str, scale: float) -> float:
 def _color_row(
     codec: StreamCodec, colors: list[npt.NDArray[np.uint8]], *, quality: bool = True
 ) -> ColorRow:
-    from ..metrics import psnr, ssim
-
     height, width = colors[0].shape[:2]
     t0 = time.perf_counter()
     packets, extradata = encode_frames(codec, colors)

@@ -7,6 +7,8 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any, Protocol
 
+from ..color import DEFAULT_COLOR_CODEC
+from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import CodecUnavailableError
 from .results import ColorRow, DepthRow, RDPoint, StreamRow, default_setting
 
@@ -73,8 +75,6 @@ def plot_all(ev: Plottable, out_dir: Path) -> list[Path]:
         written.append(_save(plt, fig, out_dir / "color_rd.png"))
 
     if ev.depth:
-        from ..depth import DEFAULT_DEPTH_CODEC
-
         fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.4), sharey=True)
         for ax, attr, what in ((axes[0], "encode_ms", "encode"), (axes[1], "decode_ms", "decode")):
             for d in ev.depth:
@@ -101,9 +101,6 @@ def plot_all(ev: Plottable, out_dir: Path) -> list[Path]:
         written.append(_save(plt, fig, out_dir / "depth_ratio_speed.png"))
 
     if ev.streams:
-        from ..color import DEFAULT_COLOR_CODEC
-        from ..depth import DEFAULT_DEPTH_CODEC
-
         color_kib = {c.codec: c.bytes_per_frame / kib for c in ev.color}
         depth_kib = {d.codec: d.bytes_per_frame / kib for d in ev.depth}
         rows = sorted(ev.streams, key=lambda s: s.bytes_per_frame)
