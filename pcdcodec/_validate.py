@@ -1,4 +1,4 @@
-"""Input checks shared by the codecs and the projector.
+"""Input checks shared by the codecs, the projector and the quality metrics.
 
 Each check returns an array the caller can use directly (C-contiguous, little-endian) or raises
 one of the project's input errors naming the value that was wrong and what was expected.
@@ -6,6 +6,8 @@ one of the project's input errors naming the value that was wrong and what was e
 
 from __future__ import annotations
 
+import math
+import numbers
 from typing import Any
 
 import numpy as np
@@ -164,3 +166,17 @@ def check_choice(owner: str, name: str, value: Any, choices: tuple[Any, ...]) ->
     """Check a codec parameter is one of ``choices``."""
     if value not in choices:
         raise InputError(f"{owner} {name} must be one of {list(choices)}, got {value!r}")
+
+
+def check_real(value: Any, name: str, *, minimum: float, inclusive: bool, unit: str) -> float:
+    """A finite real number above ``minimum`` (or equal to it when ``inclusive``)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise InputTypeError(
+            f"{name} must be a number ({unit}), got {type(value).__name__} {value!r}"
+        )
+    real = float(value)
+    ok = real >= minimum if inclusive else real > minimum
+    if not (ok and math.isfinite(real)):
+        bound = f">= {minimum:g}" if inclusive else f"> {minimum:g}"
+        raise InputError(f"{name} must be finite and {bound} ({unit}), got {real!r}")
+    return real

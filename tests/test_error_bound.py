@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 import pcdcodec
-from benchmarks.data import DEPTH_SETS, SEQUENCES, load_frames
+from pcdcodec.bench.sequences import DEPTH_SETS, SEQUENCES, load_frames
 from pcdcodec.depth import FrameCodec, read_header
 from pcdcodec.depth.base import LAYOUT_BOUNDED
 from pcdcodec.depth.bounded import (
