@@ -16,6 +16,7 @@ import numpy.typing as npt
 from .errors import InputError, InputTypeError
 
 __all__ = [
+    "OPEN3D_DEPTH_SCALE",
     "as_uint16_depth",
     "check_choice",
     "check_color",
@@ -23,9 +24,21 @@ __all__ = [
     "check_depth_scale",
     "check_int",
     "check_number",
+    "check_output_dtype",
+    "check_positive",
 ]
 
+#: The ``depth_scale`` Open3D assumes when none is given (depth units per metre, millimetres).
+#: It lives beside the depth-scale check so that :mod:`pcdcodec.frame` has it without loading
+#: :mod:`pcdcodec.geometry.open3d`, which re-exports it.
+OPEN3D_DEPTH_SCALE = 1000.0
+
 _DEPTH_DTYPES: dict[str, np.dtype[Any]] = {"uint16": np.dtype("<u2"), "float32": np.dtype("<f4")}
+
+_OUTPUT_DTYPES: dict[str, np.dtype[Any]] = {
+    "uint16": np.dtype(np.uint16),
+    "float32": np.dtype(np.float32),
+}
 
 
 def _dtype_name(dtype: np.dtype[Any]) -> str:
@@ -140,6 +153,33 @@ def check_depth_scale(value: Any, name: str = "depth_scale") -> float:
     if not (np.isfinite(value) and value > 0):
         raise InputError(f"{name} must be positive and finite, got {value}")
     return float(value)
+
+
+def check_positive(value: Any, name: str, *, finite: bool) -> float:
+    """``value`` as a positive float (finite too when ``finite``); raises
+    :class:`~pcdcodec.InputTypeError` for a non-number and :class:`~pcdcodec.InputError`
+    otherwise, naming ``name`` and the value."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise InputTypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+    real = float(value)
+    if not real > 0 or (finite and not math.isfinite(real)):
+        what = "positive and finite" if finite else "positive"
+        raise InputError(f"{name} must be {what}, got {real!r}")
+    return real
+
+
+def check_output_dtype(dtype: Any) -> np.dtype[Any]:
+    """The native uint16 or float32 dtype that ``dtype`` names (a depth image's), or
+    :class:`~pcdcodec.InputError`."""
+    out: np.dtype[Any] | None = None
+    if dtype is not None:
+        try:
+            out = _OUTPUT_DTYPES.get(np.dtype(dtype).name)
+        except TypeError:
+            out = None
+    if out is None:
+        raise InputError(f"dtype must be 'uint16' or 'float32', got {dtype!r}")
+    return out
 
 
 def check_int(
