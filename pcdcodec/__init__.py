@@ -98,11 +98,19 @@ class _MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
             return None
         return importlib.util.spec_from_loader(fullname, self)
 
+    def __init__(self) -> None:
+        self._specs: dict[int, Any] = {}
+
     def create_module(self, spec: ModuleSpec) -> ModuleType:
-        return _moved_module(spec.name)
+        module = _moved_module(spec.name)
+        # The import system sets the old path's spec on the module it is handed; the module
+        # keeps its own, so that its relative imports resolve against its real package.
+        self._specs[id(module)] = module.__spec__
+        return module
 
     def exec_module(self, module: ModuleType) -> None:
-        """The module was imported at its new path; there is nothing left to run."""
+        """The module was imported at its new path; only its own spec is put back."""
+        module.__spec__ = self._specs.pop(id(module), module.__spec__)
 
 
 if not any(isinstance(f, _MovedModuleFinder) for f in sys.meta_path):

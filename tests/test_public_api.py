@@ -106,6 +106,8 @@ def test_old_module_paths_still_import_with_a_warning(old: str, new: str) -> Non
         f"    old = importlib.import_module({old!r})\n"
         f"new = importlib.import_module({new!r})\n"
         "assert old is new\n"
+        # the module keeps its own spec, so its relative imports resolve in its real package
+        f"assert new.__spec__.name == {new!r}\n"
         "print('|'.join(str(w.message) for w in caught if w.category is DeprecationWarning))\n"
     )
     message = subprocess.run(
