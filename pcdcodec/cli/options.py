@@ -20,7 +20,7 @@ parse_codec = parse_codec_spec
 
 def _intrinsics_from_args(args: argparse.Namespace, width: int, height: int) -> Any:
     """``--fx --fy --cx --cy`` (all or none) as the camera of frames of this size."""
-    from ..geometry.camera import CameraIntrinsics
+    from ..geometry.camera import as_intrinsics
 
     given = {k: getattr(args, k) for k in ("fx", "fy", "cx", "cy")}
     if all(v is None for v in given.values()):
@@ -28,7 +28,7 @@ def _intrinsics_from_args(args: argparse.Namespace, width: int, height: int) -> 
     missing = [f"--{k}" for k, v in given.items() if v is None]
     if missing:
         raise InputError(f"intrinsics need --fx --fy --cx --cy; missing {' '.join(missing)}")
-    return CameraIntrinsics(width, height, given["fx"], given["fy"], given["cx"], given["cy"])
+    return as_intrinsics(given, width=width, height=height)
 
 
 def frame_size(

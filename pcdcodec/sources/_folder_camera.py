@@ -18,12 +18,11 @@ from ..errors import InputError
 from ._folder_layouts import Pair
 
 if TYPE_CHECKING:
-    from ..geometry.camera import CameraIntrinsics
+    pass
 
 __all__ = [
     "CAMERA_JSON_KEYS",
     "TUM_DEPTH_SCALE",
-    "as_camera",
     "as_transform",
     "folder_depth_scale",
     "read_camera_json",
@@ -128,27 +127,6 @@ def read_camera_json(path: str | os.PathLike[str]) -> dict[str, Any]:
         "color": color,
         "depth_to_color": d2c,
     }
-
-
-def as_camera(value: Any, what: str, width: int | None, height: int | None) -> CameraIntrinsics:
-    """A camera given as CameraIntrinsics, a dict (camera.json keys) or an intrinsics file."""
-    from ..geometry.camera import CameraIntrinsics, read_intrinsics
-
-    if isinstance(value, CameraIntrinsics):
-        return value
-    if isinstance(value, dict):
-        size = {"width": width, "height": height}
-        data = {**{k: v for k, v in size.items() if v is not None}, **value}
-        try:
-            return CameraIntrinsics.from_dict(data)
-        except InputError as exc:
-            raise InputError(f"{what}: {exc}") from None
-    if isinstance(value, (str, os.PathLike)):
-        return read_intrinsics(value, width, height)
-    raise InputError(
-        f"{what} must be a CameraIntrinsics, a dict or an intrinsics file, got "
-        f"{type(value).__name__}"
-    )
 
 
 def as_transform(value: Any, what: str) -> npt.NDArray[np.float64]:

@@ -349,20 +349,12 @@ class CameraDefaults:
 
 
 def given_intrinsics(value: Any, width: int | None, height: int | None) -> CameraIntrinsics:
-    """A reader's ``intrinsics`` option as a camera: a :class:`~pcdcodec.CameraIntrinsics`, a
-    dict of its :meth:`~pcdcodec.CameraIntrinsics.to_dict` keys, or an intrinsics file (see
-    :func:`~pcdcodec.geometry.camera.read_intrinsics`), whose bare 3 x 3 matrix takes the depth
-    images' ``width`` x ``height`` (pixels), as a folder's does.
+    """A reader's ``intrinsics`` option as a camera (see
+    :func:`~pcdcodec.geometry.camera.as_intrinsics`); an intrinsics file's bare 3 x 3 matrix takes
+    the depth images' ``width`` x ``height`` (pixels), as a folder's does."""
+    from ..geometry.camera import as_intrinsics
 
-    Raises :class:`~pcdcodec.InputError` for a file that cannot be read or a bad dict.
-    """
-    from ..geometry.camera import CameraIntrinsics, read_intrinsics
-
-    if isinstance(value, CameraIntrinsics):
-        return value
-    if isinstance(value, (str, os.PathLike)):
-        return read_intrinsics(value, width, height)
-    return CameraIntrinsics.from_dict(value)
+    return as_intrinsics(value, "intrinsics", width, height)
 
 
 def _camera_text(camera: CameraIntrinsics) -> str:

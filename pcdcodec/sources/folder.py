@@ -47,10 +47,10 @@ import numpy.typing as npt
 
 from ..errors import InputError
 from ..frame import Frame
+from ..geometry.camera import as_intrinsics
 from ._folder_camera import (
     CAMERA_JSON_KEYS,
     TUM_DEPTH_SCALE,
-    as_camera,
     as_transform,
     folder_depth_scale,
     read_camera_json,
@@ -291,9 +291,9 @@ def open_folder(
     camera_from = ""
     own = meta.get("camera") or {}
     if intrinsics is not None:
-        camera, camera_from = as_camera(intrinsics, "intrinsics", *depth_size()), "given"
+        camera, camera_from = as_intrinsics(intrinsics, "intrinsics", *depth_size()), "given"
     elif "fx" in own:
-        camera = as_camera(own, str(camera_file), *depth_size())
+        camera = as_intrinsics(own, str(camera_file), *depth_size())
         camera_from = "camera.json"
     else:
         from ..geometry.camera import find_intrinsics_file
@@ -315,9 +315,9 @@ def open_folder(
     color_camera = None
     d2c = depth_to_color
     if color_intrinsics is not None and has_color:
-        color_camera = as_camera(color_intrinsics, "color_intrinsics", *color_size())
+        color_camera = as_intrinsics(color_intrinsics, "color_intrinsics", *color_size())
     elif meta.get("color") is not None and has_color:
-        color_camera = as_camera(meta["color"], f"{str(camera_file)!r} color", *color_size())
+        color_camera = as_intrinsics(meta["color"], f"{str(camera_file)!r} color", *color_size())
         if d2c is None:
             d2c = meta.get("depth_to_color")
     if d2c is not None:
