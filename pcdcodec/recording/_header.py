@@ -296,7 +296,7 @@ def depth_channel(
 def check_channels(index: fmt.FileIndex, name: str, settings: Settings) -> None:
     """The channels (inside CRC-checked chunks) must agree with the settings record."""
     cam = settings.intrinsics
-    expected = {
+    expected: dict[str, dict[str, Any]] = {
         fmt.TOPIC_DEPTH: {
             "width": cam.width,
             "height": cam.height,
@@ -399,7 +399,7 @@ def transform(matrix: npt.NDArray[np.float64], timestamp: int, parent: str, chil
     ).encode()
 
 
-def transform_matrix(data: bytes | memoryview) -> npt.NDArray[np.float64]:
+def transform_matrix(data: bytes) -> npt.NDArray[np.float64]:
     """The 4 × 4 matrix of a ``FrameTransform`` message."""
     msg = FrameTransform.decode(data)
     pose = np.eye(4)
