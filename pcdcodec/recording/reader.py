@@ -352,11 +352,10 @@ class Recording(PacketAccess):
             f"{self.intrinsics.width}x{self.intrinsics.height}, codecs {self.codecs}>"
         )
 
-    # -- frames ----------------------------------------------------------------------------
-
-    # -- packet level: the encoded streams, as written (the counterpart of write_encoded) -----
+    # -- depth alone ---------------------------------------------------------------------
 
     def _index_of(self, i: int) -> int:
+        """Frame ``i`` as an index from 0, checked (once per call from outside)."""
         n = len(self)
         if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
             raise InputTypeError(f"frame index must be an int, got {type(i).__name__}")
@@ -368,7 +367,9 @@ class Recording(PacketAccess):
         """The encoded depth of frame ``i``, exactly as its depth codec wrote it (see
         :func:`pcdcodec.decode_depth`). Raises :class:`~pcdcodec.DecodeError` when the file
         there is damaged."""
-        i = self._index_of(i)
+        return self._depth_bytes(self._index_of(i))
+
+    def _depth_bytes(self, i: int) -> bytes:
         offset = int(self._offsets[i])
         ts = int(self._times[i])
         what = f"{str(self.path)!r}: frame {i} (t={ts} ns): depth at byte offset {offset}"
@@ -391,8 +392,10 @@ class Recording(PacketAccess):
 
     def depth(self, i: int) -> npt.NDArray[Any]:
         """The depth image of frame ``i`` alone, without decoding its color."""
-        i = self._index_of(i)
-        data = self.depth_bytes(i)
+        return self._depth(self._index_of(i))
+
+    def _depth(self, i: int) -> npt.NDArray[Any]:
+        data = self._depth_bytes(i)
         what = (
             f"{str(self.path)!r}: frame {i} (t={int(self._times[i])} ns): depth at byte offset "
             f"{int(self._offsets[i])}"
@@ -421,6 +424,8 @@ class Recording(PacketAccess):
             return depth
         except DecodeError as exc:
             raise DecodeError(f"{what}: {exc}") from exc
+
+    # -- frames ----------------------------------------------------------------------------
 
     def _color(self, i: int) -> npt.NDArray[np.uint8] | None:
         if self.color_codec is None:
@@ -469,12 +474,7 @@ class Recording(PacketAccess):
 
     def frame(self, i: int) -> Frame:
         """Frame ``i`` (negative counts from the end)."""
-        n = len(self)
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
-            raise InputTypeError(f"frame index must be an int, got {type(i).__name__}")
-        if not -n <= i < n:
-            raise IndexError(f"frame index {i} is out of range for {n} frames")
-        i = int(i) % n
+        i = self._index_of(i)
         try:
             color = self._color(i)
             ch, cw = self.color_shape
@@ -485,7 +485,7 @@ class Recording(PacketAccess):
                 )
             return Frame(
                 color,
-                self.depth(i),
+                self._depth(i),
                 int(self._times[i]),
                 index=i,
                 pose=self._pose(i),
