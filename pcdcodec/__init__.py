@@ -45,26 +45,22 @@ from .errors import (
 from .frame import Frame
 from .geometry.camera import CameraIntrinsics
 from .geometry.projector import Projector, Reprojection
-from .recording import (
-    EncodeSummary,
-    Recording,
-    RecordingWriter,
-    encode,
-    open,
-    recover,
-)
+from .recording import EncodeSummary, encode, open, recover
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
 
 if TYPE_CHECKING:
     from .bench.evaluation import Evaluation, evaluate
     from .convert.rosbag import export_bag
+    from .recording import Recording, RecordingWriter
 
 #: Public names whose modules load on first use, so that ``import pcdcodec`` stays light.
 _LAZY = {
     "Evaluation": "pcdcodec.bench.evaluation",
     "evaluate": "pcdcodec.bench.evaluation",
     "export_bag": "pcdcodec.convert.rosbag",
+    "Recording": "pcdcodec.recording.reader",
+    "RecordingWriter": "pcdcodec.recording.writer",
 }
 
 #: Module paths of earlier releases, and where their contents live now. Importing an old path
