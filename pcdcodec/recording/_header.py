@@ -21,7 +21,7 @@ import numpy.typing as npt
 
 from .._version import __version__
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError
-from ..geometry.camera import CameraIntrinsics
+from ..geometry.camera import CameraIntrinsics, as_intrinsics
 from ..geometry.transform import as_rigid, matrix_to_quaternion, quaternion_to_matrix
 from ..ros.foxglove import CameraCalibration, FrameTransform
 from . import _index as fmt
@@ -30,24 +30,15 @@ from . import _index as fmt
 LIBRARY = f"pcdcodec {__version__}"
 
 
-def as_intrinsics(value: Any) -> CameraIntrinsics:
-    """A camera given to a writer as :class:`~pcdcodec.CameraIntrinsics`, a dict of its
-    :meth:`~pcdcodec.CameraIntrinsics.to_dict` keys or an Open3D ``PinholeCameraIntrinsic``."""
+def writer_camera(value: Any) -> CameraIntrinsics:
+    """The camera a writer is given (any form :func:`~pcdcodec.geometry.camera.as_intrinsics`
+    takes); a writer cannot do without one."""
     if value is None:
         raise InputError(
             "intrinsics are required to write a recording: pass "
             "intrinsics=pcdcodec.CameraIntrinsics(width, height, fx, fy, cx, cy)"
         )
-    if isinstance(value, CameraIntrinsics):
-        return value
-    if isinstance(value, dict):
-        return CameraIntrinsics.from_dict(value)
-    if type(value).__name__ == "PinholeCameraIntrinsic":
-        return CameraIntrinsics.from_open3d(value)
-    raise InputTypeError(
-        f"intrinsics must be a CameraIntrinsics, a dict or an Open3D PinholeCameraIntrinsic, "
-        f"got {type(value).__name__}"
-    )
+    return as_intrinsics(value)
 
 
 # -- the MCAP header ----------------------------------------------------------------------------

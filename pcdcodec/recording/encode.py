@@ -11,7 +11,7 @@ from typing import Any
 
 from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import InputError
-from ._header import as_intrinsics
+from ._header import writer_camera
 
 __all__ = ["EncodeSummary", "encode"]
 
@@ -106,7 +106,7 @@ def encode(
         source, owned = open_source(src, **opts), True
     try:
         if intrinsics is not None and not owned:
-            source.intrinsics = as_intrinsics(intrinsics)
+            source.intrinsics = writer_camera(intrinsics)
         if depth_scale is not None:
             source.depth_scale = float(depth_scale)
         if source.intrinsics is None:

@@ -107,9 +107,9 @@ class RecordingWriter(FrameInputs):
         world_frame_id: str = "world",
     ) -> None:
         self.path = Path(path)
-        self.intrinsics = header.as_intrinsics(intrinsics)
+        self.intrinsics = header.writer_camera(intrinsics)
         self.color_intrinsics, self.depth_to_color = check_color_camera(
-            None if color_intrinsics is None else header.as_intrinsics(color_intrinsics),
+            None if color_intrinsics is None else header.writer_camera(color_intrinsics),
             depth_to_color,
         )
         self.world_frame_id = world_frame_id
