@@ -198,6 +198,52 @@ def check_rows(rows: Any) -> Any:
     return table
 
 
+def index_rows(
+    stamps: Iterable[tuple[bool, int, int]],
+    color: bool,
+    max_difference: int,
+    limit: int | None = None,
+) -> Any:
+    """The index rows of a bag's frames, as an ``(n, 5)`` int64 array, from ``(is_depth, log
+    time, stamp)`` of each depth (and color) message in bag order.
+
+    A message whose stamp does not increase on its stream is skipped; color and depth are
+    paired by :class:`~pcdcodec.sync.Synchronizer` (``max_difference`` ns), the rule and state
+    a bag source pairs with while iterating, so the rows list exactly the frames iteration
+    gives, in its order. At most ``limit`` rows.
+    """
+    import numpy as np
+
+    from ..sync import Synchronizer
+
+    rows: list[tuple[int, int, int, int, int]] = []
+    if not color:
+        last = -1
+        for _, t, ts in stamps:
+            if ts <= last:
+                continue
+            last = ts
+            rows.append((ts, t, ts, -1, -1))
+            if limit is not None and len(rows) >= limit:
+                break
+    else:
+        sync: Synchronizer[int, int] = Synchronizer(max_difference=max_difference)
+        latest = {True: -1, False: -1}
+        for is_depth, t, ts in stamps:
+            if ts <= latest[is_depth]:
+                continue
+            latest[is_depth] = ts
+            ready = sync.add_depth(ts, t) if is_depth else sync.add_color(ts, t)
+            rows.extend((dts, dlog, dts, clog, cts) for cts, clog, dts, dlog in ready)
+            if limit is not None and len(rows) >= limit:
+                break
+        else:
+            rows.extend((dts, dlog, dts, clog, cts) for cts, clog, dts, dlog in sync.flush())
+        if limit is not None:
+            del rows[limit:]
+    return np.array(rows, dtype=np.int64).reshape(-1, COLUMNS)
+
+
 def window(rows: Any, color: bool) -> tuple[int, int]:
     """The log times ``[start, stop)`` that hold every message the rows name."""
     logs = rows[:, [1, 3]] if color else rows[:, [1]]
