@@ -36,18 +36,13 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InputError
+from ..ros.clouds import CLOUD_DTYPE, cloud_array
 
 __all__ = ["CLOUD_DTYPE", "cloud_array", "export_bag"]
 
 _NS = 1_000_000_000
 FORMATS = ("rosbag1", "rosbag2")
 STORAGES = ("mcap", "sqlite3")
-
-#: The point layout of the clouds written: PCL's PointXYZRGB, 32 bytes per point.
-CLOUD_DTYPE = np.dtype(
-    {"names": ["x", "y", "z", "rgb"], "formats": ["<f4", "<f4", "<f4", "<u4"],
-     "offsets": [0, 4, 8, 16], "itemsize": 32}
-)  # fmt: skip
 
 
 @dataclass
@@ -124,26 +119,6 @@ def _from_recording(rec: Any, close: Callable[[], None]) -> _Input:
         rec.color_intrinsics,
         rec.depth_to_color,
     )
-
-
-def cloud_array(
-    projector: Any, depth: npt.NDArray[Any], color: npt.NDArray[np.uint8] | None
-) -> npt.NDArray[Any]:
-    """An organized H×W array of :data:`CLOUD_DTYPE` points from depth and color.
-
-    x, y, z come from ``projector.to_organized`` (NaN where there is no depth); ``rgb`` packs the
-    color as ``r << 16 | g << 8 | b`` for every pixel, holes included.
-    """
-    xyz = projector.to_organized(depth)
-    h, w = depth.shape
-    pts = np.zeros((h, w), CLOUD_DTYPE)
-    pts["x"] = xyz[..., 0]
-    pts["y"] = xyz[..., 1]
-    pts["z"] = xyz[..., 2]
-    if color is not None:
-        c = color.astype(np.uint32)
-        pts["rgb"] = (c[..., 0] << 16) | (c[..., 1] << 8) | c[..., 2]
-    return pts
 
 
 class _Messages:

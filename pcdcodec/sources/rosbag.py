@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, PcdcodecError
-from ..ros import bagfile, bagindex, topics
+from ..ros import bagfile, bagindex, clouds, topics
 from ..ros import messages as rm
 from ..ros.bagfile import MCAP_MAGIC as MCAP_MAGIC
 from ..ros.bagfile import ROS1_MAGIC as ROS1_MAGIC
@@ -127,13 +127,13 @@ class RosbagSource(Source):
         if cloud_depth not in ("auto", "float32"):
             raise InputError(f"cloud_depth must be 'auto' or 'float32', got {cloud_depth!r}")
         self.cloud_depth = cloud_depth
-        self._cloud_units: Any = None  # Projector that maps uint16 units back to the cloud's z
+        self._cloud_units: clouds.DepthUnits | None = None  # the cloud's z as uint16 units
         if max_frames is not None and max_frames < 1:
             raise InputError(f"max_frames must be at least 1, got {max_frames}")
         self.max_frames = max_frames
         self.max_difference = int(max_difference)
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
-        self._layouts: dict[Any, rm.CloudLayout] = {}
+        self._layouts: dict[Any, clouds.CloudLayout] = {}
         self._shape: tuple[int, int] | None = None
         self._depth_dtype: np.dtype[Any] = np.dtype(np.uint16)
         self._index: FrameIndex | None = None
@@ -215,7 +215,7 @@ class RosbagSource(Source):
 
     def _setup_cloud(self, cloud_topic: str, depth_scale: float | None) -> Any:
         """Read the cloud topic's first cloud: its layout, whether its z values are whole
-        depth units (:meth:`_pick_units`); returns its points."""
+        depth units (:func:`~pcdcodec.ros.clouds.find_units`); returns its points."""
         conn = self._conn(cloud_topic, "cloud")
         if conn.msgtype != POINT_CLOUD:
             raise InputError(f"cloud topic {cloud_topic!r} is a {conn.msgtype}, not PointCloud2")
@@ -228,9 +228,15 @@ class RosbagSource(Source):
         self._color_conn = None
         self.has_color = self._layout.color is not None
         self.depth_scale = 1.0 if depth_scale is None else float(depth_scale)
-        first_pts = rm.cloud_points(first, self._layout, cloud_topic)
+        first_pts = clouds.cloud_points(first, self._layout, cloud_topic)
         if self.cloud_depth == "auto" and depth_scale is None:
-            self._pick_units(first_pts["z"].astype(np.float32))
+            self._cloud_units = clouds.find_units(first_pts["z"].astype(np.float32))
+            if self._cloud_units is not None:
+                self.depth_scale = scale = self._cloud_units.scale
+                self.notes.append(
+                    f"cloud z values are whole 1/{scale:g} m steps: stored as uint16 units at "
+                    f"depth scale {scale:g} (every z rebuilds bit for bit)"
+                )
         self._depth_dtype = np.dtype(np.uint16 if self._cloud_units is not None else np.float32)
         return first_pts
 
@@ -294,7 +300,7 @@ class RosbagSource(Source):
         elif info_topic:
             self._read_camera_info(info_topic, anchor, size)
         elif self.mode == "cloud":
-            self.intrinsics, self.fit_residual = rm.fit_intrinsics(first_pts, anchor)
+            self.intrinsics, self.fit_residual = clouds.fit_intrinsics(first_pts, anchor)
             self.notes.append(
                 f"no camera info: intrinsics fitted to the cloud, residual "
                 f"{self.fit_residual:.3g} px"
@@ -415,7 +421,7 @@ class RosbagSource(Source):
             )
         return out
 
-    def _cloud_layout(self, msg: Any, topic: str) -> rm.CloudLayout:
+    def _cloud_layout(self, msg: Any, topic: str) -> clouds.CloudLayout:
         """The layout of a cloud, read from the message itself; kept by its whole description
         (fields, steps, byte order, size), so a cloud that changes any of them gets its own."""
         key = (
@@ -428,7 +434,7 @@ class RosbagSource(Source):
         )
         layout = self._layouts.get(key)
         if layout is None:
-            layout = rm.cloud_layout(msg, topic)
+            layout = clouds.cloud_layout(msg, topic)
             if len(self._layouts) >= 8:
                 self._layouts.clear()
             self._layouts[key] = layout
@@ -560,12 +566,12 @@ class RosbagSource(Source):
                     f"cloud topic {topic!r}: the cloud {'has' if layout.color else 'lacks'} a "
                     f"color field, the first cloud {'has' if first.color else 'lacks'} one"
                 )
-            z, rgb, _ = rm.cloud_to_rgbd(msg, layout, topic)
+            z, rgb, _ = clouds.cloud_to_rgbd(msg, layout, topic)
         except PcdcodecError as exc:
             _add_time(exc, f"cloud at {ts} ns")
             raise
         if self._cloud_units is not None:
-            units = self._as_units(z)
+            units = self._cloud_units.of(z)
             if units is None:
                 raise InputError(
                     f"cloud topic {topic!r}: the cloud at {ts} ns has z values that are not "
@@ -690,40 +696,6 @@ class RosbagSource(Source):
                 yield self._cloud_frame(dmsg, ts)
             else:
                 yield None, self._decode(dmsg, dconn, "depth", ts), ts
-
-    def _as_units(self, z: Any) -> Any:
-        """``z`` as uint16 units when they give back every z bit for bit, else ``None``."""
-        scale = self.depth_scale
-        with np.errstate(invalid="ignore", over="ignore"):
-            scaled = np.rint(z.astype(np.float64) * scale)
-            finite = np.isfinite(z)
-            if not ((scaled[finite] >= 1) & (scaled[finite] <= 65535)).all():
-                return None
-        units = np.where(finite, scaled, 0).astype(np.uint16)
-        back = self._cloud_units.to_organized(units)[..., 2]
-        same = (back.view(np.uint32) == z.view(np.uint32)) | (~finite & np.isnan(back))
-        return units if bool(same.all()) else None
-
-    def _pick_units(self, z: Any) -> None:
-        """Drivers compute z from integer depth (millimetres): such clouds are stored as uint16
-        units, which rebuild every z bit for bit and encode several times faster than float32."""
-        from ..geometry.camera import CameraIntrinsics
-        from ..geometry.projector import Projector
-
-        h, w = z.shape
-        for scale in (1000.0, 5000.0, 4000.0, 10000.0):
-            self._cloud_units = Projector(
-                CameraIntrinsics(w, h, 1.0, 1.0, w / 2, h / 2), depth_scale=scale
-            )
-            self.depth_scale = scale
-            if self._as_units(z) is not None:
-                self.notes.append(
-                    f"cloud z values are whole 1/{scale:g} m steps: stored as uint16 units at "
-                    f"depth scale {scale:g} (every z rebuilds bit for bit)"
-                )
-                return
-        self._cloud_units = None
-        self.depth_scale = 1.0
 
     # -- pass-through of encoded video -------------------------------------------------------
 
