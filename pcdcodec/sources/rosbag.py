@@ -25,12 +25,12 @@ through (:meth:`~RosbagSource.encoded_frames`); message payloads are read by
 from __future__ import annotations
 
 import contextlib
-import functools
 import json
 import os
 import tempfile
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -161,7 +161,7 @@ class RosbagSource(Source):
         """Every topic with its role (depth, color, info, cloud, video) from its first message
         (:func:`pcdcodec.ros.topics.classify`)."""
         return [
-            topics.classify(c.topic, c.msgtype, c.msgcount, functools.partial(self._first, c))
+            topics.classify(c.topic, c.msgtype, c.msgcount, partial(self._first, c))
             for c in self._reader.connections
         ]
 
