@@ -22,7 +22,8 @@ __all__ = [
     "ROS1_MAGIC",
     "SQLITE_MAGIC",
     "bag_error",
-    "is_bag",
+    "is_bag_folder",
+    "is_bag_head",
     "mcap_profile",
     "open_reader",
 ]
@@ -32,19 +33,9 @@ SQLITE_MAGIC = b"SQLite format 3\x00"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 
-def _head(path: Path, n: int) -> bytes:
-    """The first ``n`` bytes of a file (empty for folders and unreadable files)."""
-    try:
-        with path.open("rb") as f:
-            return f.read(n)
-    except OSError:
-        return b""
-
-
-def mcap_profile(path: Path) -> str | None:
-    """The profile an MCAP file's header names (``"ros2"`` for ROS 2 bags), or ``None`` for a
-    file that is not MCAP."""
-    head = _head(path, 64)
+def mcap_profile(head: bytes) -> str | None:
+    """The profile an MCAP file's header names (``"ros2"`` for ROS 2 bags), from the file's
+    first 64 bytes, or ``None`` for a file that is not MCAP."""
     if not head.startswith(MCAP_MAGIC) or len(head) < 21 or head[8] != 0x01:
         return None
     (n,) = struct.unpack_from("<I", head, 17)
@@ -53,19 +44,21 @@ def mcap_profile(path: Path) -> str | None:
     return head[21 : 21 + n].decode(errors="replace")
 
 
-def is_bag(path: Path) -> bool:
-    """Whether ``path`` is a ROS 1 bag, a ROS 2 bag folder, or a ROS 2 ``.db3``/``.mcap`` file."""
-    if path.is_dir():
-        meta = path / "metadata.yaml"
-        try:
-            return meta.is_file() and "rosbag2_bagfile_information" in meta.read_text()[:4096]
-        except OSError:
-            return False
-    head = _head(path, 16)
+def is_bag_folder(path: Path) -> bool:
+    """Whether the folder ``path`` is a ROS 2 bag (its ``metadata.yaml`` says so)."""
+    meta = path / "metadata.yaml"
+    try:
+        return meta.is_file() and "rosbag2_bagfile_information" in meta.read_text()[:4096]
+    except OSError:
+        return False
+
+
+def is_bag_head(head: bytes) -> bool:
+    """Whether a file whose first 64 bytes are ``head`` is a ROS 1 bag or a ROS 2 ``.db3`` or
+    ``.mcap`` bag (``.pcdc`` recordings are MCAP too, with pcdcodec's own profile)."""
     if head.startswith(ROS1_MAGIC) or head.startswith(SQLITE_MAGIC):
         return True
-    # .pcdc recordings are MCAP too, with pcdcodec's own profile: only ROS 2 bags are bags.
-    return mcap_profile(path) == "ros2"
+    return mcap_profile(head) == "ros2"
 
 
 def bag_error(exc: Exception, path: Path) -> PcdcodecError:
@@ -92,7 +85,11 @@ def open_reader(path: Path) -> tuple[Any, tempfile.TemporaryDirectory[str] | Non
     target = path
     if path.is_file():
         # rosbags picks ROS 1 or the ROS 2 storage by the file's suffix.
-        head = _head(path, 16)
+        try:
+            with path.open("rb") as f:
+                head = f.read(16)
+        except OSError:
+            head = b""  # rosbags says what is wrong with it
         suffix = (
             ".bag"
             if head.startswith(ROS1_MAGIC)

@@ -20,6 +20,7 @@ __all__ = [
     "CLOUD_DTYPE",
     "CloudLayout",
     "DepthUnits",
+    "LayoutCache",
     "cloud_array",
     "cloud_layout",
     "cloud_points",
@@ -126,6 +127,33 @@ def cloud_layout(msg: Any, topic: str) -> CloudLayout:
             )
     dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": step})
     return CloudLayout(w, h, step, row, dtype, color)
+
+
+class LayoutCache:
+    """Layouts of the clouds of one topic, read from each message itself and kept by its whole
+    description (fields, steps, byte order, size), so a cloud that changes any of them gets its
+    own; at most a few are kept."""
+
+    def __init__(self) -> None:
+        self._layouts: dict[Any, CloudLayout] = {}
+
+    def get(self, msg: Any, topic: str) -> CloudLayout:
+        """The layout of the cloud ``msg`` (:func:`cloud_layout`)."""
+        key = (
+            tuple((str(f.name), int(f.offset), int(f.datatype), int(f.count)) for f in msg.fields),
+            int(msg.point_step),
+            int(msg.row_step),
+            bool(msg.is_bigendian),
+            int(msg.width),
+            int(msg.height),
+        )
+        layout = self._layouts.get(key)
+        if layout is None:
+            layout = cloud_layout(msg, topic)
+            if len(self._layouts) >= 8:
+                self._layouts.clear()
+            self._layouts[key] = layout
+        return layout
 
 
 def cloud_points(msg: Any, layout: CloudLayout, topic: str) -> npt.NDArray[Any]:

@@ -50,9 +50,15 @@ from ..ros.topics import (
     VIDEO_TYPES,
     TopicCandidate,
 )
-from .base import FrameIndex, Source, given_intrinsics, register_source
+from .base import FrameIndex, Source, given_intrinsics, read_magic, register_source
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
+
+
+def _is_bag(path: Path) -> bool:
+    if path.is_dir():
+        return bagfile.is_bag_folder(path)
+    return bagfile.is_bag_head(read_magic(path, 64))
 
 
 def _open(path: Path, **options: Any) -> Source:
@@ -61,7 +67,7 @@ def _open(path: Path, **options: Any) -> Source:
 
 register_source(
     "rosbag",
-    bagfile.is_bag,
+    _is_bag,
     _open,
     "a ROS 1 bag, or a ROS 2 bag folder or .db3/.mcap file (images, or an organized PointCloud2)",
 )
@@ -133,7 +139,7 @@ class RosbagSource(Source):
         self.max_frames = max_frames
         self.max_difference = int(max_difference)
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
-        self._layouts: dict[Any, clouds.CloudLayout] = {}
+        self._layouts = clouds.LayoutCache()
         self._shape: tuple[int, int] | None = None
         self._depth_dtype: np.dtype[Any] = np.dtype(np.uint16)
         self._index: FrameIndex | None = None
@@ -222,7 +228,7 @@ class RosbagSource(Source):
         first = self._first(conn)
         if first is None:
             raise InputError(f"cloud topic {cloud_topic!r} has no messages")
-        self._layout = self._cloud_layout(first, cloud_topic)
+        self._layout = self._layouts.get(first, cloud_topic)
         self.cloud_topic = cloud_topic
         self._depth_conn = conn
         self._color_conn = None
@@ -421,25 +427,6 @@ class RosbagSource(Source):
             )
         return out
 
-    def _cloud_layout(self, msg: Any, topic: str) -> clouds.CloudLayout:
-        """The layout of a cloud, read from the message itself; kept by its whole description
-        (fields, steps, byte order, size), so a cloud that changes any of them gets its own."""
-        key = (
-            tuple((str(f.name), int(f.offset), int(f.datatype), int(f.count)) for f in msg.fields),
-            int(msg.point_step),
-            int(msg.row_step),
-            bool(msg.is_bigendian),
-            int(msg.width),
-            int(msg.height),
-        )
-        layout = self._layouts.get(key)
-        if layout is None:
-            layout = clouds.cloud_layout(msg, topic)
-            if len(self._layouts) >= 8:
-                self._layouts.clear()
-            self._layouts[key] = layout
-        return layout
-
     def __iter__(self) -> Iterator[Any]:
         self.stats = _Stats()
         if self.mode == "cloud":
@@ -490,15 +477,21 @@ class RosbagSource(Source):
         except Exception as exc:
             raise bagfile.bag_error(exc, self.path) from exc
 
-    def _depth_frames(self) -> Iterator[tuple[Any, Any, int]]:
+    def _in_order(self, conn: Any) -> Iterator[tuple[Any, int]]:
+        """The messages of ``conn`` with their stamps, skipping (and counting) those whose
+        stamp does not increase."""
         last = -1
-        for conn, t, msg in self._messages([self._depth_conn]):
-            ts = self._stamp(msg, t, conn.topic)
+        for c, t, msg in self._messages([conn]):
+            ts = self._stamp(msg, t, c.topic)
             if ts <= last:
                 self.stats.out_of_order += 1
                 continue
             last = ts
-            yield None, self._decode(msg, conn, "depth", ts), ts
+            yield msg, ts
+
+    def _depth_frames(self) -> Iterator[tuple[Any, Any, int]]:
+        for msg, ts in self._in_order(self._depth_conn):
+            yield None, self._decode(msg, self._depth_conn, "depth", ts), ts
 
     def _paired_frames(self) -> Iterator[tuple[Any, Any, int]]:
         from ..sync import Synchronizer
@@ -542,13 +535,7 @@ class RosbagSource(Source):
         return color, depth, dts
 
     def _cloud_frames(self) -> Iterator[tuple[Any, Any, int]]:
-        last = -1
-        for conn, t, msg in self._messages([self._depth_conn]):
-            ts = self._stamp(msg, t, conn.topic)
-            if ts <= last:
-                self.stats.out_of_order += 1
-                continue
-            last = ts
+        for msg, ts in self._in_order(self._depth_conn):
             yield self._cloud_frame(msg, ts)
 
     def _cloud_frame(self, msg: Any, ts: int) -> tuple[Any, Any, int]:
@@ -560,7 +547,7 @@ class RosbagSource(Source):
                 f"clouds {first.width}x{first.height}"
             )
         try:
-            layout = self._cloud_layout(msg, topic)
+            layout = self._layouts.get(msg, topic)
             if (layout.color is None) != (first.color is None):
                 raise InputError(
                     f"cloud topic {topic!r}: the cloud {'has' if layout.color else 'lacks'} a "
