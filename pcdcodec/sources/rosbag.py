@@ -89,10 +89,7 @@ def _add_time(exc: PcdcodecError, what: str) -> None:
 
 
 @dataclass
-class _Stats:
-    dropped_color: int = 0
-    dropped_depth: int = 0
-    out_of_order: int = 0
+class _Stats(bagindex.PairStats):
     frames: int = 0
 
 
@@ -494,32 +491,13 @@ class RosbagSource(Source):
             yield None, self._decode(msg, self._depth_conn, "depth", ts), ts
 
     def _paired_frames(self) -> Iterator[tuple[Any, Any, int]]:
-        from ..sync import Synchronizer
-
-        sync: Synchronizer[Any, Any] = Synchronizer(max_difference=self.max_difference)
-        last = {"depth": -1, "color": -1}
-        dconn, cconn = self._depth_conn, self._color_conn
-        assert cconn is not None
-
-        def pairs(ready: list[Any]) -> Iterator[tuple[Any, Any, int]]:
-            for _, cmsg, dts, dmsg in ready:
-                yield self._pair(cmsg, dmsg, dts)
-
-        for conn, t, msg in self._messages([dconn, cconn]):
-            role = "depth" if conn.topic == dconn.topic else "color"
-            ts = self._stamp(msg, t, conn.topic)
-            if ts <= last[role]:
-                self.stats.out_of_order += 1
-                continue
-            last[role] = ts
-            ready = sync.add_depth(ts, msg) if role == "depth" else sync.add_color(ts, msg)
-            self.stats.dropped_color = len(sync.dropped_color)
-            self.stats.dropped_depth = len(sync.dropped_depth)
-            yield from pairs(ready)
-        ready = sync.flush()
-        self.stats.dropped_color = len(sync.dropped_color)
-        self.stats.dropped_depth = len(sync.dropped_depth)
-        yield from pairs(ready)
+        dtopic = self._depth_conn.topic
+        messages = (
+            (conn.topic == dtopic, self._stamp(msg, t, conn.topic), msg)
+            for conn, t, msg in self._messages([self._depth_conn, self._color_conn])
+        )
+        for dts, dmsg, cmsg in bagindex.pair_in_order(messages, self.max_difference, self.stats):
+            yield self._pair(cmsg, dmsg, dts)
 
     def _pair(self, cmsg: Any, dmsg: Any, dts: int) -> tuple[Any, Any, int]:
         cconn, dconn = self._color_conn, self._depth_conn
