@@ -435,7 +435,7 @@ class RosbagSource(Source):
         return self._emit(frames, self.max_frames)
 
     def _emit(self, frames: Iterator[tuple[Any, Any, int]], limit: int | None) -> Iterator[Any]:
-        from ..datasets import RGBDFrame
+        from ..frame import Frame as RGBDFrame
 
         shape = self._shape
         assert shape is not None  # set when the source opens
