@@ -33,10 +33,15 @@ from typing import Any
 
 import numpy as np
 
+from .._atomic import atomic_output
 from ..errors import InputError
+from ..geometry.projector import Projector
+from ..recording.reader import Recording
+from ..ros.bagfile import MCAP_MAGIC
 from ..ros.bagwriter import BagWriter, MessageBuilder
 from ..ros.clouds import CLOUD_DTYPE, cloud_array
 from ..ros.messages import compressed_depth_encode
+from ..sources.base import Source, open_source
 
 __all__ = ["CLOUD_DTYPE", "cloud_array", "export_bag"]
 
@@ -58,18 +63,13 @@ class _Input:
 
 
 def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
-    from ..recording.reader import Recording
-    from ..sources.base import Source, open_source
-
     if isinstance(src, (str, os.PathLike)):
         p = Path(src)
         head = b""
         if p.is_file():
             with p.open("rb") as f:
                 head = f.read(8)
-        from ..recording import _index as fmt
-
-        if head == fmt.MAGIC:
+        if head == MCAP_MAGIC:  # a recording, or a ROS 2 bag (which Recording refuses)
             try:
                 rec = Recording(p)
             except Exception:
@@ -191,8 +191,6 @@ class _Export:
     """One bag being written: its topics, its cameras, and the messages of each frame."""
 
     def __init__(self, inp: _Input, opts: _Options) -> None:
-        from ..geometry.projector import Projector
-
         self.opts = opts
         self.intr = intr = inp.intrinsics
         self.scale = scale = inp.depth_scale
@@ -302,8 +300,6 @@ def _write(
     max_frames: int | None,
     progress: Callable[[int], None] | None,
 ) -> dict[str, Any]:
-    from .._atomic import atomic_output  # not loaded by `import pcdcodec`
-
     export = _Export(inp, opts)
     count = 0
     with atomic_output(target, place=_swap_in) as staging:

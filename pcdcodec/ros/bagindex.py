@@ -22,7 +22,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
+
 from ..errors import DecodeError, InputError
+from ..sync import Synchronizer
 
 COLUMNS = 5
 T = TypeVar("T")
@@ -192,8 +195,6 @@ def cdr_stamp(raw: bytes, where: str = "a ROS 2 message") -> int | None:
 
 
 def check_rows(rows: Any) -> Any:
-    import numpy as np
-
     table = np.asarray(rows)
     if table.ndim != 2 or table.shape[1] != COLUMNS:
         raise InputError(
@@ -227,8 +228,6 @@ def pair_in_order(
     color and depth are paired by :class:`~pcdcodec.sync.Synchronizer` (``max_difference``
     ns), whose unmatched images ``stats`` counts as they are dropped.
     """
-    from ..sync import Synchronizer
-
     sync: Synchronizer[T, T] = Synchronizer(max_difference=max_difference)
     latest = {True: -1, False: -1}
 
@@ -265,8 +264,6 @@ def index_rows(
     frame), so the rows list exactly the frames iteration gives, in its order. At most
     ``limit`` rows; the messages after the last of them are not read.
     """
-    import numpy as np
-
     rows: Iterable[_Row]
     if color:
         pairs = pair_in_order(((d, ts, (t, ts)) for d, t, ts in stamps), max_difference)

@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..geometry.transform import matrix_to_quaternion
+
 __all__ = ["BagWriter", "MessageBuilder"]
 
 _NS = 1_000_000_000
@@ -103,8 +105,6 @@ class MessageBuilder:
 
     def tf(self, ns: int, pose: npt.NDArray[np.float64], parent: str) -> bytes:
         """A ``tf2_msgs/TFMessage`` placing this camera frame in ``parent`` (camera-to-world)."""
-        from ..geometry.transform import matrix_to_quaternion
-
         t = self.types
         q = matrix_to_quaternion(pose[:3, :3])
         header = self.header(ns)

@@ -15,6 +15,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import DecodeError, InputError
+from ..geometry.camera import CameraIntrinsics
+from ..geometry.projector import Projector
 
 __all__ = [
     "CLOUD_DTYPE",
@@ -200,8 +202,6 @@ def fit_intrinsics(pts: npt.NDArray[Any], topic: str) -> tuple[Any, float]:
     Returns the intrinsics and the fit residual: the largest distance, in pixels, between a
     valid point's pixel and where the fitted camera projects it.
     """
-    from ..geometry.camera import CameraIntrinsics
-
     h, w = pts.shape
     x = pts["x"].astype(np.float64)
     y = pts["y"].astype(np.float64)
@@ -238,9 +238,6 @@ class DepthUnits:
     of them reads back with), else ``None``."""
 
     def __init__(self, width: int, height: int, scale: float) -> None:
-        from ..geometry.camera import CameraIntrinsics
-        from ..geometry.projector import Projector
-
         self.scale = scale
         self.projector = Projector(
             CameraIntrinsics(width, height, 1.0, 1.0, width / 2, height / 2), depth_scale=scale

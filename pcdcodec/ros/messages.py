@@ -16,7 +16,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..depth.rvl import rvl_decode, rvl_encode
 from ..errors import DecodeError, InputError
+from ..geometry.camera import CameraIntrinsics
+from .bagindex import stamp_value
 from .clouds import CloudLayout, cloud_layout, cloud_points, cloud_to_rgbd, fit_intrinsics
 
 __all__ = [
@@ -53,8 +56,6 @@ def stamp_ns(msg: Any, topic: str, *, ros1: bool) -> int:
     :mod:`~pcdcodec.ros.bagindex` read it. Raises :class:`~pcdcodec.DecodeError` for a
     damaged stamp (see :func:`~pcdcodec.ros.bagindex.stamp_value`).
     """
-    from .bagindex import stamp_value
-
     s = msg.header.stamp if hasattr(msg, "header") else msg.timestamp
     sec, nsec = int(s.sec), int(s.nanosec)
     if ros1 and sec < 0:
@@ -307,8 +308,6 @@ def decode_compressed(
             return np.repeat(img[..., :1], 3, axis=2)
         return np.ascontiguousarray(img[..., :3])
     if c.kind == "cdepth-rvl":
-        from ..depth.rvl import rvl_decode
-
         try:
             image = rvl_decode(memoryview(c.body), c.width * c.height).reshape(c.height, c.width)
         except DecodeError as exc:
@@ -372,8 +371,6 @@ def compressed_depth_encode(depth: npt.NDArray[np.uint16], *, rvl: bool = False)
     nothing for 16-bit depth.
     """
     if rvl:
-        from ..depth.rvl import rvl_encode
-
         h, w = depth.shape
         return (
             struct.pack("<iff", 2, 0.0, 0.0)
@@ -391,8 +388,6 @@ def camera_info(msg: Any, topic: str) -> tuple[Any, str, list[float]]:
 
     Reads ``K``/``k`` and ``D``/``d``; the distortion is returned, not applied.
     """
-    from ..geometry.camera import CameraIntrinsics
-
     k = getattr(msg, "k", None)
     if k is None:
         k = getattr(msg, "K", None)

@@ -25,6 +25,7 @@ through (:meth:`~RosbagSource.encoded_frames`); message payloads are read by
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import os
 import tempfile
@@ -36,8 +37,10 @@ from typing import Any
 
 import numpy as np
 
+from ..color.base import Packet
 from ..errors import InputError, PcdcodecError
-from ..ros import bagfile, bagindex, clouds, topics
+from ..frame import Frame
+from ..ros import bagfile, bagindex, clouds, tf, topics
 from ..ros import messages as rm
 from ..ros.bagfile import MCAP_MAGIC as MCAP_MAGIC
 from ..ros.bagfile import ROS1_MAGIC as ROS1_MAGIC
@@ -50,6 +53,7 @@ from ..ros.topics import (
     VIDEO_TYPES,
     TopicCandidate,
 )
+from ..sync import Synchronizer
 from .base import FrameIndex, Source, given_intrinsics, read_magic, register_source
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
@@ -435,8 +439,6 @@ class RosbagSource(Source):
         return self._emit(frames, self.max_frames)
 
     def _emit(self, frames: Iterator[tuple[Any, Any, int]], limit: int | None) -> Iterator[Any]:
-        from ..frame import Frame as RGBDFrame
-
         shape = self._shape
         assert shape is not None  # set when the source opens
         for color, depth, ts in frames:
@@ -447,7 +449,7 @@ class RosbagSource(Source):
                     f"the first frame {shape[1]}x{shape[0]}"
                 )
             self.stats.frames += 1
-            yield RGBDFrame(color, depth, ts, pose=self._pose(ts))
+            yield Frame(color, depth, ts, pose=self._pose(ts))
             if limit is not None and self.stats.frames >= limit:
                 return
 
@@ -455,13 +457,11 @@ class RosbagSource(Source):
         """The camera-to-world pose at stamp ``ts`` from the bag's /tf and /tf_static (see
         ``_tf``), or ``None``."""
         if self._tf is None:
-            from ..ros import tf as _tf
-
             frame = ""
-            if any(_tf.is_tf(c) for c in self._reader.connections):
+            if any(tf.is_tf(c) for c in self._reader.connections):
                 first = self._first(self._depth_conn)
                 frame = str(first.header.frame_id) if first is not None else ""
-            found = _tf.read_tf_poses(self._messages, self._reader.connections, frame, self.notes)
+            found = tf.read_tf_poses(self._messages, self._reader.connections, frame, self.notes)
             self._tf = found if found is not None else False
         return self._tf.at(ts) if self._tf else None
 
@@ -614,8 +614,6 @@ class RosbagSource(Source):
         """Frames ``start`` to ``stop`` (exclusive). From the top this is plain iteration;
         from a later frame the bag is indexed first (:meth:`frame_index`) and only the
         messages of those frames are read (:meth:`frames_at`)."""
-        import itertools
-
         if start < 0 or (stop is not None and stop < 0):
             raise InputError(f"frames start and stop must be at least 0, got {start}, {stop}")
         if start == 0:
@@ -678,9 +676,6 @@ class RosbagSource(Source):
         stamps. Raises :class:`~pcdcodec.InputError` without a video topic or for a format
         other than h264/h265.
         """
-        from ..color.base import Packet
-        from ..sync import Synchronizer
-
         topics = self.video_topics()
         if video_topic is None:
             if not topics:
