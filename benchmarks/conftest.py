@@ -1,7 +1,7 @@
 """The repository's benchmarks use pcdcodec's own pytest plugin (as a user's would): its
 fixtures, codec parametrisation and codec summary table. The inputs are the sequences of
-``benchmarks/data.py`` that are present; ``--pcdcodec-data`` replaces them. After a timed run
-this file adds the projector and recording tables."""
+:mod:`pcdcodec.bench.sequences` that are present; ``--pcdcodec-data`` replaces them. After a
+timed run this file adds the projector and recording tables."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from benchmarks.data import PRESENT, SEQUENCES
+from pcdcodec.bench.sequences import PRESENT, SEQUENCES
 
 pytest_plugins = ["pcdcodec.bench.pytest_plugin"]
 

@@ -25,7 +25,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import contextlib
 
-from benchmarks.data import DEPTH_SETS, SEQUENCES, _read, load_frames
 from pcdcodec.bench.depth_rd import (
     _log_jpegxl,
     _ours,
@@ -33,6 +32,7 @@ from pcdcodec.bench.depth_rd import (
     plot_depth_rd,
     rd_markdown,
 )
+from pcdcodec.bench.sequences import DEPTH_SETS, SEQUENCES, load_frames, read_image
 from pcdcodec.depth.depthac import DepthAC
 
 
@@ -133,7 +133,7 @@ def rd_tables(count: int, out: Path | None) -> None:
     for name, seq in SEQUENCES.items():
         if name == "sample" or not seq.present:
             continue
-        sets[name] = ([_read(p) for p in seq.depth_paths()[:count]], seq.depth_scale)
+        sets[name] = ([read_image(p) for p in seq.depth_paths()[:count]], seq.depth_scale)
     with contextlib.suppress(BaseException):
         sets["spot"] = (load_frames("spot", 1), 1000.0)
     for name, (frames, scale) in sets.items():

@@ -21,7 +21,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pcdcodec
-from benchmarks.data import SEQUENCES
+from pcdcodec.bench.sequences import SEQUENCES
 from pcdcodec.color import StreamCodec, decode_packets
 from pcdcodec.datasets import open_folder
 from pcdcodec.metrics import psnr

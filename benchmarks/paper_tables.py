@@ -16,7 +16,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pcdcodec
-from benchmarks.data import SEQUENCES
+from pcdcodec.bench.sequences import SEQUENCES
 from pcdcodec.datasets import load_folder
 
 CAMERAS = {

@@ -1,9 +1,9 @@
 """Encode and decode time of every depth codec on real 640×480 frames.
 
 Uses pcdcodec's pytest plugin as a user's benchmark would: ``rgbd_sequence`` is each present
-sequence (``benchmarks/data.py``, or ``--pcdcodec-data``), ``depth_codec`` each available depth
-codec. ``pytest benchmarks/ --benchmark-only`` prints pytest-benchmark's timing tables and
-then ratio, KiB per frame, encode and decode ms per codec and sequence.
+sequence (:mod:`pcdcodec.bench.sequences`, or ``--pcdcodec-data``), ``depth_codec`` each
+available depth codec. ``pytest benchmarks/ --benchmark-only`` prints pytest-benchmark's timing
+tables and then ratio, KiB per frame, encode and decode ms per codec and sequence.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import pcdcodec
-from benchmarks.data import DEPTH_SETS, SEQUENCES, SPOT_BAG, load_frames
+from pcdcodec.bench.sequences import DEPTH_SETS, SEQUENCES, SPOT_BAG, load_frames
 from pcdcodec.depth import FrameCodec
 
 CONFIGS: dict[str, dict[str, Any]] = {

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 import pcdcodec
-from benchmarks.data import SEQUENCES
+from pcdcodec.bench.sequences import SEQUENCES
 from pcdcodec.datasets import open_folder
 
 FRAMES = 10

@@ -16,7 +16,7 @@ import numpy.typing as npt
 import open3d as o3d
 import pytest
 
-from benchmarks.data import SEQUENCES, load_colors, load_depths
+from pcdcodec.bench.sequences import SEQUENCES, load_colors, load_depths
 from pcdcodec.geometry.camera import CameraIntrinsics
 from pcdcodec.geometry.projector import Projector
 

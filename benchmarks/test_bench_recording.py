@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 
 import pcdcodec
-from benchmarks.data import SEQUENCES
+from pcdcodec.bench.sequences import SEQUENCES
 from pcdcodec.datasets import RGBDSequence, load_folder, load_sample
 
 FRAMES = 30

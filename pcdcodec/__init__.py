@@ -45,26 +45,22 @@ from .errors import (
 from .frame import Frame
 from .geometry.camera import CameraIntrinsics
 from .geometry.projector import Projector, Reprojection
-from .recording import (
-    EncodeSummary,
-    Recording,
-    RecordingWriter,
-    encode,
-    open,
-    recover,
-)
+from .recording import EncodeSummary, encode, open, recover
 from .registry import codec_class, get_codec, list_codecs, register_codec
 from .sources import Source, open_source
 
 if TYPE_CHECKING:
     from .bench.evaluation import Evaluation, evaluate
     from .convert.rosbag import export_bag
+    from .recording import Recording, RecordingWriter
 
 #: Public names whose modules load on first use, so that ``import pcdcodec`` stays light.
 _LAZY = {
     "Evaluation": "pcdcodec.bench.evaluation",
     "evaluate": "pcdcodec.bench.evaluation",
     "export_bag": "pcdcodec.convert.rosbag",
+    "Recording": "pcdcodec.recording.reader",
+    "RecordingWriter": "pcdcodec.recording.writer",
 }
 
 #: Module paths of earlier releases, and where their contents live now. Importing an old path
@@ -98,11 +94,19 @@ class _MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
             return None
         return importlib.util.spec_from_loader(fullname, self)
 
+    def __init__(self) -> None:
+        self._specs: dict[int, Any] = {}
+
     def create_module(self, spec: ModuleSpec) -> ModuleType:
-        return _moved_module(spec.name)
+        module = _moved_module(spec.name)
+        # The import system sets the old path's spec on the module it is handed; the module
+        # keeps its own, so that its relative imports resolve against its real package.
+        self._specs[id(module)] = module.__spec__
+        return module
 
     def exec_module(self, module: ModuleType) -> None:
-        """The module was imported at its new path; there is nothing left to run."""
+        """The module was imported at its new path; only its own spec is put back."""
+        module.__spec__ = self._specs.pop(id(module), module.__spec__)
 
 
 if not any(isinstance(f, _MovedModuleFinder) for f in sys.meta_path):

@@ -1,4 +1,4 @@
-"""Input checks shared by the codecs and the projector.
+"""Input checks shared by the codecs, the projector and the quality metrics.
 
 Each check returns an array the caller can use directly (C-contiguous, little-endian) or raises
 one of the project's input errors naming the value that was wrong and what was expected.
@@ -6,6 +6,8 @@ one of the project's input errors naming the value that was wrong and what was e
 
 from __future__ import annotations
 
+import math
+import numbers
 from typing import Any
 
 import numpy as np
@@ -14,6 +16,7 @@ import numpy.typing as npt
 from .errors import InputError, InputTypeError
 
 __all__ = [
+    "OPEN3D_DEPTH_SCALE",
     "as_uint16_depth",
     "check_choice",
     "check_color",
@@ -21,9 +24,21 @@ __all__ = [
     "check_depth_scale",
     "check_int",
     "check_number",
+    "check_output_dtype",
+    "check_positive",
 ]
 
+#: The ``depth_scale`` Open3D assumes when none is given (depth units per metre, millimetres).
+#: It lives beside the depth-scale check so that :mod:`pcdcodec.frame` has it without loading
+#: :mod:`pcdcodec.geometry.open3d`, which re-exports it.
+OPEN3D_DEPTH_SCALE = 1000.0
+
 _DEPTH_DTYPES: dict[str, np.dtype[Any]] = {"uint16": np.dtype("<u2"), "float32": np.dtype("<f4")}
+
+_OUTPUT_DTYPES: dict[str, np.dtype[Any]] = {
+    "uint16": np.dtype(np.uint16),
+    "float32": np.dtype(np.float32),
+}
 
 
 def _dtype_name(dtype: np.dtype[Any]) -> str:
@@ -140,6 +155,33 @@ def check_depth_scale(value: Any, name: str = "depth_scale") -> float:
     return float(value)
 
 
+def check_positive(value: Any, name: str, *, finite: bool) -> float:
+    """``value`` as a positive float (finite too when ``finite``); raises
+    :class:`~pcdcodec.InputTypeError` for a non-number and :class:`~pcdcodec.InputError`
+    otherwise, naming ``name`` and the value."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise InputTypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+    real = float(value)
+    if not real > 0 or (finite and not math.isfinite(real)):
+        what = "positive and finite" if finite else "positive"
+        raise InputError(f"{name} must be {what}, got {real!r}")
+    return real
+
+
+def check_output_dtype(dtype: Any) -> np.dtype[Any]:
+    """The native uint16 or float32 dtype that ``dtype`` names (a depth image's), or
+    :class:`~pcdcodec.InputError`."""
+    out: np.dtype[Any] | None = None
+    if dtype is not None:
+        try:
+            out = _OUTPUT_DTYPES.get(np.dtype(dtype).name)
+        except TypeError:
+            out = None
+    if out is None:
+        raise InputError(f"dtype must be 'uint16' or 'float32', got {dtype!r}")
+    return out
+
+
 def check_int(
     owner: str, name: str, value: Any, lo: int, hi: int, *, none_ok: bool = False
 ) -> None:
@@ -164,3 +206,17 @@ def check_choice(owner: str, name: str, value: Any, choices: tuple[Any, ...]) ->
     """Check a codec parameter is one of ``choices``."""
     if value not in choices:
         raise InputError(f"{owner} {name} must be one of {list(choices)}, got {value!r}")
+
+
+def check_real(value: Any, name: str, *, minimum: float, inclusive: bool, unit: str) -> float:
+    """A finite real number above ``minimum`` (or equal to it when ``inclusive``)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise InputTypeError(
+            f"{name} must be a number ({unit}), got {type(value).__name__} {value!r}"
+        )
+    real = float(value)
+    ok = real >= minimum if inclusive else real > minimum
+    if not (ok and math.isfinite(real)):
+        bound = f">= {minimum:g}" if inclusive else f"> {minimum:g}"
+        raise InputError(f"{name} must be finite and {bound} ({unit}), got {real!r}")
+    return real

@@ -143,3 +143,8 @@ class ColorCodec(Codec):
     kind: ClassVar[str] = "color"
     #: Whether decoding gives back exactly the RGB bytes that were encoded.
     lossless: ClassVar[bool] = False
+
+    def keyframe_interval(self, fps: float) -> int:
+        """Frames from one keyframe to the next at ``fps`` (1: every frame decodes on its own).
+        A stream may be cut only at keyframes."""
+        return 1

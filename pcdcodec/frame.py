@@ -21,16 +21,27 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ._validate import check_depth_scale
-from .errors import InputError, InputTypeError
+from ._validate import OPEN3D_DEPTH_SCALE, check_depth_scale
+from .errors import InputError
 
 if TYPE_CHECKING:
+    from .geometry.open3d import from_open3d_rgbd, open3d_rgbd
+    from .geometry.open3d import open3d_rgbd_kind as open3d_rgbd_kind
     from .geometry.projector import Projector
 
 __all__ = ["OPEN3D_DEPTH_SCALE", "Frame", "from_open3d_rgbd", "open3d_rgbd"]
 
-#: The ``depth_scale`` Open3D assumes when none is given (depth units per metre, millimetres).
-OPEN3D_DEPTH_SCALE = 1000.0
+#: Names that live in :mod:`pcdcodec.geometry.open3d`, served from here too; that module loads
+#: on first use, so that ``import pcdcodec`` stays light.
+_OPEN3D_NAMES = ("from_open3d_rgbd", "open3d_rgbd", "open3d_rgbd_kind")
+
+
+def __getattr__(name: str) -> Any:
+    if name in _OPEN3D_NAMES:
+        from .geometry import open3d
+
+        return getattr(open3d, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _describe(array: Any) -> str:
@@ -168,6 +179,8 @@ class Frame:
             if color is not None and self.projector.color_intrinsics is not None:
                 # Two cameras: the image is the depth camera's, each pixel colored by its point.
                 color = self.projector.color_for_depth(self.depth, color)
+        from .geometry.open3d import open3d_rgbd
+
         return open3d_rgbd(color, self.depth, scale, tensor=tensor)
 
     def registered_depth(
@@ -190,7 +203,10 @@ class Frame:
         index: int | None = None,
         pose: npt.NDArray[np.float64] | None = None,
     ) -> Frame:
-        """A frame from an Open3D RGBDImage, legacy or tensor (see :func:`from_open3d_rgbd`)."""
+        """A frame from an Open3D RGBDImage, legacy or tensor (see
+        :func:`pcdcodec.geometry.open3d.from_open3d_rgbd`)."""
+        from .geometry.open3d import from_open3d_rgbd
+
         color, depth = from_open3d_rgbd(rgbd, depth_scale=depth_scale)
         return cls(color, depth, timestamp_ns, index=index, pose=pose)
 
@@ -202,118 +218,3 @@ class Frame:
             stacklevel=2,
         )
         return self.to_open3d_rgbd(tensor=tensor)
-
-
-def open3d_rgbd(
-    color: npt.NDArray[np.uint8] | None,
-    depth: npt.NDArray[Any],
-    depth_scale: float | None,
-    *,
-    tensor: bool = False,
-) -> Any:
-    """An Open3D RGBDImage from arrays (see :meth:`Frame.to_open3d_rgbd`).
-
-    Black color stands in where ``color`` is ``None``. Float32 depth is metres already; uint16
-    depth needs ``depth_scale`` (depth units per metre) for the legacy image.
-    """
-    import open3d as o3d
-
-    depth = np.ascontiguousarray(depth)
-    rgb = np.ascontiguousarray(
-        color if color is not None else np.zeros((*depth.shape, 3), np.uint8)
-    )
-    if tensor:
-        t: Any = o3d.t.geometry
-        core: Any = o3d.core
-        return t.RGBDImage(t.Image(core.Tensor(rgb)), t.Image(core.Tensor(depth)))
-    if depth.dtype == np.float32:
-        scale = 1.0
-    elif depth_scale is None:
-        raise InputError(
-            "uint16 depth needs depth_scale (depth units per metre) to become an Open3D RGBDImage"
-        )
-    else:
-        scale = float(depth_scale)
-    geometry: Any = o3d.geometry
-    return geometry.RGBDImage.create_from_color_and_depth(
-        geometry.Image(rgb),
-        geometry.Image(depth),
-        depth_scale=scale,
-        depth_trunc=float(np.finfo(np.float32).max),
-        convert_rgb_to_intensity=False,
-    )
-
-
-def open3d_rgbd_kind(obj: Any) -> str | None:
-    """``"legacy"`` or ``"tensor"`` for an Open3D RGBDImage, else ``None`` (imports nothing)."""
-    cls = type(obj)
-    if cls.__name__ != "RGBDImage" or not cls.__module__.startswith("open3d"):
-        return None
-    return "tensor" if ".t." in cls.__module__ else "legacy"
-
-
-def from_open3d_rgbd(
-    rgbd: Any, *, depth_scale: float = OPEN3D_DEPTH_SCALE
-) -> tuple[npt.NDArray[np.uint8] | None, npt.NDArray[Any]]:
-    """``(color, depth)`` arrays of an Open3D RGBDImage, the depth back in depth units.
-
-    ``depth_scale`` is the one the image was made with, in Open3D's sense (depth units per
-    metre; Open3D's default, :data:`OPEN3D_DEPTH_SCALE`, is 1000):
-
-    * a legacy ``open3d.geometry.RGBDImage`` holds float32 metres (``create_from_color_and_depth``
-      divided the depth by ``depth_scale``); they are multiplied back and must come out as whole
-      uint16 depth units, else :class:`~pcdcodec.InputError` says the scale does not fit;
-    * a tensor ``open3d.t.geometry.RGBDImage`` holds the depth as it was given: uint16 depth
-      units are returned unchanged, float32 depth is divided by ``depth_scale`` into metres
-      (pass ``depth_scale=1.0`` for metres).
-
-    Color must be 8-bit RGB (``convert_rgb_to_intensity=False`` for legacy images); an image
-    without color gives ``None``.
-    """
-    from ._validate import check_depth
-
-    scale = check_depth_scale(depth_scale)
-    kind = open3d_rgbd_kind(rgbd)
-    if kind is None:
-        raise InputTypeError(
-            f"expected an open3d.geometry.RGBDImage or open3d.t.geometry.RGBDImage, "
-            f"got {type(rgbd).__name__}"
-        )
-    if kind == "legacy":
-        color = np.asarray(rgbd.color)
-        metres = check_depth(np.asarray(rgbd.depth), allowed=("float32",), name="RGBDImage depth")
-        units = metres.astype(np.float64) * scale
-        units[~np.isfinite(units)] = 0.0
-        rounded = np.rint(units)
-        if float(rounded.max(initial=0.0)) > 65535 or not np.allclose(units, rounded, atol=1e-3):
-            raise InputError(
-                f"RGBDImage depth (metres) times depth_scale={scale:g} is not whole uint16 depth "
-                "units: pass the depth_scale the image was made with (Open3D's default is 1000)"
-            )
-        depth: npt.NDArray[Any] = rounded.astype(np.uint16)
-    else:
-        color = rgbd.color.as_tensor().cpu().numpy()
-        raw = rgbd.depth.as_tensor().cpu().numpy()
-        if raw.ndim == 3 and raw.shape[2] == 1:
-            raw = raw[..., 0]
-        depth = check_depth(raw, name="RGBDImage depth")
-        if depth.dtype == np.float32 and scale != 1.0:
-            depth = (depth / np.float32(scale)).astype(np.float32)
-    if color.ndim == 3 and color.shape[2] == 1:
-        color = color[..., 0]
-    if color.size == 0:
-        return None, depth
-    if color.dtype != np.uint8 or color.ndim != 3 or color.shape[2] != 3:
-        hint = ""
-        if kind == "legacy" and color.ndim == 2:
-            hint = "; make the RGBDImage with convert_rgb_to_intensity=False to keep RGB"
-        raise InputTypeError(
-            f"RGBDImage color must be H×W×3 uint8 RGB, got {color.dtype} with shape "
-            f"{color.shape}{hint}"
-        )
-    if color.shape[:2] != depth.shape:
-        raise InputError(
-            f"RGBDImage color is {color.shape[1]}x{color.shape[0]} but its depth is "
-            f"{depth.shape[1]}x{depth.shape[0]}"
-        )
-    return np.ascontiguousarray(color), depth

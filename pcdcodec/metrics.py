@@ -14,14 +14,13 @@ only by :func:`point_to_point`.
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ._validate import check_depth
+from ._validate import check_depth, check_real
 from .errors import InputError, InputTypeError
 
 __all__ = [
@@ -43,20 +42,6 @@ _SSIM_L = 255.0
 
 
 # -- shared checks -----------------------------------------------------------------------
-
-
-def _real(value: Any, name: str, *, minimum: float, inclusive: bool, unit: str) -> float:
-    """A finite real number above ``minimum`` (or equal to it when ``inclusive``)."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise InputTypeError(
-            f"{name} must be a number ({unit}), got {type(value).__name__} {value!r}"
-        )
-    real = float(value)
-    ok = real >= minimum if inclusive else real > minimum
-    if not (ok and math.isfinite(real)):
-        bound = f">= {minimum:g}" if inclusive else f"> {minimum:g}"
-        raise InputError(f"{name} must be finite and {bound} ({unit}), got {real!r}")
-    return real
 
 
 def _image_pair(reference: Any, test: Any) -> tuple[npt.NDArray[Any], npt.NDArray[Any]]:
@@ -124,7 +109,7 @@ def psnr(reference: Any, test: Any, peak: float = 255.0) -> float:
     dtypes or a non-numeric ``peak``, and :class:`~pcdcodec.InputError` for different shapes,
     empty arrays, NaN/infinite values or a ``peak`` that is not positive and finite.
     """
-    p = _real(peak, "peak", minimum=0.0, inclusive=False, unit="the largest pixel value")
+    p = check_real(peak, "peak", minimum=0.0, inclusive=False, unit="the largest pixel value")
     ref, tst = _image_pair(reference, test)
     err = _mse(ref, tst)
     if err == 0.0:
@@ -365,9 +350,11 @@ def depth_error(
     scale = (
         None
         if depth_scale is None
-        else _real(depth_scale, "depth_scale", minimum=0.0, inclusive=False, unit="units/metre")
+        else check_real(
+            depth_scale, "depth_scale", minimum=0.0, inclusive=False, unit="units/metre"
+        )
     )
-    threshold = _real(
+    threshold = check_real(
         edge_threshold, "edge_threshold", minimum=0.0, inclusive=True, unit="relative jump"
     )
     ref = check_depth(reference, name="reference")
@@ -540,7 +527,7 @@ def point_to_point(
     p = (
         None
         if peak is None
-        else _real(peak, "peak", minimum=0.0, inclusive=False, unit="units of the points")
+        else check_real(peak, "peak", minimum=0.0, inclusive=False, unit="units of the points")
     )
     ref = _points(reference_points, "reference_points", o3d)
     tst = _points(test_points, "test_points", o3d)

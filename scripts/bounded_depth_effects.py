@@ -30,8 +30,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pcdcodec
-from benchmarks.data import SEQUENCES
 from examples.tsdf_fusion import fuse
+from pcdcodec.bench.sequences import SEQUENCES
 from pcdcodec.metrics import point_to_point
 from pcdcodec.registry import parse_codec_spec
 

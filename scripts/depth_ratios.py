@@ -19,7 +19,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pcdcodec
-from benchmarks.data import PRESENT, SHARED_DATA, load_depths
+from pcdcodec.bench.sequences import PRESENT, SHARED_DATA, load_depths
 
 SPOT = SHARED_DATA / "bags" / "spot" / "raw.bag"
 

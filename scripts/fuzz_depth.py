@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pcdcodec
-from benchmarks.data import DEPTH_SETS, load_frames
+from pcdcodec.bench.sequences import DEPTH_SETS, load_frames
 from pcdcodec.depth import FrameCodec
 from tests.fuzzing import fuzz_frames, fuzz_images
 

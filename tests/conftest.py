@@ -7,9 +7,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-# The sequences and their loaders are the benchmarks' own, so tests and benchmarks read the
-# same frames.
-from benchmarks.data import (
+# The sequences and their loaders are shared with the benchmarks, so both read the same frames.
+from pcdcodec.bench.sequences import (
     REPO,
     SAMPLE,
     SEQUENCES,

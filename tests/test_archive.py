@@ -23,7 +23,8 @@ import pytest
 
 import pcdcodec
 from pcdcodec import archive as archive_module
-from pcdcodec.archive import LOCK, MANIFEST, PARTS, archive
+from pcdcodec.archive import LOCK, MANIFEST, PARTS, archive, discover, tasks
+from pcdcodec.archive import run as archive_run
 from pcdcodec.datasets import RGBDSequence, load_sample, write_folder
 from pcdcodec.recording import _index as fmt
 from pcdcodec.recording.join import join
@@ -267,18 +268,18 @@ def test_verification_catches_an_output_that_differs(tmp_path: Path) -> None:
     assert archive([src], out, workers=1, processes=False, progress=False).ok
     output = str(out / "a.pcdc")
     with pcdcodec.open(output) as rec:
-        colors = [archive_module._digest(f.color) for f in rec]
-    assert archive_module._verify(str(src), {}, output, colors) == {"frames": 5}
+        colors = [tasks._digest(f.color) for f in rec]
+    assert tasks._verify(str(src), {}, output, colors) == {"frames": 5}
     wrong = [colors[0], "0" * 32, *colors[2:]]
     with pytest.raises(pcdcodec.VerificationError, match="frame 1 color differs"):
-        archive_module._verify(str(src), {}, output, wrong)
+        tasks._verify(str(src), {}, output, wrong)
     depth = sorted((src / "depth").iterdir())
     shutil.copyfile(sorted((SAMPLE / "depth").iterdir())[10], depth[3])
     with pytest.raises(pcdcodec.VerificationError, match="frame 3 depth differs"):
-        archive_module._verify(str(src), {}, output, colors)
+        tasks._verify(str(src), {}, output, colors)
     shorter = make_input(tmp_path / "b", 0, 4)
     with pytest.raises(pcdcodec.VerificationError, match="more frames than the source"):
-        archive_module._verify(str(shorter), {}, output, None)
+        tasks._verify(str(shorter), {}, output, None)
 
 
 def test_corrupt_input_is_reported_and_the_others_finish(tmp_path: Path) -> None:
@@ -339,7 +340,7 @@ def test_two_runs_on_one_output_are_refused(tmp_path: Path) -> None:
             "-c",
             "import sys, time\n"
             "from pathlib import Path\n"
-            "from pcdcodec.archive import _Lock\n"
+            "from pcdcodec.archive.manifest import _Lock\n"
             "with _Lock(Path(sys.argv[1])):\n"
             "    print('locked', flush=True)\n"
             "    time.sleep(60)\n",
@@ -515,13 +516,13 @@ def test_whole_run_killed_then_resumed(tmp_path: Path, monkeypatch: pytest.Monke
     stamps = {k: (out / k).stat().st_mtime_ns for k in done_before}
 
     encoded: list[tuple[str, int]] = []
-    original = archive_module._encode_segment
+    original = archive_run._encode_segment
 
     def counting(src: str, options: Any, part: str, *rest: Any) -> Any:
         encoded.append((part, rest[0]))
         return original(src, options, part, *rest)
 
-    monkeypatch.setattr(archive_module, "_encode_segment", counting)
+    monkeypatch.setattr(archive_run, "_encode_segment", counting)
     summary = archive([tmp_path / "src"], out, workers=1, processes=False, segment_frames=3)
     assert summary.ok, summary.to_text()
     states = {Path(i.output).relative_to(out).as_posix(): i.state for i in summary.items}
@@ -576,19 +577,19 @@ def test_verify_holds_a_bounded_depth_codec_to_its_bound(tmp_path: Path) -> None
     assert summary.ok, [i.error for i in summary.items]
     with pcdcodec.open(out / "a.pcdc") as rec:
         assert rec.codecs["depth"]["max_rel_error"] == 0.01
-    bound = archive_module._depth_bound(bounded)
+    bound = tasks._depth_bound(bounded)
     depth = load_sample(max_frames=1)[0].depth
     valid = depth > 0
     near = depth.copy()
     near[valid] = depth[valid] + (depth[valid] // 100)  # 1 %: within the bound
-    assert archive_module._depth_mismatch(near, depth, bound) == ""
+    assert tasks._depth_mismatch(near, depth, bound) == ""
     far = near.copy()
     far[valid] += 2
-    assert "more than the codec's bound" in archive_module._depth_mismatch(far, depth, bound)
+    assert "more than the codec's bound" in tasks._depth_mismatch(far, depth, bound)
     holed = near.copy()
     holed[np.argwhere(valid)[0][0], np.argwhere(valid)[0][1]] = 0
-    assert "holes" in archive_module._depth_mismatch(holed, depth, bound)
-    assert archive_module._depth_mismatch(near, depth, None) == "differs from the source"
+    assert "holes" in tasks._depth_mismatch(holed, depth, bound)
+    assert tasks._depth_mismatch(near, depth, None) == "differs from the source"
 
 
 def test_cli_archive_gives_folders_a_camera(
@@ -633,8 +634,8 @@ def test_verify_at_width_424(tmp_path: Path, sample: RGBDSequence) -> None:
     wide[:, :424] = color
     view = wide[:, :424]
     assert not view.flags["C_CONTIGUOUS"]
-    assert archive_module._digest(view) == archive_module._digest(color)
-    assert archive_module._digest(color) != archive_module._digest(color.reshape(424, 240, 3))
+    assert tasks._digest(view) == tasks._digest(color)
+    assert tasks._digest(color) != tasks._digest(color.reshape(424, 240, 3))
 
 
 def test_summary_sizes_follow_symlinks(tmp_path: Path) -> None:
@@ -646,7 +647,7 @@ def test_summary_sizes_follow_symlinks(tmp_path: Path) -> None:
     for entry in real.iterdir():
         (linked / entry.name).symlink_to(entry, target_is_directory=entry.is_dir())
     (linked / "notes.txt").symlink_to(tmp_path / "gone.txt")
-    assert archive_module._stat(linked)[0] == size
+    assert discover._stat(linked)[0] == size
     out = tmp_path / "out"
     summary = archive([linked], out, workers=1, processes=False, progress=False)
     assert summary.ok
@@ -661,7 +662,7 @@ def test_summary_sizes_follow_symlinks(tmp_path: Path) -> None:
     assert "ratio 0.0x" not in text
     assert manifest(out)["linked.pcdc"]["size"] == size
     # The hash sees the files behind the links: a changed linked image is a changed input.
-    assert archive_module._hash(linked) == archive_module._hash(real)
+    assert discover._hash(linked) == discover._hash(real)
 
 
 def test_summary_of_an_input_of_unknown_size(
@@ -676,8 +677,8 @@ def test_summary_of_an_input_of_unknown_size(
         return real_stat(path, *args, **kwargs)
 
     with monkeypatch.context() as m:
-        m.setattr(archive_module.os, "stat", no_access)
-        size, mtime = archive_module._stat(src)
+        m.setattr(discover.os, "stat", no_access)
+        size, mtime = discover._stat(src)
     assert size is None
     assert mtime > 0
     item = archive_module.ArchiveItem(str(src), "a.pcdc", "done", None, 12_345, 2)

@@ -7,6 +7,8 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 import pytest
@@ -274,3 +276,66 @@ def test_docs_list_every_preset_and_the_readme_uses_the_samples_camera() -> None
     for name in named:
         k = CAMERA_PRESETS[name].intrinsics
         assert (k.fx, k.fy, k.cx, k.cy) == tuple(sample[c] for c in ("fx", "fy", "cx", "cy"))
+
+
+# -- as_intrinsics: one coercion for every way a camera is given ------------------------------
+
+
+def test_as_intrinsics_takes_every_form_of_a_camera(tmp_path: Path) -> None:
+    from pcdcodec.geometry.camera import as_intrinsics
+
+    assert as_intrinsics(TUM) is TUM
+    # A mapping with camera.json's keys; the size fills in what it leaves out, it never wins.
+    values = {k: getattr(ODD, k) for k in ("fx", "fy", "cx", "cy")}
+    assert as_intrinsics(values, width=1280, height=720) == ODD
+    assert as_intrinsics(ODD.to_dict(), width=1, height=1) == ODD
+    assert as_intrinsics(MappingProxyType(ODD.to_dict())) == ODD
+    # An intrinsics file, by path or str; a bare K takes the size given.
+    (tmp_path / "camera.json").write_text(json.dumps(ODD.to_dict()))
+    assert as_intrinsics(tmp_path / "camera.json") == ODD
+    (tmp_path / "K.txt").write_text("525 0 319.5\n0 525 239.5\n0 0 1\n")
+    assert as_intrinsics(str(tmp_path / "K.txt"), width=640, height=480) == TUM
+    with pytest.raises(InputError, match="without the image size"):
+        as_intrinsics(tmp_path / "K.txt")
+
+
+def test_as_intrinsics_takes_an_open3d_pinhole() -> None:
+    o3d = pytest.importorskip("open3d")
+    from pcdcodec.geometry.camera import as_intrinsics
+
+    pinhole = o3d.camera.PinholeCameraIntrinsic(640, 480, 525.0, 525.0, 319.5, 239.5)
+    assert as_intrinsics(pinhole) == TUM
+
+
+def test_as_intrinsics_names_what_was_wrong() -> None:
+    from pcdcodec.geometry.camera import as_intrinsics
+
+    # Without ``what`` a mapping's errors are the constructor's own; with it, prefixed.
+    with pytest.raises(InputError, match=r"^intrinsics dict is missing the key 'fx'"):
+        as_intrinsics({"fy": 1.0, "cx": 0.0, "cy": 0.0}, width=4, height=4)
+    with pytest.raises(InputError, match=r"^'camera.json' color: intrinsics dict is missing"):
+        as_intrinsics({"fy": 1.0}, "'camera.json' color", 4, 4)
+    with pytest.raises(InputTypeError, match=r"^color_intrinsics: width must be an int"):
+        as_intrinsics({"fx": 1, "fy": 1, "cx": 0, "cy": 0, "width": "4"}, "color_intrinsics", 4, 4)
+    with pytest.raises(
+        InputTypeError,
+        match=r"^intrinsics must be a CameraIntrinsics, a dict, an intrinsics file or an Open3D "
+        r"PinholeCameraIntrinsic, got int$",
+    ):
+        as_intrinsics(5)
+    with pytest.raises(InputTypeError, match=r"^color_intrinsics must be .* got list$"):
+        as_intrinsics([525.0, 525.0, 319.5, 239.5], "color_intrinsics")
+
+
+def test_importing_leaves_the_open3d_conversions_and_dataset_cameras_unloaded() -> None:
+    code = (
+        "import sys, numpy, pcdcodec\n"
+        "p = pcdcodec.Projector(pcdcodec.CameraIntrinsics(4, 3, 2.0, 2.0, 2.0, 1.5))\n"
+        "p.to_points(numpy.ones((3, 4), numpy.uint16))\n"
+        "names = ('pcdcodec.geometry.open3d', 'pcdcodec.geometry.dataset_cameras')\n"
+        "print(','.join(m for m in names if m in sys.modules))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+    assert out.strip() == ""

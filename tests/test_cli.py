@@ -7,6 +7,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -55,6 +56,18 @@ def test_bad_arguments_exit_non_zero_with_a_message() -> None:
     version = run("--version")
     assert version.returncode == 0
     assert pcdcodec.__version__ in version.stdout
+
+
+def test_the_cli_package_runs_as_a_module() -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "pcdcodec.cli", "--version"],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=600,
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout == f"pcdcodec {pcdcodec.__version__}\n"
 
 
 def test_demo(tmp_path: Path) -> None:
@@ -369,3 +382,47 @@ def test_options_go_anywhere_among_a_commands_arguments() -> None:
         with pytest.raises(SystemExit) as done:
             parse_args([name, "--help"])
         assert done.value.code == 0, name
+    # Every command takes an option before, between and after its positional arguments.
+    intermixed: dict[str, tuple[list[str], dict[str, Any]]] = {
+        "demo": (["--frames", "2", "-o", "out"], {"frames": 2, "output": "out"}),
+        "encode": (
+            ["--fps", "15", "in/", "-o", "x.pcdc", "--camera", "tum-ros"],
+            {"src": "in/", "fps": 15.0, "output": "x.pcdc", "camera": "tum-ros"},
+        ),
+        "decode": (["-q", "x.pcdc", "--ply", "-o", "out/"], {"input": "x.pcdc", "ply": True}),
+        "info": (
+            ["--json", "a.bag", "--depth-topic", "/d"],
+            {"input": "a.bag", "json": True, "depth_topic": "/d"},
+        ),
+        "verify": (["x.pcdc"], {"input": "x.pcdc"}),
+        "recover": (
+            ["--overwrite", "x.pcdc", "-o", "y.pcdc"],
+            {"input": "x.pcdc", "output": "y.pcdc", "overwrite": True},
+        ),
+        "export": (
+            ["--to", "rosbag2", "x.pcdc", "--cloud", "out/", "-q"],
+            {"input": "x.pcdc", "output_pos": "out/", "to": "rosbag2", "cloud": True},
+        ),
+        "import": (
+            ["-o", "x.pcdc", "paper/", "--depth", "zstd"],
+            {"input": "paper/", "output": "x.pcdc", "depth": "zstd"},
+        ),
+        "bench": (
+            ["--frames", "3", "in/", "--no-rd"],
+            {"src": "in/", "frames": 3, "no_rd": True},
+        ),
+        "archive": (
+            ["--workers", "2", "a/", "-o", "out", "b.bag", "--json", "c.mkv"],
+            {"src": ["a/", "b.bag", "c.mkv"], "workers": 2, "output": "out", "json": True},
+        ),
+        "view": (
+            ["--every", "2", "x.pcdc", "--max-frames", "5"],
+            {"input": "x.pcdc", "every": 2, "max_frames": 5},
+        ),
+        "codecs": (["--kind", "depth"], {"kind": "depth"}),
+    }
+    assert sorted(intermixed) == sorted(commands)
+    for name, (words, want) in intermixed.items():
+        args = parse_args([name, *words])
+        assert args.command == name
+        assert {k: getattr(args, k) for k in want} == want, name

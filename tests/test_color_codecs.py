@@ -280,3 +280,12 @@ def test_unavailable_codecs_say_why() -> None:
         with pytest.raises(pcdcodec.CodecUnavailableError, match=name):
             codec.encoder(64, 48)  # type: ignore[attr-defined]
     assert {"h264-nvenc", "h265-nvenc"} <= set(ALL_COLOR)
+
+
+def test_keyframe_interval_says_where_a_stream_may_be_cut() -> None:
+    from pcdcodec.registry import get_codec
+
+    assert get_codec("mjpeg").keyframe_interval(30.0) == 1  # intra-only
+    assert get_codec("huffyuv").keyframe_interval(30.0) == 1
+    assert get_codec({"id": "h264", "gop": 12}).keyframe_interval(30.0) == 12
+    assert get_codec("h264").keyframe_interval(15.0) == 15  # default: one second of frames

@@ -289,7 +289,7 @@ def test_float_value_table_matches_a_sort(distinct: int) -> None:
 
 
 def test_float_value_table_falls_back_to_sorting(monkeypatch: pytest.MonkeyPatch) -> None:
-    from benchmarks.data import load_frames
+    from pcdcodec.bench.sequences import load_frames
     from pcdcodec.depth import _table_kernels, base
 
     raw = load_frames("sample", 1)[0]

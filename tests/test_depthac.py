@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import pcdcodec
-from benchmarks.data import DEPTH_SETS, load_frames
+from pcdcodec.bench.sequences import DEPTH_SETS, load_frames
 from pcdcodec.depth import DepthAC, read_header
 
 from .fuzzing import fuzz_frames, fuzz_images

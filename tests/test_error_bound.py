@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 import pcdcodec
-from benchmarks.data import DEPTH_SETS, SEQUENCES, load_frames
+from pcdcodec.bench.sequences import DEPTH_SETS, SEQUENCES, load_frames
 from pcdcodec.depth import FrameCodec, read_header
 from pcdcodec.depth.base import LAYOUT_BOUNDED
 from pcdcodec.depth.bounded import (
@@ -430,3 +430,12 @@ def test_any_float32_image_keeps_any_bound(
     codec = Zstd(max_error=max_error, max_rel_error=max_rel_error)
     back = codec.decode(codec.encode(image))
     assert_within_bound(image, back, max_error, max_rel_error)
+
+
+def test_error_bound_is_public_on_every_depth_codec() -> None:
+    from pcdcodec.registry import get_codec
+
+    assert get_codec("depthac").error_bound is None
+    bound = get_codec({"id": "depthac", "max_error": 3}).error_bound
+    assert bound is not None
+    assert bound == ErrorBound(3.0, 0.0)

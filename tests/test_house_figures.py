@@ -36,7 +36,7 @@ def test_figures_of_a_small_package(tmp_path: Path) -> None:
         (pkg / name).write_text(text)
     figures = _script().figures(pkg)
     assert figures["modules"] == 6
-    assert figures["top_level_modules"] == 2
+    assert figures["top_level_modules"] == ["pkg.a", "pkg.b"]
     assert figures["circles"] == [["pkg.a", "pkg.b"]]
     assert figures["private_cross_imports"] == ["pkg.b <- pkg.room.c._private"]
     assert figures["over_800"] == ["pkg.room.c"]
@@ -46,5 +46,24 @@ def test_figures_of_a_small_package(tmp_path: Path) -> None:
 def test_the_package_itself_is_read() -> None:
     figures = _script().figures(REPO / "pcdcodec")
     assert figures["modules"] > 40
-    assert figures["top_level_modules"] > 0
+    assert "pcdcodec.errors" in figures["top_level_modules"]
+    assert "pcdcodec._version" not in figures["top_level_modules"]
     assert all(m.startswith("pcdcodec.") for m in figures["over_800"])
+
+
+def test_repeated_code_and_local_imports(tmp_path: Path) -> None:
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    body = "".join(f"    total = total + {i} * value\n" for i in range(7))
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text(f"def f(value):\n    total = 0\n{body}    return total\n")
+    (pkg / "b.py").write_text(
+        "import os\n\n\ndef g(value):\n    from .a import f\n    import json\n"
+        f"    total = 1\n{body}    return f(total)\n"
+    )
+    (pkg / "c.py").write_text("def h(value):\n" + "".join(f"    x{i} = {i}\n" for i in range(5)))
+    figures = _script().figures(pkg)
+    # the seven shared lines make one row, however many 6-line windows they hold
+    assert figures["repeated_code"] == ["pkg.a:3 ~ pkg.b:8 (7 lines)"]
+    # `from .a import f` inside g counts; `import json` (another package) and `import os` do not
+    assert figures["function_local_imports"] == 1

@@ -168,3 +168,17 @@ def test_write_frames_scale_error_names_its_keyword(tmp_path: Path, sample: RGBD
         with pytest.raises(pcdcodec.InputTypeError, match="rgbd_depth_scale must be a number"):
             w.write_frames([image], rgbd_depth_scale="5000")  # type: ignore[arg-type]
         assert w.write_frames([image], rgbd_depth_scale=5000) == 1
+
+
+def test_the_conversions_live_in_geometry_and_frame_serves_them() -> None:
+    import pcdcodec.frame
+    import pcdcodec.geometry.open3d as conversions
+
+    for name in ("open3d_rgbd", "from_open3d_rgbd", "open3d_rgbd_kind", "OPEN3D_DEPTH_SCALE"):
+        assert getattr(pcdcodec.frame, name) is getattr(conversions, name), name
+    # The module named open3d inside the package still imports the real Open3D.
+    image = conversions.open3d_rgbd(None, np.full((2, 3), 1000, np.uint16), 1000.0)
+    assert type(image) is o3d.geometry.RGBDImage
+    assert conversions.open3d_rgbd_kind(image) == "legacy"
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        pcdcodec.frame.nothing  # noqa: B018

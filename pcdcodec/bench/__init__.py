@@ -1,7 +1,15 @@
-"""Comparison tooling research code imports: the pytest-benchmark plugin, and (through
-:mod:`pcdcodec.bench.evaluation`) codec evaluation, peers and plots.
+"""Comparison tooling research code imports; the core (codecs, recordings, projector, sources)
+never imports this package.
 
-The core (codecs, recordings, projector, sources) never imports this package.
+* :mod:`~pcdcodec.bench.evaluation`: :func:`~pcdcodec.evaluate`, measuring codecs on a sequence;
+  its rows are in :mod:`~pcdcodec.bench.results`, the :class:`~pcdcodec.Evaluation` and its
+  report in :mod:`~pcdcodec.bench.report`, the PNG plots in :mod:`~pcdcodec.bench.plots`, and
+  the rows of peer libraries in :mod:`~pcdcodec.bench.peers`.
+* :mod:`~pcdcodec.bench.depth_rd`: rate-distortion of lossy depth against its peers.
+* :mod:`~pcdcodec.bench.roundtrip`: ``pcdcodec demo``'s write-and-read measurement.
+* :mod:`~pcdcodec.bench.pytest_plugin`: the pytest-benchmark plugin (fixtures, summary table).
+* :mod:`~pcdcodec.bench.sequences` and :mod:`~pcdcodec.bench.sparse`: the sequences the
+  repository's tests and benchmarks run on, and sparse depth made from them.
 """
 
 from __future__ import annotations

@@ -31,7 +31,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..depth.depthac import DepthAC
 from ..errors import InputError
+from ..metrics import depth_error
 
 __all__ = ["METHODS", "DepthRDPoint", "depth_rd", "plot_depth_rd", "rd_markdown", "write_rd_csv"]
 
@@ -65,8 +67,6 @@ class DepthRDPoint:
 
 
 def _ours(frames: list[U16], scale: float, rel: float) -> tuple[list[int], list[U16], float, float]:
-    from ..depth.depthac import DepthAC
-
     codec = DepthAC(max_rel_error=rel)
     return _frame_codec(frames, codec.encode, codec.decode)
 
@@ -111,8 +111,6 @@ def _log_quantiser(rel: float) -> tuple[Callable[[U16], U16], Callable[[U16], U1
 def _log_depthac(
     frames: list[U16], scale: float, rel: float
 ) -> tuple[list[int], list[U16], float, float]:
-    from ..depth.depthac import DepthAC
-
     fwd, back = _log_quantiser(rel)
     codec = DepthAC()
     return _frame_codec(frames, lambda d: codec.encode(fwd(d)), lambda b: back(codec.decode(b)))
@@ -234,8 +232,6 @@ def _measure(
     enc_s: float,
     dec_s: float,
 ) -> DepthRDPoint:
-    from ..metrics import depth_error
-
     sq = sq_n = esq = esq_n = 0.0
     max_abs = max_rel = edge_max = 0.0
     created = filled = 0

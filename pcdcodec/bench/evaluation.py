@@ -1,9 +1,10 @@
 """Comparing codecs on a sequence: sizes, ratios, speeds and quality, as tables and plots.
 
 :func:`evaluate` encodes and decodes a sequence with each chosen depth and color codec and
-returns an :class:`Evaluation`, which writes a Markdown report laid out like the tables of the
-compressed point cloud streams paper, CSV and JSON files, and PNG plots (matplotlib, from the
-``bench`` extra). ``pcdcodec bench`` is its command-line front.
+returns an :class:`Evaluation` (:mod:`pcdcodec.bench.report`), which writes a Markdown report
+laid out like the tables of the compressed point cloud streams paper, CSV and JSON files, and PNG
+plots (:mod:`pcdcodec.bench.plots`; matplotlib, from the ``bench`` extra). Its rows are defined
+in :mod:`pcdcodec.bench.results`. ``pcdcodec bench`` is its command-line front.
 
 Reference sizes per 640×480 frame: RGB24 color 900 KiB, uint16 depth 600 KiB, float32 depth
 (ROS 32FC1, what the paper stored) 1200 KiB, and an organized PointCloud2 XYZRGB cloud at
@@ -12,13 +13,9 @@ Reference sizes per 640×480 frame: RGB24 color 900 KiB, uint16 depth 600 KiB, f
 
 from __future__ import annotations
 
-import csv
-import json
-import os
 import statistics
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -32,9 +29,26 @@ from ..datasets import RGBDFrame, RGBDSequence, open_folder
 from ..depth.base import FrameCodec
 from ..errors import InputError
 from ..geometry.camera import CameraIntrinsics
-from ..registry import codec_class, get_codec, list_codecs
+from ..geometry.projector import Projector
+from ..metrics import depth_error, point_to_point, psnr, ssim
+from ..recording import open as open_recording
+from ..registry import get_codec, list_codecs
+from ..sources import open_source
+from ..sources.base import detect_kind
+from .peers import evaluate_peers
+from .report import Evaluation
+from .results import (
+    POINTCLOUD2_BYTES_PER_POINT,
+    RD_SETTINGS,
+    ColorRow,
+    DepthRow,
+    RDPoint,
+    StreamRow,
+)
+from .results import config_label as _label
 
 __all__ = [
+    "POINTCLOUD2_BYTES_PER_POINT",
     "RD_SETTINGS",
     "ColorRow",
     "DepthRow",
@@ -42,324 +56,9 @@ __all__ = [
     "RDPoint",
     "StreamRow",
     "evaluate",
+    "frames_of",
+    "parse_list",
 ]
-
-#: Bytes per point of a PointCloud2 with float32 x, y, z, packed RGB and padding, as ROS
-#: publishes RGB-D clouds (organized: one point per pixel).
-POINTCLOUD2_BYTES_PER_POINT = 32
-
-#: Quality settings swept for the color rate-distortion curves.
-RD_SETTINGS: dict[str, tuple[str, tuple[int, ...]]] = {
-    "h264": ("crf", (14, 18, 23, 28, 33)),
-    "h265": ("crf", (16, 22, 28, 34)),
-    "av1": ("crf", (20, 30, 40, 50)),
-    "vp9": ("crf", (20, 32, 44, 56)),
-    "mjpeg": ("quality", (2, 4, 8, 16)),
-    "mpeg4": ("qscale", (2, 4, 8, 16)),
-}
-
-
-@dataclass(frozen=True)
-class DepthRow:
-    """One depth codec on the sequence. Sizes in bytes, times in ms per frame."""
-
-    codec: str
-    config: dict[str, Any]
-    frames: int
-    bytes_per_frame: float
-    ratio_uint16: float
-    ratio_float32: float
-    ratio_float32_input: float | None
-    encode_ms: float
-    decode_ms: float
-    exact: bool
-    exact_fraction: float
-    rmse_m: float
-    max_error_m: float
-    edge_rmse_m: float
-    interior_rmse_m: float
-    cloud_rmse_m: float
-
-
-@dataclass(frozen=True)
-class ColorRow:
-    """One color codec on the sequence."""
-
-    codec: str
-    config: dict[str, Any]
-    frames: int
-    bytes_per_frame: float
-    bits_per_pixel: float
-    ratio_rgb24: float
-    encode_ms: float
-    decode_ms: float
-    psnr: float
-    ssim: float
-    lossless: bool
-
-
-@dataclass(frozen=True)
-class StreamRow:
-    """A color and a depth codec together: the whole stream."""
-
-    color: str
-    depth: str
-    bytes_per_frame: float
-    ratio_raw: float
-    ratio_pointcloud2: float
-    lossless: bool
-
-
-@dataclass(frozen=True)
-class RDPoint:
-    """One point of a color rate-distortion curve."""
-
-    codec: str
-    setting: str
-    bits_per_pixel: float
-    psnr: float
-
-
-@dataclass
-class Evaluation:
-    """What :func:`evaluate` measured; write it out with :meth:`write`."""
-
-    name: str
-    frames: int
-    width: int
-    height: int
-    depth: list[DepthRow] = field(default_factory=list)
-    color: list[ColorRow] = field(default_factory=list)
-    streams: list[StreamRow] = field(default_factory=list)
-    rd: list[RDPoint] = field(default_factory=list)
-    peers: list[dict[str, Any]] = field(default_factory=list)
-
-    @property
-    def pointcloud2_bytes_per_frame(self) -> int:
-        return self.width * self.height * POINTCLOUD2_BYTES_PER_POINT
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "name": self.name,
-            "frames": self.frames,
-            "width": self.width,
-            "height": self.height,
-            "pointcloud2_bytes_per_frame": self.pointcloud2_bytes_per_frame,
-            "depth": [asdict(r) for r in self.depth],
-            "color": [asdict(r) for r in self.color],
-            "streams": [asdict(r) for r in self.streams],
-            "rd": [asdict(r) for r in self.rd],
-            "peers": self.peers,
-        }
-
-    def recommend(self) -> dict[str, dict[str, str]]:
-        """The best codec of each kind on this data: by ratio and by speed (encode plus decode
-        ms per frame). Depth considers codecs that gave the depth back exactly, and apart from
-        them ("depth with an error bound") codecs given ``max_error`` / ``max_rel_error``; color
-        gives the best lossy codec (with its PSNR) and, where measured, the best lossless one."""
-        out: dict[str, dict[str, str]] = {}
-        exact = [d for d in self.depth if d.exact]
-        if exact:
-            best = max(exact, key=lambda d: d.ratio_uint16)
-            fast = min(exact, key=lambda d: d.encode_ms + d.decode_ms)
-            out["depth"] = {
-                "by ratio": f"{_label(best.config)} ({best.ratio_uint16:.2f}x, "
-                f"{best.encode_ms + best.decode_ms:.1f} ms)",
-                "by speed": f"{_label(fast.config)} ({fast.encode_ms + fast.decode_ms:.1f} ms, "
-                f"{fast.ratio_uint16:.2f}x)",
-            }
-        bounded = [
-            d
-            for d in self.depth
-            if not d.exact
-            and (d.config.get("max_error") is not None or d.config.get("max_rel_error") is not None)
-        ]
-        if bounded:
-            best = max(bounded, key=lambda d: d.ratio_uint16)
-            out["depth with an error bound"] = {
-                "by ratio": f"{_label(best.config)} ({best.ratio_uint16:.2f}x, largest error "
-                f"{best.max_error_m * 1000:.1f} mm)"
-            }
-        for name, rows in (
-            ("color", [c for c in self.color if not c.lossless]),
-            ("lossless color", [c for c in self.color if c.lossless]),
-        ):
-            if not rows:
-                continue
-            best_c = max(rows, key=lambda c: c.ratio_rgb24)
-            fast_c = min(rows, key=lambda c: c.encode_ms + c.decode_ms)
-            out[name] = {
-                "by ratio": f"{_label(best_c.config)} ({best_c.ratio_rgb24:.1f}x"
-                + (", exact)" if best_c.lossless else f", PSNR {_db(best_c.psnr)} dB)"),
-                "by speed": f"{_label(fast_c.config)} "
-                f"({fast_c.encode_ms + fast_c.decode_ms:.1f} ms, {fast_c.ratio_rgb24:.1f}x)",
-            }
-        return out
-
-    def to_markdown(self) -> str:
-        """The report: the paper's four tables, per codec, measured on this sequence."""
-        kib = 1024.0
-        lines = [
-            f"# Codec comparison: {self.name}",
-            "",
-            f"{self.frames} frames of {self.width}x{self.height}. Raw sizes per frame: RGB24 "
-            f"{self.width * self.height * 3 / kib:.0f} KiB, uint16 depth "
-            f"{self.width * self.height * 2 / kib:.0f} KiB, float32 depth "
-            f"{self.width * self.height * 4 / kib:.0f} KiB, PointCloud2 XYZRGB "
-            f"{self.pointcloud2_bytes_per_frame / kib:.0f} KiB (32 B/point, organized). "
-            "Times are medians per frame on this machine.",
-            "",
-        ]
-        if self.color:
-            lines += [
-                "## Table I: color codecs",
-                "",
-                "| codec | KiB/frame | bits/pixel | ratio vs RGB24 | PSNR dB | SSIM | "
-                "encode ms | decode ms |",
-                "|---|---|---|---|---|---|---|---|",
-            ]
-            for c in self.color:
-                lines.append(
-                    f"| {_label(c.config)} | {c.bytes_per_frame / kib:.1f} | "
-                    f"{c.bits_per_pixel:.3f} | {c.ratio_rgb24:.1f} | {_db(c.psnr)} | "
-                    f"{c.ssim:.4f} | {c.encode_ms:.2f} | {c.decode_ms:.2f} |"
-                )
-            lines.append("")
-        if self.depth:
-            # Error columns are zero by construction when every codec is exact: say it once.
-            errors = any(not d.exact for d in self.depth)
-            f32_input = any(d.ratio_float32_input for d in self.depth)
-            head = "| codec | KiB/frame | ratio vs uint16 |"
-            if f32_input:
-                head += " float32 input |"
-            head += " encode ms | decode ms |"
-            if errors:
-                head += " exact | RMSE mm (edge / interior) | cloud RMSE mm |"
-            lines += [
-                "## Table II: depth codecs",
-                "",
-                head,
-                "|" + "---|" * head.count(" |"),
-            ]
-            for d in self.depth:
-                row = (
-                    f"| {_label(d.config)} | {d.bytes_per_frame / kib:.1f} | {d.ratio_uint16:.2f} |"
-                )
-                if f32_input:
-                    f32 = f"{d.ratio_float32_input:.2f}" if d.ratio_float32_input else "-"
-                    row += f" {f32} |"
-                row += f" {d.encode_ms:.2f} | {d.decode_ms:.2f} |"
-                if errors:
-                    row += (
-                        f" {'yes' if d.exact else 'no'} | {1000 * d.rmse_m:.3f} "
-                        f"({1000 * d.edge_rmse_m:.3f} / {1000 * d.interior_rmse_m:.3f}) | "
-                        f"{1000 * d.cloud_rmse_m:.3f} |"
-                    )
-                lines.append(row)
-            lines.append("")
-            notes = ["Against float32 depth (metres) every ratio doubles."]
-            if not errors:
-                notes.append(
-                    "Every depth codec gave the depth back bit-exact: depth and point errors are 0."
-                )
-            lines += [" ".join(notes), ""]
-        for title, rows in (
-            ("Table III: whole stream, lossy color", [s for s in self.streams if not s.lossless]),
-            ("Table IV: whole stream, fully lossless", [s for s in self.streams if s.lossless]),
-        ):
-            if not rows:
-                continue
-            lines += [
-                f"## {title}",
-                "",
-                "| color | depth | KiB/frame | ratio vs raw RGB-D | ratio vs PointCloud2 |",
-                "|---|---|---|---|---|",
-            ]
-            for s in rows:
-                lines.append(
-                    f"| {s.color} | {s.depth} | {s.bytes_per_frame / kib:.1f} | "
-                    f"{s.ratio_raw:.1f} | {s.ratio_pointcloud2:.1f} |"
-                )
-            lines.append("")
-        if self.peers:
-            lines += ["## Peers", "", "| peer | kind | KiB/frame | encode ms | decode ms | notes |"]
-            lines.append("|---|---|---|---|---|---|")
-            for p in self.peers:
-                lines.append(
-                    f"| {p.get('name')} | {p.get('kind')} | "
-                    f"{float(p.get('bytes_per_frame', 0)) / kib:.1f} | "
-                    f"{float(p.get('encode_ms', 0)):.2f} | {float(p.get('decode_ms', 0)):.2f} | "
-                    f"{p.get('notes', '')} |"
-                )
-            lines.append("")
-        recommendation = self.recommend()
-        if recommendation:
-            lines += ["## Recommendation for this data", ""]
-            for kind, picks in recommendation.items():
-                lines.append(
-                    f"- {kind}: by ratio {picks['by ratio']}; by speed {picks['by speed']}"
-                )
-            lines.append("")
-        return "\n".join(lines)
-
-    def write_csv(self, out_dir: Path) -> list[Path]:
-        written = []
-        for name, rows in (
-            ("depth", self.depth),
-            ("color", self.color),
-            ("streams", self.streams),
-            ("rd", self.rd),
-        ):
-            if not rows:
-                continue
-            path = out_dir / f"{name}.csv"
-            dicts = [asdict(r) for r in rows]
-            with path.open("w", newline="") as f:
-                writer = csv.DictWriter(f, fieldnames=list(dicts[0]))
-                writer.writeheader()
-                for d in dicts:
-                    writer.writerow(
-                        {k: json.dumps(v) if isinstance(v, dict) else v for k, v in d.items()}
-                    )
-            written.append(path)
-        return written
-
-    def plot(self, out_dir: Path) -> list[Path]:
-        """Write the PNG plots; needs matplotlib (``pip install "pcdcodec[bench]"``)."""
-        from .plots import plot_all
-
-        return plot_all(self, out_dir)
-
-    def write(self, out_dir: str | os.PathLike[str], *, plots: bool = True) -> list[Path]:
-        """Write ``report.md``, ``results.json``, the CSV files and (optionally) the plots."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        report = out / "report.md"
-        report.write_text(self.to_markdown() + "\n")
-        results = out / "results.json"
-        results.write_text(json.dumps(self.to_dict(), indent=2, default=_json_default) + "\n")
-        written = [report, results, *self.write_csv(out)]
-        if plots:
-            written += self.plot(out)
-        return written
-
-
-def _json_default(value: Any) -> Any:
-    if isinstance(value, float) and not np.isfinite(value):
-        return str(value)
-    return str(value)
-
-
-def _db(value: float) -> str:
-    return "inf" if value == float("inf") else f"{value:.2f}"
-
-
-def _label(config: dict[str, Any]) -> str:
-    name = str(config["id"])
-    cls = codec_class(name)
-    defaults = cls().get_config() if cls.is_available() else {}
-    changed = [f"{k}={v}" for k, v in config.items() if k != "id" and defaults.get(k) != v]
-    return f"{name} ({', '.join(changed)})" if changed else name
 
 
 def _median_ms(times: list[float]) -> float:
@@ -386,10 +85,6 @@ def frames_of(
         )
     path = Path(source)
     if path.is_file():
-        from ..recording import open as open_recording
-        from ..sources import open_source
-        from ..sources.base import detect_kind
-
         no_color = f"{str(path)!r} has no color stream to compare codecs on"
         if detect_kind(path) is not None:  # a bag or a camera recording, read as encode reads it
             options: dict[str, Any] = {}
@@ -494,10 +189,7 @@ def evaluate(
                 )
             )
     if peers:
-        import importlib
-
-        peer_module: Any = importlib.import_module("pcdcodec.bench.peers")
-        result.peers = peer_module.evaluate_peers(items, cam, scale)
+        result.peers = evaluate_peers(items, cam, scale)
     return result
 
 
@@ -507,8 +199,6 @@ def _depth_row(
     scale: float,
     cam: CameraIntrinsics | None,
 ) -> DepthRow:
-    from ..metrics import depth_error, point_to_point
-
     enc_times, dec_times, sizes = [], [], []
     exact = True
     worst: Any = None
@@ -540,8 +230,6 @@ def _depth_row(
     cloud_rmse = 0.0
     if not exact and cam is not None:
         # Exact depth rebuilds identical clouds; otherwise compare the middle frame's clouds.
-        from ..geometry.projector import Projector
-
         proj = Projector(cam, depth_scale=scale)
         mid = depths[len(depths) // 2]
         decoded = codec.decode(codec.encode(mid))
@@ -579,8 +267,6 @@ def _units_to_m(err: Any, field_name: str, scale: float) -> float:
 def _color_row(
     codec: StreamCodec, colors: list[npt.NDArray[np.uint8]], *, quality: bool = True
 ) -> ColorRow:
-    from ..metrics import psnr, ssim
-
     height, width = colors[0].shape[:2]
     t0 = time.perf_counter()
     packets, extradata = encode_frames(codec, colors)

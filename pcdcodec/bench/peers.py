@@ -35,8 +35,10 @@ import numpy as np
 import numpy.typing as npt
 
 from .._validate import check_depth
+from ..depth.rvl import RVL
 from ..errors import CodecUnavailableError, DecodeError, InputError, InputTypeError
 from ..geometry.projector import Projector
+from ..metrics import point_to_point
 
 __all__ = [
     "PEERS",
@@ -290,8 +292,6 @@ def draco_cloud(
             if rgb is not None and out_colors is not None and not np.array_equal(out_colors, rgb):
                 colors_exact = False
         else:
-            from ..metrics import point_to_point
-
             d1 = point_to_point(points, out_points)
             max_err = max(max_err, d1.hausdorff)
             sq_sum += d1.mse * n
@@ -370,8 +370,6 @@ def rvl_package_depth(depth_frames: Sequence[Any], *, depth_scale: float = 1000.
     :class:`~pcdcodec.DecodeError` when the package rejects its own output.
     """
     rvl, package = _import_peer("rvl-pypi")
-    from ..depth.rvl import RVL
-
     if isinstance(depth_scale, (bool, np.bool_)) or not isinstance(depth_scale, (int, float)):
         raise InputTypeError(
             f"depth_scale must be a number (depth units per metre), got "
@@ -490,8 +488,6 @@ def evaluate_peers(
     compares with a color + depth stream. The RVL package codes depth. Peers that are not
     installed are left out. At most ``max_frames`` frames are used: Draco is slow.
     """
-    from ..geometry.projector import Projector
-
     chosen = list(frames)[:max_frames]
     depths = [f.depth for f in chosen]
     colors = [f.color for f in chosen]

@@ -1,16 +1,33 @@
-"""PNG plots of an :class:`~pcdcodec.bench.evaluation.Evaluation` (matplotlib, imported here
+"""PNG plots of an :class:`~pcdcodec.bench.report.Evaluation` (matplotlib, imported here
 only)."""
 
 from __future__ import annotations
 
 from collections import defaultdict
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
+from ..color import DEFAULT_COLOR_CODEC
+from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import CodecUnavailableError
+from .results import ColorRow, DepthRow, RDPoint, StreamRow, default_setting
 
-if TYPE_CHECKING:
-    from .evaluation import Evaluation
+
+class Plottable(Protocol):
+    """What the plots read of an :class:`~pcdcodec.bench.report.Evaluation`."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def depth(self) -> list[DepthRow]: ...
+    @property
+    def color(self) -> list[ColorRow]: ...
+    @property
+    def streams(self) -> list[StreamRow]: ...
+    @property
+    def rd(self) -> list[RDPoint]: ...
+    @property
+    def pointcloud2_bytes_per_frame(self) -> int: ...
 
 
 def _pyplot() -> Any:
@@ -26,19 +43,14 @@ def _pyplot() -> Any:
     return plt
 
 
-def _default_setting(codec: str) -> str | None:
-    """``"crf=23"``: the swept setting at the codec's default, as RD points name it."""
-    from ..registry import codec_class
-    from .evaluation import RD_SETTINGS
-
-    if codec not in RD_SETTINGS:
-        return None
-    key = RD_SETTINGS[codec][0]
-    cls = codec_class(codec)
-    return f"{key}={cls().get_config().get(key)}" if cls.is_available() else None
+def _save(plt: Any, fig: Any, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
 
 
-def plot_all(ev: Evaluation, out_dir: Path) -> list[Path]:
+def plot_all(ev: Plottable, out_dir: Path) -> list[Path]:
     plt = _pyplot()
     written = []
     kib = 1024.0
@@ -51,7 +63,7 @@ def plot_all(ev: Evaluation, out_dir: Path) -> list[Path]:
         for codec, points in sorted(curves.items()):
             points.sort(key=lambda p: p.bits_per_pixel)
             ax.plot([p.bits_per_pixel for p in points], [p.psnr for p in points], "o-", label=codec)
-            default = _default_setting(codec)
+            default = default_setting(codec)
             for p in points:
                 if p.setting == default:
                     ax.plot(p.bits_per_pixel, p.psnr, "k*", markersize=12)
@@ -60,15 +72,9 @@ def plot_all(ev: Evaluation, out_dir: Path) -> list[Path]:
         ax.set_title(f"Color rate-distortion: {ev.name} (defaults starred)")
         ax.grid(True, alpha=0.3)
         ax.legend()
-        path = out_dir / "color_rd.png"
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.append(_save(plt, fig, out_dir / "color_rd.png"))
 
     if ev.depth:
-        from ..depth import DEFAULT_DEPTH_CODEC
-
         fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.4), sharey=True)
         for ax, attr, what in ((axes[0], "encode_ms", "encode"), (axes[1], "decode_ms", "decode")):
             for d in ev.depth:
@@ -92,16 +98,9 @@ def plot_all(ev: Evaluation, out_dir: Path) -> list[Path]:
         axes[0].set_ylabel("ratio against raw uint16")
         axes[0].set_ylim(bottom=0)
         fig.suptitle(f"Depth codecs: {ev.name} (the default starred)")
-        path = out_dir / "depth_ratio_speed.png"
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.append(_save(plt, fig, out_dir / "depth_ratio_speed.png"))
 
     if ev.streams:
-        from ..color import DEFAULT_COLOR_CODEC
-        from ..depth import DEFAULT_DEPTH_CODEC
-
         color_kib = {c.codec: c.bytes_per_frame / kib for c in ev.color}
         depth_kib = {d.codec: d.bytes_per_frame / kib for d in ev.depth}
         rows = sorted(ev.streams, key=lambda s: s.bytes_per_frame)
@@ -145,9 +144,5 @@ def plot_all(ev: Evaluation, out_dir: Path) -> list[Path]:
         ax.margins(x=0.12)
         ax.legend(loc="upper right")
         ax.invert_yaxis()
-        path = out_dir / "stream_sizes.png"
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.append(_save(plt, fig, out_dir / "stream_sizes.png"))
     return written

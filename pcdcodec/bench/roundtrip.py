@@ -10,6 +10,10 @@ from typing import Any
 
 import numpy as np
 
+from ..color import DEFAULT_COLOR_CODEC
+from ..depth import DEFAULT_DEPTH_CODEC
+from ..recording import open as open_recording
+
 __all__ = ["RoundTrip", "measure_roundtrip"]
 
 
@@ -65,10 +69,6 @@ def measure_roundtrip(
     decode rates count from the second frame on (the first pays the decoders' start-up).
     ``depth_exact`` says whether every depth frame came back bit-exact.
     """
-    from ..color import DEFAULT_COLOR_CODEC
-    from ..depth import DEFAULT_DEPTH_CODEC
-    from ..recording import open as open_recording
-
     color = DEFAULT_COLOR_CODEC if color is None else color
     depth = DEFAULT_DEPTH_CODEC if depth is None else depth
     target = Path(path)

@@ -4,6 +4,10 @@ Stream codecs (:class:`StreamCodec`) turn RGB frames into packets and back; the 
 provides them. File codecs (:class:`FileVideoCodec`) write and read whole video files: the
 OpenCV backend, the path of the original method. Adding a codec means adding a class and one
 registration line below.
+
+``base.py`` holds both interfaces; ``pyav.py`` the PyAV codecs (their parameters and options),
+``ffmpeg.py`` the encoder and decoder they run on, loaded when a stream starts; ``opencv.py``
+the OpenCV backend.
 """
 
 from __future__ import annotations
@@ -11,14 +15,17 @@ from __future__ import annotations
 from ..registry import register_codec
 from .base import (
     DecodedFrame,
+    FileVideoCodec,
     Packet,
     StreamCodec,
     VideoDecoder,
     VideoEncoder,
+    VideoFileReader,
+    VideoFileWriter,
     decode_packets,
     encode_frames,
 )
-from .opencv import FileVideoCodec, OpenCVVideo, VideoFileReader, VideoFileWriter
+from .opencv import OpenCVVideo
 from .pyav import (
     AV1,
     FFV1,

@@ -1,4 +1,5 @@
-"""The stream codec interface for color: encoders that emit packets, decoders that take them.
+"""The color codec interfaces: packet streams (:class:`StreamCodec`) and whole video files
+(:class:`FileVideoCodec`).
 
 A color codec (:class:`StreamCodec`) is a factory: :meth:`StreamCodec.encoder` starts a stream of
 RGB frames and :meth:`StreamCodec.decoder` starts reading one. Encoders keep state across frames
@@ -9,14 +10,21 @@ Timestamps are integer nanoseconds throughout. A :class:`Packet` carries the pre
 timestamp (``pts``) of the frame it shows, the decoding timestamp (``dts``), whether decoding can
 start at it (``keyframe``) and a CRC-32 of its data, which decoders check, so damaged packets
 raise :class:`~pcdcodec.DecodeError` instead of decoding into wrong pixels.
+
+A file codec (:class:`FileVideoCodec`) writes a whole video file frame by frame
+(:class:`VideoFileWriter`) and reads one back (:class:`VideoFileReader`); frame ``i`` of such a
+file is shown at ``i / fps``. Both kinds check frame sizes and rates the same way, here.
 """
 
 from __future__ import annotations
 
+import os
 import zlib
 from abc import ABC, abstractmethod
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
 from typing import Any, ClassVar
 
 import numpy as np
@@ -28,13 +36,20 @@ from ..errors import DecodeError, InputError, InputTypeError
 
 __all__ = [
     "DecodedFrame",
+    "FileVideoCodec",
     "Packet",
+    "PathArg",
     "StreamCodec",
     "VideoDecoder",
     "VideoEncoder",
+    "VideoFileReader",
+    "VideoFileWriter",
     "decode_packets",
     "encode_frames",
 ]
+
+#: A file path argument.
+PathArg = str | os.PathLike[str]
 
 
 @dataclass(frozen=True)
@@ -95,15 +110,19 @@ def _check_size(width: Any, height: Any) -> tuple[int, int]:
     return int(width), int(height)
 
 
+def _check_fps(fps: Any) -> float:
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 1000:
+        raise InputError(f"fps must be a number in (0, 1000], got {fps!r}")
+    return float(fps)
+
+
 class VideoEncoder(ABC):
     """Turns RGB frames of one size into packets. Use one encoder per stream."""
 
     def __init__(self, codec: StreamCodec, width: int, height: int, fps: float) -> None:
         self.codec = codec
         self.width, self.height = _check_size(width, height)
-        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 1000:
-            raise InputError(f"fps must be a number in (0, 1000], got {fps!r}")
-        self.fps = float(fps)
+        self.fps = _check_fps(fps)
         self.frames_in = 0
         self._last_timestamp: int | None = None
         self._flushed = False
@@ -246,3 +265,145 @@ def decode_packets(
         frames += decoder.decode(packet)
     frames += decoder.flush()
     return frames
+
+
+# -- whole video files ---------------------------------------------------------------------------
+
+
+class VideoFileWriter(ABC):
+    """Writes RGB frames of one size into a video file; a context manager.
+
+    The file appears at :attr:`path` only when :meth:`close` succeeds. Leaving the ``with``
+    block by an exception discards what was written, so a failed recording never looks valid.
+    """
+
+    def __init__(
+        self, codec: FileVideoCodec, path: Path, width: int, height: int, fps: float
+    ) -> None:
+        self.codec = codec
+        self.path = path
+        self.width, self.height = _check_size(width, height)
+        self.fps = _check_fps(fps)
+        self.frames_written = 0
+        self._closed = False
+
+    def write(self, rgb: npt.ArrayLike) -> None:
+        """Append one H×W×3 uint8 RGB frame.
+
+        Raises :class:`~pcdcodec.InputError` for a frame of another size (the size cannot change
+        mid-file), RGBA or gray input, a non-uint8 dtype, or a closed writer.
+        """
+        if self._closed:
+            raise InputError(f"writer of {str(self.path)!r} is closed; open a new one")
+        frame = check_color(rgb, name="color frame")
+        if frame.shape[:2] != (self.height, self.width):
+            raise InputError(
+                f"color frame is {frame.shape[1]}x{frame.shape[0]}, but {str(self.path)!r} is "
+                f"{self.width}x{self.height} (width x height); the size cannot change mid-file"
+            )
+        self._write(frame)
+        self.frames_written += 1
+
+    def close(self) -> None:
+        """Finish the file and move it into place at :attr:`path`. Closing twice is harmless."""
+        if self._closed:
+            return
+        self._closed = True
+        self._close()
+
+    def abort(self) -> None:
+        """Stop writing and delete what was written; nothing appears at :attr:`path`."""
+        if self._closed:
+            return
+        self._closed = True
+        self._abort()
+
+    def __enter__(self) -> VideoFileWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    @abstractmethod
+    def _write(self, rgb: npt.NDArray[np.uint8]) -> None: ...
+
+    @abstractmethod
+    def _close(self) -> None: ...
+
+    @abstractmethod
+    def _abort(self) -> None: ...
+
+
+class VideoFileReader(ABC):
+    """Reads a video file back as H×W×3 uint8 RGB frames; iterable, sized, a context manager.
+
+    Each ``for`` loop starts again at the first frame. Frame ``i`` was shown at ``i / fps``
+    seconds: files written this way keep no per-frame timestamps.
+    """
+
+    def __init__(self, codec: FileVideoCodec, path: Path) -> None:
+        self.codec = codec
+        self.path = path
+
+    @property
+    @abstractmethod
+    def width(self) -> int:
+        """Frame width in pixels."""
+
+    @property
+    @abstractmethod
+    def height(self) -> int:
+        """Frame height in pixels."""
+
+    @property
+    @abstractmethod
+    def fps(self) -> float:
+        """The frame rate stored in the file, frames per second."""
+
+    @abstractmethod
+    def __len__(self) -> int: ...
+
+    @abstractmethod
+    def __iter__(self) -> Iterator[npt.NDArray[np.uint8]]: ...
+
+    @abstractmethod
+    def close(self) -> None:
+        """Release the file. Iterating afterwards opens it again."""
+
+    def __enter__(self) -> VideoFileReader:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+class FileVideoCodec(ColorCodec):
+    """A color codec whose unit is a whole video file (as opposed to a stream of packets)."""
+
+    @property
+    @abstractmethod
+    def suffix(self) -> str:
+        """The file extension this codec writes, with its dot (``".avi"``)."""
+
+    @abstractmethod
+    def writer(
+        self, path: PathArg, width: int, height: int, fps: float = 30.0, *, overwrite: bool = False
+    ) -> VideoFileWriter:
+        """Start writing ``width`` × ``height`` RGB frames at ``fps`` frames/s into ``path``."""
+
+    @abstractmethod
+    def reader(self, path: PathArg) -> VideoFileReader:
+        """Open the video file at ``path`` for reading."""

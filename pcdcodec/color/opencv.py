@@ -3,8 +3,9 @@
 This backend reproduces the color path of the published compressed RGB-D point cloud streams
 method for ROS, which wrote color with ``cv2.VideoWriter`` (FFV1, HuffYUV, MJPEG, MPEG-4 and
 H.264) and read it back with ``cv2.VideoCapture``. OpenCV works on files, not packets, so this is
-a :class:`FileVideoCodec`: :meth:`~FileVideoCodec.writer` writes a file frame by frame and
-:meth:`~FileVideoCodec.reader` reads one back. For new recordings prefer the packet codecs of
+a :class:`~pcdcodec.color.base.FileVideoCodec` (whose interface is in :mod:`.base`):
+:meth:`~FileVideoCodec.writer` writes a file frame by frame and :meth:`~FileVideoCodec.reader`
+reads one back. For new recordings prefer the packet codecs of
 :mod:`pcdcodec.color.pyav`; this one exists to compare against the paper.
 
 Limitations, measured with the pip ``opencv-python-headless`` 5.0 wheel
@@ -31,19 +32,15 @@ import importlib.util
 import math
 import os
 import tempfile
-from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from pathlib import Path
-from types import TracebackType
 from typing import Any, ClassVar
 
 import numpy as np
 import numpy.typing as npt
 
-from .._validate import check_color
-from ..codec import ColorCodec
 from ..errors import CodecUnavailableError, DecodeError, InputError, InputTypeError
-from .base import _check_size
+from .base import FileVideoCodec, PathArg, VideoFileReader, VideoFileWriter
 
 __all__ = [
     "CONTAINERS",
@@ -72,159 +69,6 @@ CONTAINERS: tuple[str, ...] = (".avi", ".mkv", ".mp4", ".mov")
 _FALLBACK_CONTAINER = ".mkv"
 _INSTALL = "install OpenCV with FFmpeg video I/O (pip install opencv-python-headless)"
 
-_PathArg = str | os.PathLike[str]
-
-
-def _check_fps(fps: Any) -> float:
-    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 1000:
-        raise InputError(f"fps must be a number in (0, 1000], got {fps!r}")
-    return float(fps)
-
-
-# -- the file codec interface --------------------------------------------------------------------
-
-
-class VideoFileWriter(ABC):
-    """Writes RGB frames of one size into a video file; a context manager.
-
-    The file appears at :attr:`path` only when :meth:`close` succeeds. Leaving the ``with``
-    block by an exception discards what was written, so a failed recording never looks valid.
-    """
-
-    def __init__(
-        self, codec: FileVideoCodec, path: Path, width: int, height: int, fps: float
-    ) -> None:
-        self.codec = codec
-        self.path = path
-        self.width, self.height = _check_size(width, height)
-        self.fps = _check_fps(fps)
-        self.frames_written = 0
-        self._closed = False
-
-    def write(self, rgb: npt.ArrayLike) -> None:
-        """Append one H×W×3 uint8 RGB frame.
-
-        Raises :class:`~pcdcodec.InputError` for a frame of another size (the size cannot change
-        mid-file), RGBA or gray input, a non-uint8 dtype, or a closed writer.
-        """
-        if self._closed:
-            raise InputError(f"writer of {str(self.path)!r} is closed; open a new one")
-        frame = check_color(rgb, name="color frame")
-        if frame.shape[:2] != (self.height, self.width):
-            raise InputError(
-                f"color frame is {frame.shape[1]}x{frame.shape[0]}, but {str(self.path)!r} is "
-                f"{self.width}x{self.height} (width x height); the size cannot change mid-file"
-            )
-        self._write(frame)
-        self.frames_written += 1
-
-    def close(self) -> None:
-        """Finish the file and move it into place at :attr:`path`. Closing twice is harmless."""
-        if self._closed:
-            return
-        self._closed = True
-        self._close()
-
-    def abort(self) -> None:
-        """Stop writing and delete what was written; nothing appears at :attr:`path`."""
-        if self._closed:
-            return
-        self._closed = True
-        self._abort()
-
-    def __enter__(self) -> VideoFileWriter:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self.abort()
-
-    @abstractmethod
-    def _write(self, rgb: npt.NDArray[np.uint8]) -> None: ...
-
-    @abstractmethod
-    def _close(self) -> None: ...
-
-    @abstractmethod
-    def _abort(self) -> None: ...
-
-
-class VideoFileReader(ABC):
-    """Reads a video file back as H×W×3 uint8 RGB frames; iterable, sized, a context manager.
-
-    Each ``for`` loop starts again at the first frame. Frame ``i`` was shown at ``i / fps``
-    seconds: files written this way keep no per-frame timestamps.
-    """
-
-    def __init__(self, codec: FileVideoCodec, path: Path) -> None:
-        self.codec = codec
-        self.path = path
-
-    @property
-    @abstractmethod
-    def width(self) -> int:
-        """Frame width in pixels."""
-
-    @property
-    @abstractmethod
-    def height(self) -> int:
-        """Frame height in pixels."""
-
-    @property
-    @abstractmethod
-    def fps(self) -> float:
-        """The frame rate stored in the file, frames per second."""
-
-    @abstractmethod
-    def __len__(self) -> int: ...
-
-    @abstractmethod
-    def __iter__(self) -> Iterator[npt.NDArray[np.uint8]]: ...
-
-    @abstractmethod
-    def close(self) -> None:
-        """Release the file. Iterating afterwards opens it again."""
-
-    def __enter__(self) -> VideoFileReader:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
-
-
-class FileVideoCodec(ColorCodec):
-    """A color codec whose unit is a whole video file (as opposed to a stream of packets)."""
-
-    @property
-    @abstractmethod
-    def suffix(self) -> str:
-        """The file extension this codec writes, with its dot (``".avi"``)."""
-
-    @abstractmethod
-    def writer(
-        self, path: _PathArg, width: int, height: int, fps: float = 30.0, *, overwrite: bool = False
-    ) -> VideoFileWriter:
-        """Start writing ``width`` × ``height`` RGB frames at ``fps`` frames/s into ``path``."""
-
-    @abstractmethod
-    def reader(self, path: _PathArg) -> VideoFileReader:
-        """Open the video file at ``path`` for reading."""
-
-
-# -- OpenCV ----------------------------------------------------------------------------------------
-
 
 @functools.cache
 def _cv2_reason() -> str | None:
@@ -249,6 +93,11 @@ def _check_fourcc(fourcc: Any) -> str:
 
 def _fourcc_code(fourcc: str) -> int:
     return sum(ord(c) << (8 * i) for i, c in enumerate(fourcc))
+
+
+def _check_container(container: Any) -> None:
+    if container is not None and container not in CONTAINERS:
+        raise InputError(f"container must be one of {list(CONTAINERS)} or None, got {container!r}")
 
 
 def _default_container(fourcc: str) -> str:
@@ -310,10 +159,7 @@ class OpenCVVideo(FileVideoCodec):
 
     def __init__(self, *, fourcc: str = "MJPG", container: str | None = None) -> None:
         _check_fourcc(fourcc)
-        if container is not None and container not in CONTAINERS:
-            raise InputError(
-                f"container must be one of {list(CONTAINERS)} or None, got {container!r}"
-            )
+        _check_container(container)
         self.fourcc, self.container = fourcc, container
         if fourcc not in FOURCCS:
             self._require_available()
@@ -335,10 +181,7 @@ class OpenCVVideo(FileVideoCodec):
         """Whether this OpenCV build writes and reads ``fourcc`` (in ``container``, by default
         the fourcc's own). Found out once per pair by writing a tiny file to a temporary folder."""
         _check_fourcc(fourcc)
-        if container is not None and container not in CONTAINERS:
-            raise InputError(
-                f"container must be one of {list(CONTAINERS)} or None, got {container!r}"
-            )
+        _check_container(container)
         return _probe(fourcc, container or _default_container(fourcc))
 
     @classmethod
@@ -350,7 +193,7 @@ class OpenCVVideo(FileVideoCodec):
     def suffix(self) -> str:
         return self.container or _default_container(self.fourcc)
 
-    def _target(self, path: _PathArg) -> Path:
+    def _target(self, path: PathArg) -> Path:
         if not isinstance(path, (str, os.PathLike)):
             raise InputTypeError(f"path must be a str or os.PathLike, got {type(path).__name__}")
         target = Path(path)
@@ -364,7 +207,7 @@ class OpenCVVideo(FileVideoCodec):
         return target
 
     def writer(
-        self, path: _PathArg, width: int, height: int, fps: float = 30.0, *, overwrite: bool = False
+        self, path: PathArg, width: int, height: int, fps: float = 30.0, *, overwrite: bool = False
     ) -> VideoFileWriter:
         """Start writing ``width`` × ``height`` RGB frames at ``fps`` frames/s into ``path``.
 
@@ -379,7 +222,7 @@ class OpenCVVideo(FileVideoCodec):
         target = self._target(path)
         return _OpenCVWriter(self, target, width, height, fps, overwrite=overwrite)
 
-    def reader(self, path: _PathArg) -> VideoFileReader:
+    def reader(self, path: PathArg) -> VideoFileReader:
         """Open a video file for reading as RGB frames.
 
         Raises :class:`~pcdcodec.InputError` when ``path`` does not exist or is a folder, and

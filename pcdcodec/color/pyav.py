@@ -8,22 +8,22 @@ conversion (BT.601, limited range for the YUV formats) happens inside FFmpeg's s
 Pixel formats with chroma subsampling need even sizes (4:2:0 both, 4:2:2 the width): odd frames
 are padded by repeating the last row or column, and the decoder crops them back. Nothing is
 ever resized.
+
+This module holds the codecs: their parameters (the ones most share are checked once, by
+:meth:`PyAVCodec._take_shared`), configs and FFmpeg options. The encoder and decoder that run
+them are in :mod:`.ffmpeg`, loaded when a codec is probed or a stream starts.
 """
 
 from __future__ import annotations
 
-import functools
-import importlib.util
 import os
-from fractions import Fraction
-from typing import Any, ClassVar, Literal
-
-import numpy as np
-import numpy.typing as npt
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from .._validate import check_choice, check_int, check_number
-from ..errors import CodecUnavailableError, DecodeError
-from .base import DecodedFrame, Packet, StreamCodec, VideoDecoder, VideoEncoder
+from .base import StreamCodec, VideoDecoder, VideoEncoder
+
+if TYPE_CHECKING:
+    from .ffmpeg import FFmpegSetup
 
 __all__ = [
     "AV1",
@@ -48,53 +48,17 @@ _INSTALL = "install PyAV with FFmpeg codecs (pip install av)"
 os.environ.setdefault("SVT_LOG", "1")
 
 
-def _context(name: str, mode: Literal["r", "w"]) -> Any:
-    """An FFmpeg codec context (typed loosely: PyAV's stubs are narrower than its objects)."""
-    import av
+def __getattr__(name: str) -> Any:
+    # ffmpeg_packet lived here; it is served from .ffmpeg, which `import pcdcodec` does not load.
+    if name == "ffmpeg_packet":
+        from .ffmpeg import ffmpeg_packet
 
-    return av.CodecContext.create(name, mode)
-
-
-def ffmpeg_packet(data: bytes | bytearray | memoryview) -> Any:
-    """An ``av.Packet`` holding a copy of ``data`` in memory that FFmpeg allocated and owns.
-
-    ``av.Packet(data)`` would lend FFmpeg the Python object's memory, released through a
-    callback that takes the GIL. Threaded codecs (dav1d, frame-threaded decoders, muxers)
-    release packets on their own worker threads, and one that does so while the main thread
-    holds the GIL and waits for those workers (``avcodec_free_context`` -> ``dav1d_flush``)
-    deadlocks the process. A packet FFmpeg owns is freed without Python, on any thread.
-    """
-    import av
-
-    size = len(memoryview(data).cast("B"))
-    packet = av.Packet(size)
-    if size:
-        memoryview(packet)[:] = memoryview(data).cast("B")
-    return packet
+        return ffmpeg_packet
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-@functools.cache
-def _probe(
-    encoder: str, decoder: str, pix_fmt: str, options: tuple[tuple[str, str], ...]
-) -> str | None:
-    """Why ``encoder``/``decoder`` cannot run here (``None`` when they can); opened once."""
-    if importlib.util.find_spec("av") is None:
-        return "PyAV is not installed"
-    modes: tuple[tuple[str, Literal["r", "w"]], ...] = ((encoder, "w"), (decoder, "r"))
-    for name, mode in modes:
-        try:
-            ctx = _context(name, mode)
-        except Exception:
-            return f"this FFmpeg build has no {name!r} {'encoder' if mode == 'w' else 'decoder'}"
-        if mode == "w":
-            ctx.width, ctx.height, ctx.pix_fmt = 256, 256, pix_fmt
-            ctx.time_base = Fraction(1, 30)
-            ctx.options = dict(options)
-            try:
-                ctx.open()
-            except Exception as exc:  # e.g. NVENC without an NVIDIA GPU and driver
-                return f"the {name!r} encoder does not open here ({exc})"
-    return None
+#: A shared parameter the codec does not take (see :meth:`PyAVCodec._take_shared`).
+_ABSENT: Any = object()
 
 
 class PyAVCodec(StreamCodec):
@@ -110,15 +74,58 @@ class PyAVCodec(StreamCodec):
     install_hint: ClassVar[str] = _INSTALL
     runtime_params: ClassVar[tuple[str, ...]] = ("threads",)
 
+    #: The parameters most codecs share, set by :meth:`_take_shared` (fixed values where the
+    #: codec does not take one).
+    gop: int | None
+    bframes: int
     pix_fmt: str
     threads: int
+    #: Set only on the codecs that take it.
+    low_delay: bool
 
     #: Encoder options used when probing whether the encoder opens (to keep it quiet).
     probe_options: ClassVar[tuple[tuple[str, str], ...]] = ()
 
     @classmethod
     def unavailable_reason(cls) -> str | None:
-        return _probe(cls.encoder_name, cls.decoder_name, cls.pix_fmts[0], cls.probe_options)
+        from .ffmpeg import probe
+
+        return probe(cls.encoder_name, cls.decoder_name, cls.pix_fmts[0], cls.probe_options)
+
+    def _take_shared(
+        self,
+        *,
+        gop: Any = _ABSENT,
+        bframes: Any = _ABSENT,
+        pix_fmt: Any = _ABSENT,
+        threads: Any = _ABSENT,
+        low_delay: Any = _ABSENT,
+        max_bframes: int = 16,
+    ) -> None:
+        """Check and keep the shared parameters this codec takes, in this order.
+
+        ``gop``: the keyframe interval, 1..10000 frames, or ``None`` for one second of frames;
+        ``bframes``: 0..``max_bframes``; ``pix_fmt``: one of :attr:`pix_fmts`; ``threads``:
+        0..64 (0 lets FFmpeg choose); ``low_delay``: a bool. A codec that does not take one
+        gets ``gop=None``, ``bframes=0``, ``pix_fmt=pix_fmts[0]``, ``threads=0`` and no
+        ``low_delay``.
+        """
+        name = self.name
+        if gop is not _ABSENT:
+            check_int(name, "gop", gop, 1, 10000, none_ok=True)
+        if bframes is not _ABSENT:
+            check_int(name, "bframes", bframes, 0, max_bframes)
+        if pix_fmt is not _ABSENT:
+            check_choice(name, "pix_fmt", pix_fmt, self.pix_fmts)
+        if threads is not _ABSENT:
+            check_int(name, "threads", threads, 0, 64)
+        if low_delay is not _ABSENT:
+            check_choice(name, "low_delay", low_delay, (True, False))
+            self.low_delay = low_delay
+        self.gop = None if gop is _ABSENT else gop
+        self.bframes = 0 if bframes is _ABSENT else bframes
+        self.pix_fmt = self.pix_fmts[0] if pix_fmt is _ABSENT else pix_fmt
+        self.threads = 0 if threads is _ABSENT else threads
 
     # What subclasses decide.
     def _options(self) -> dict[str, str]:
@@ -127,12 +134,13 @@ class PyAVCodec(StreamCodec):
     def _decoder_options(self) -> dict[str, str]:
         return {}
 
-    def _gop(self, fps: float) -> int:
-        gop = getattr(self, "gop", None)
-        return int(gop) if gop is not None else max(1, round(fps))
+    def _gop(self) -> int | None:
+        """The keyframe interval; ``None``: one second of frames."""
+        return self.gop
 
-    def _bframes(self) -> int:
-        return int(getattr(self, "bframes", 0))
+    def keyframe_interval(self, fps: float) -> int:
+        gop = self._gop()
+        return int(gop) if gop is not None else max(1, round(fps))
 
     def _pad(self) -> tuple[int, int]:
         """Multiples the width and height must be padded to for :attr:`pix_fmt`."""
@@ -142,6 +150,27 @@ class PyAVCodec(StreamCodec):
             return 2, 1
         return 1, 1
 
+    def padded_size(self, width: int, height: int) -> tuple[int, int]:
+        """The frame size this codec codes a ``width`` × ``height`` stream at: each padded up
+        to what :attr:`pix_fmt` needs (4:2:0 both even, 4:2:2 the width)."""
+        mx, my = self._pad()
+        return -(-width // mx) * mx, -(-height // my) * my
+
+    def _setup(self) -> FFmpegSetup:
+        from .ffmpeg import FFmpegSetup
+
+        return FFmpegSetup(
+            encoder_name=self.encoder_name,
+            decoder_name=self.decoder_name,
+            pix_fmt=self.pix_fmt,
+            pad=self._pad(),
+            threads=self.threads,
+            gop=self._gop(),
+            bframes=self.bframes,
+            options=self._options(),
+            decoder_options=self._decoder_options(),
+        )
+
     def encoder(self, width: int, height: int, fps: float = 30.0) -> VideoEncoder:
         """Start a stream of ``width`` × ``height`` RGB frames at about ``fps`` frames/s.
 
@@ -149,143 +178,16 @@ class PyAVCodec(StreamCodec):
         :class:`~pcdcodec.CodecUnavailableError` when the FFmpeg encoder cannot be opened.
         """
         self._require_available()
-        return _PyAVEncoder(self, width, height, fps)
+        from .ffmpeg import FFmpegEncoder
+
+        return FFmpegEncoder(self, self._setup(), width, height, fps)
 
     def decoder(self, width: int, height: int, extradata: bytes | None = None) -> VideoDecoder:
         """Start decoding a ``width`` × ``height`` stream; pass the encoder's ``extradata``."""
         self._require_available()
-        return _PyAVDecoder(self, width, height, extradata)
+        from .ffmpeg import FFmpegDecoder
 
-
-def _padded(size: int, multiple: int) -> int:
-    return -(-size // multiple) * multiple
-
-
-class _PyAVEncoder(VideoEncoder):
-    codec: PyAVCodec
-
-    def __init__(self, codec: PyAVCodec, width: int, height: int, fps: float) -> None:
-
-        super().__init__(codec, width, height, fps)
-        mx, my = codec._pad()
-        self._pw, self._ph = _padded(self.width, mx), _padded(self.height, my)
-        rate = Fraction(self.fps).limit_denominator(1001)
-        ctx = _context(codec.encoder_name, "w")
-        ctx.width, ctx.height = self._pw, self._ph
-        ctx.pix_fmt = codec.pix_fmt
-        ctx.time_base = 1 / rate
-        ctx.framerate = rate
-        ctx.gop_size = codec._gop(self.fps)
-        ctx.max_b_frames = codec._bframes()
-        ctx.thread_count = codec.threads
-        ctx.options = codec._options()
-        try:
-            ctx.open()
-        except Exception as exc:
-            raise CodecUnavailableError(
-                f"color codec {codec.name!r} ({codec.encoder_name}) could not open a "
-                f"{self._pw}x{self._ph} {codec.pix_fmt} encoder: {exc}"
-            ) from exc
-        self._ctx = ctx
-        self._stamps: dict[int, int] = {}
-        self._interval = round(1e9 / self.fps)
-
-    @property
-    def extradata(self) -> bytes | None:
-        data = self._ctx.extradata
-        return bytes(data) if data else None
-
-    def _to_ns(self, index: int | None) -> int:
-        if index is None:
-            raise DecodeError(f"{self.codec.name} encoder returned a packet without timestamps")
-        if index in self._stamps:
-            return self._stamps[index]
-        first = min(self._stamps)  # negative dts before the first frame (B-frame delay)
-        return self._stamps[first] + (index - first) * self._interval
-
-    def _packets(self, av_packets: list[Any]) -> list[Packet]:
-        out = []
-        for p in av_packets:
-            pts = self._to_ns(p.pts)
-            dts = self._to_ns(p.dts if p.dts is not None else p.pts)
-            out.append(Packet.create(bytes(p), pts, dts, bool(p.is_keyframe)))
-            # Timestamps of frames long since shown are no longer needed.
-            for old in [k for k in self._stamps if k < (p.dts or 0) - 64]:
-                del self._stamps[old]
-        return out
-
-    def _encode(self, rgb: npt.NDArray[np.uint8], timestamp: int) -> list[Packet]:
-        import av
-
-        if (self._pw, self._ph) != (self.width, self.height):
-            rgb = np.pad(
-                rgb, ((0, self._ph - self.height), (0, self._pw - self.width), (0, 0)), mode="edge"
-            )
-        frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
-        if self.codec.pix_fmt != "rgb24":
-            frame = frame.reformat(format=self.codec.pix_fmt)
-        frame.pts = self.frames_in
-        self._stamps[self.frames_in] = timestamp
-        return self._packets(self._ctx.encode(frame))
-
-    def _flush(self) -> list[Packet]:
-        return self._packets(self._ctx.encode(None))
-
-
-class _PyAVDecoder(VideoDecoder):
-    codec: PyAVCodec
-
-    def __init__(self, codec: PyAVCodec, width: int, height: int, extradata: bytes | None) -> None:
-
-        super().__init__(codec, width, height, extradata)
-        mx, my = codec._pad()
-        self._pw, self._ph = _padded(self.width, mx), _padded(self.height, my)
-        ctx = _context(codec.decoder_name, "r")
-        ctx.width, ctx.height = self._pw, self._ph
-        if extradata:
-            ctx.extradata = extradata
-        # Slice threads only: frame threading delays output by a frame per thread, which costs
-        # random access, and made MPEG-4 output vary between runs.
-        ctx.thread_type = "SLICE"
-        ctx.thread_count = codec.threads
-        ctx.options = codec._decoder_options()
-        self._ctx = ctx
-
-    def _frames(self, av_frames: list[Any]) -> list[DecodedFrame]:
-        out = []
-        for f in av_frames:
-            if (f.width, f.height) != (self._pw, self._ph):
-                raise DecodeError(
-                    f"{self.codec.name} decoded a {f.width}x{f.height} frame in a stream of "
-                    f"{self._pw}x{self._ph}"
-                )
-            if f.pts is None:
-                raise DecodeError(f"{self.codec.name} decoded a frame without a timestamp")
-            # PyAV returns a view of the frame's rows where they are padded (424 x 3 = 1272
-            # bytes in lines of 1296): copy it into a C-contiguous image, cropped to the
-            # camera's size where the codec needed a padded one. A no-op copy otherwise.
-            rgb = np.ascontiguousarray(f.to_ndarray(format="rgb24")[: self.height, : self.width])
-            out.append(DecodedFrame(rgb, int(f.pts)))
-        return out
-
-    def _run(self, packet: Any, pts: int | None) -> list[DecodedFrame]:
-        try:
-            return self._frames(self._ctx.decode(packet))
-        except DecodeError:
-            raise
-        except Exception as exc:
-            where = f"packet at pts {pts} ns" if pts is not None else "end of stream"
-            raise DecodeError(
-                f"{self.codec.name} could not decode the {where}: {type(exc).__name__}: {exc}"
-            ) from exc
-
-    def _decode(self, packet: Packet) -> list[DecodedFrame]:
-        avp = ffmpeg_packet(packet.data)
-        avp.pts, avp.dts = packet.pts, packet.dts
-        return self._run(avp, packet.pts)
-
-    def _flush(self) -> list[DecodedFrame]:
-        return self._run(None, None)
+        return FFmpegDecoder(self, self._setup(), width, height, extradata)
 
 
 # -- lossy codecs ------------------------------------------------------------------------------
@@ -344,7 +246,6 @@ class H264(PyAVCodec):
     ) -> None:
         check_number(self.name, "crf", crf, 0, 51)
         check_choice(self.name, "preset", preset, _X26X_PRESETS)
-        check_choice(self.name, "low_delay", low_delay, (True, False))
         check_choice(
             self.name,
             "tune",
@@ -361,13 +262,10 @@ class H264(PyAVCodec):
                 "zerolatency",
             ),
         )
-        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        check_int(self.name, "bframes", bframes, 0, 16)
-        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
-        check_int(self.name, "threads", threads, 0, 64)
+        self._take_shared(
+            gop=gop, bframes=bframes, pix_fmt=pix_fmt, threads=threads, low_delay=low_delay
+        )
         self.crf, self.preset, self.tune = crf, preset, tune
-        self.gop, self.bframes, self.pix_fmt, self.threads = gop, bframes, pix_fmt, threads
-        self.low_delay = low_delay
 
     def _options(self) -> dict[str, str]:
         opts = {"crf": str(self.crf), "preset": self.preset}
@@ -405,13 +303,10 @@ class H265(PyAVCodec):
     ) -> None:
         check_number(self.name, "crf", crf, 0, 51)
         check_choice(self.name, "preset", preset, _X26X_PRESETS)
-        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        check_int(self.name, "bframes", bframes, 0, 16)
-        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
-        check_int(self.name, "threads", threads, 0, 64)
-        check_choice(self.name, "low_delay", low_delay, (True, False))
-        self.crf, self.preset, self.gop, self.bframes = crf, preset, gop, bframes
-        self.pix_fmt, self.threads, self.low_delay = pix_fmt, threads, low_delay
+        self._take_shared(
+            gop=gop, bframes=bframes, pix_fmt=pix_fmt, threads=threads, low_delay=low_delay
+        )
+        self.crf, self.preset = crf, preset
 
     def _options(self) -> dict[str, str]:
         opts = {
@@ -452,18 +347,8 @@ class AV1(PyAVCodec):
     ) -> None:
         check_int(self.name, "crf", crf, 1, 63)
         check_int(self.name, "preset", preset, 0, 13)
-        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
-        check_int(self.name, "threads", threads, 0, 64)
-        check_choice(self.name, "low_delay", low_delay, (True, False))
-        self.crf, self.preset, self.gop, self.pix_fmt, self.threads = (
-            crf,
-            preset,
-            gop,
-            pix_fmt,
-            threads,
-        )
-        self.low_delay = low_delay
+        self._take_shared(gop=gop, pix_fmt=pix_fmt, threads=threads, low_delay=low_delay)
+        self.crf, self.preset = crf, preset
 
     def _options(self) -> dict[str, str]:
         opts = {"crf": str(self.crf), "preset": str(self.preset)}
@@ -497,18 +382,8 @@ class VP9(PyAVCodec):
     ) -> None:
         check_int(self.name, "crf", crf, 0, 63)
         check_int(self.name, "speed", speed, 0, 8)
-        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
-        check_int(self.name, "threads", threads, 0, 64)
-        check_choice(self.name, "low_delay", low_delay, (True, False))
-        self.crf, self.speed, self.gop, self.pix_fmt, self.threads = (
-            crf,
-            speed,
-            gop,
-            pix_fmt,
-            threads,
-        )
-        self.low_delay = low_delay
+        self._take_shared(gop=gop, pix_fmt=pix_fmt, threads=threads, low_delay=low_delay)
+        self.crf, self.speed = crf, speed
 
     def _options(self) -> dict[str, str]:
         opts = {
@@ -534,11 +409,10 @@ class MJPEG(PyAVCodec):
 
     def __init__(self, *, quality: int = 3, pix_fmt: str = "yuvj420p", threads: int = 0) -> None:
         check_int(self.name, "quality", quality, 2, 31)
-        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
-        check_int(self.name, "threads", threads, 0, 64)
-        self.quality, self.pix_fmt, self.threads = quality, pix_fmt, threads
+        self._take_shared(pix_fmt=pix_fmt, threads=threads)
+        self.quality = quality
 
-    def _gop(self, fps: float) -> int:
+    def _gop(self) -> int:
         return 1
 
     def _options(self) -> dict[str, str]:
@@ -556,11 +430,8 @@ class MPEG4(PyAVCodec):
         self, *, qscale: int = 3, gop: int | None = None, bframes: int = 0, threads: int = 0
     ) -> None:
         check_int(self.name, "qscale", qscale, 2, 31)
-        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        check_int(self.name, "bframes", bframes, 0, 16)
-        check_int(self.name, "threads", threads, 0, 64)
-        self.qscale, self.gop, self.bframes, self.threads = qscale, gop, bframes, threads
-        self.pix_fmt = "yuv420p"
+        self._take_shared(gop=gop, bframes=bframes, threads=threads)  # in yuv420p
+        self.qscale = qscale
 
     def _options(self) -> dict[str, str]:
         return {"qmin": str(self.qscale), "qmax": str(self.qscale)}
@@ -588,10 +459,8 @@ class FFV1(PyAVCodec):
 
     def __init__(self, *, level: int = 3, gop: int | None = None, threads: int = 0) -> None:
         check_choice(self.name, "level", level, (1, 3))
-        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        check_int(self.name, "threads", threads, 0, 64)
-        self.level, self.gop, self.threads = level, gop, threads
-        self.pix_fmt = "bgr0"
+        self._take_shared(gop=gop, threads=threads)  # in bgr0
+        self.level = level
 
     def _options(self) -> dict[str, str]:
         opts = {"level": str(self.level), "coder": "range_def"}
@@ -610,11 +479,9 @@ class HuffYUV(PyAVCodec):
     lossless: ClassVar[bool] = True
 
     def __init__(self, *, threads: int = 0) -> None:
-        check_int(self.name, "threads", threads, 0, 64)
-        self.threads = threads
-        self.pix_fmt = "rgb24"
+        self._take_shared(threads=threads)  # in rgb24
 
-    def _gop(self, fps: float) -> int:
+    def _gop(self) -> int:
         return 1
 
 
@@ -648,12 +515,8 @@ class H264Lossless(PyAVCodec):
         low_delay: bool = True,
     ) -> None:
         check_choice(self.name, "preset", preset, _X26X_PRESETS)
-        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        check_int(self.name, "threads", threads, 0, 64)
-        check_choice(self.name, "low_delay", low_delay, (True, False))
-        self.preset, self.gop, self.threads = preset, gop, threads
-        self.pix_fmt = "rgb24"
-        self.low_delay = low_delay
+        self._take_shared(gop=gop, threads=threads, low_delay=low_delay)  # in rgb24
+        self.preset = preset
 
     def _options(self) -> dict[str, str]:
         opts = {"qp": "0", "preset": self.preset}
@@ -689,17 +552,9 @@ class H264NVENC(PyAVCodec):
     ) -> None:
         check_int(self.name, "cq", cq, 0, 51)
         check_choice(self.name, "preset", preset, tuple(f"p{i}" for i in range(1, 8)))
-        check_int(self.name, "gop", gop, 1, 10000, none_ok=True)
-        check_int(self.name, "bframes", bframes, 0, 4)
-        check_choice(self.name, "pix_fmt", pix_fmt, self.pix_fmts)
-        self.cq, self.preset, self.gop, self.bframes, self.pix_fmt = (
-            cq,
-            preset,
-            gop,
-            bframes,
-            pix_fmt,
-        )
-        self.threads = 0
+        # NVENC runs on the GPU: no CPU threads to choose.
+        self._take_shared(gop=gop, bframes=bframes, pix_fmt=pix_fmt, max_bframes=4)
+        self.cq, self.preset = cq, preset
 
     def _options(self) -> dict[str, str]:
         return {"rc": "vbr", "cq": str(self.cq), "b": "0", "preset": self.preset}

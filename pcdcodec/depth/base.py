@@ -222,6 +222,11 @@ class FrameCodec(Codec):
         """Whether decoding gives back exactly what was encoded (no error bound is set)."""
         return self._bound() is None
 
+    @property
+    def error_bound(self) -> Any:
+        """The :class:`~pcdcodec.depth.bounded.ErrorBound` in force, or ``None`` (lossless)."""
+        return self._bound()
+
     def _set_bound(self, max_error: Any, max_rel_error: Any) -> None:
         """Validate and store the error bound options (``None``: lossless)."""
         from .bounded import check_bound

@@ -16,26 +16,34 @@ distorted ones that the focal lengths and principal point turn into pixels, exac
 
 Intrinsics convert to and from Open3D (pinhole only), a 3 × 3 camera matrix ``K``, a ROS
 ``sensor_msgs/CameraInfo`` dict and a plain JSON dict. Open3D is imported only by
-:meth:`CameraIntrinsics.to_open3d`.
+:meth:`CameraIntrinsics.to_open3d`. :func:`as_intrinsics` takes a camera in any form pcdcodec
+accepts; :func:`read_intrinsics` reads the files datasets ship and :data:`CAMERA_PRESETS` holds
+well-known dataset cameras, both from the plain data of :mod:`pcdcodec.geometry.dataset_cameras`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
+import functools
 import math
 import numbers
 import operator
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ..errors import InputError, InputTypeError
+
+if TYPE_CHECKING:
+    from .dataset_cameras import INTRINSICS_FILE_NAMES, find_intrinsics_file
+
+    #: Named cameras (640×480) from the datasets' published values (``--camera NAME`` on the
+    #: CLI), made on first use from :data:`pcdcodec.geometry.dataset_cameras.PUBLISHED_CAMERAS`.
+    CAMERA_PRESETS: dict[str, CameraPreset]
 
 __all__ = [
     "CAMERA_PRESETS",
@@ -43,6 +51,7 @@ __all__ = [
     "INTRINSICS_FILE_NAMES",
     "CameraIntrinsics",
     "CameraPreset",
+    "as_intrinsics",
     "camera_preset",
     "find_intrinsics_file",
     "normalise_distortion",
@@ -474,181 +483,61 @@ class CameraPreset:
     source: str
 
 
-def _preset(
-    name: str, fx: float, fy: float, cx: float, cy: float, scale: float | None, source: str
-) -> CameraPreset:
-    return CameraPreset(name, CameraIntrinsics(640, 480, fx, fy, cx, cy), scale, source)
+@functools.cache
+def _presets() -> dict[str, CameraPreset]:
+    from .dataset_cameras import PUBLISHED_CAMERAS
 
-
-#: Named cameras (640×480) from the datasets' published values; ``--camera NAME`` on the CLI.
-CAMERA_PRESETS: dict[str, CameraPreset] = {
-    p.name: p
-    for p in (
-        _preset(
-            "tum-fr1",
-            517.3,
-            516.5,
-            318.6,
-            255.3,
-            5000.0,
-            "TUM RGB-D, freiburg1 color camera (distortion not modelled)",
-        ),
-        _preset(
-            "tum-fr2",
-            520.9,
-            521.0,
-            325.1,
-            249.7,
-            5000.0,
-            "TUM RGB-D, freiburg2 color camera (distortion not modelled)",
-        ),
-        _preset(
-            "tum-fr3",
-            535.4,
-            539.2,
-            320.1,
-            247.6,
-            5000.0,
-            "TUM RGB-D, freiburg3 color camera (undistorted images)",
-        ),
-        _preset(
-            "tum-ros",
-            525.0,
-            525.0,
-            319.5,
-            239.5,
-            5000.0,
-            "TUM RGB-D, the ROS defaults TUM recommends for its registered depth",
-        ),
-        _preset(
-            "kinect-v1",
-            525.0,
-            525.0,
-            319.5,
-            239.5,
-            1000.0,
-            "Microsoft Kinect v1 / PrimeSense, OpenNI and Open3D defaults (millimetres)",
-        ),
-        _preset(
-            "7scenes",
-            585.0,
-            585.0,
-            320.0,
-            240.0,
-            1000.0,
-            "Microsoft 7-Scenes (Kinect v1), the dataset's published approximation",
-        ),
-    )
-}
+    return {
+        name: CameraPreset(name, CameraIntrinsics(640, 480, *fxy), scale, source)
+        for name, fxy, scale, source in PUBLISHED_CAMERAS
+    }
 
 
 def camera_preset(name: str) -> CameraPreset:
     """The preset called ``name`` (see :data:`CAMERA_PRESETS`); an unknown name raises
     :class:`~pcdcodec.InputError` listing the known ones."""
+    presets = _presets()
     try:
-        return CAMERA_PRESETS[name]
+        return presets[name]
     except KeyError:
-        raise InputError(
-            f"unknown camera {name!r}; known cameras: {', '.join(CAMERA_PRESETS)}"
-        ) from None
+        raise InputError(f"unknown camera {name!r}; known cameras: {', '.join(presets)}") from None
 
 
-# -- intrinsics files ---------------------------------------------------------------------------
-
-#: File names looked for in RGB-D folders, in this order.
-INTRINSICS_FILE_NAMES = (
-    "camera.json",
-    "intrinsics.K.txt",
-    "camera-intrinsics.txt",
-    "intrinsics.txt",
-    "K.txt",
-    "camera_info.yaml",
-    "camera_info.yml",
-    "camera.yaml",
-    "intrinsic.json",
-    "camera_intrinsic.json",
-)
+# -- coercion and files ------------------------------------------------------------------------
 
 
-def _names_a_camera(path: Path) -> bool:
-    """Whether a ``camera.json`` gives a camera; one holding only ``depth_scale`` does not."""
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        return True  # let read_intrinsics say what is wrong with it
-    return not isinstance(data, dict) or bool({"fx", "fy", "cx", "cy"} & set(data))
+def as_intrinsics(
+    value: Any, what: str | None = None, width: int | None = None, height: int | None = None
+) -> CameraIntrinsics:
+    """A :class:`CameraIntrinsics` from any of the ways pcdcodec takes a camera.
 
+    ``value`` is a :class:`CameraIntrinsics` (returned as it is), a mapping with the keys of
+    :meth:`CameraIntrinsics.from_dict` (``camera.json``'s), the path of an intrinsics file
+    (:func:`read_intrinsics`) or an ``open3d.camera.PinholeCameraIntrinsic``. ``width`` and
+    ``height`` fill in an image size a mapping or a file does not give.
 
-def find_intrinsics_file(folder: str | os.PathLike[str]) -> Path | None:
-    """The first intrinsics file of :data:`INTRINSICS_FILE_NAMES` in ``folder``, or ``None``.
-
-    A ``camera.json`` that gives no camera (only a ``depth_scale``) is passed over for the
-    next file."""
-    root = Path(folder)
-    for name in INTRINSICS_FILE_NAMES:
-        p = root / name
-        if p.is_file() and (name != "camera.json" or _names_a_camera(p)):
-            return p
-    return None
-
-
-def _k_text(path: Path, width: int | None, height: int | None) -> CameraIntrinsics:
-    try:
-        values = [float(v) for v in path.read_text().replace(",", " ").split()]
-    except ValueError:
-        raise InputError(f"{str(path)!r} is not a 3x3 camera matrix of numbers") from None
-    if len(values) != 9:
-        raise InputError(
-            f"{str(path)!r} holds {len(values)} numbers; a camera matrix K has 9 (3 rows of 3)"
-        )
-    if width is None or height is None:
-        raise InputError(
-            f"{str(path)!r} is a camera matrix without the image size; give width and height"
-        )
-    return CameraIntrinsics.from_K(np.reshape(values, (3, 3)), width, height)
-
-
-def _yaml(path: Path) -> Any:
-    try:
-        import yaml
-    except ImportError:
-        raise InputError(f"reading {str(path)!r} needs PyYAML: pip install pyyaml") from None
-    try:
-        return yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise InputError(f"{str(path)!r} is not valid YAML: {exc}") from None
-
-
-def _from_mapping(data: Any, path: Path, width: int | None, height: int | None) -> CameraIntrinsics:
-    if not isinstance(data, Mapping):
-        raise InputError(f"{str(path)!r} holds no camera description (expected a mapping)")
-    if "camera_matrix" in data:  # ROS camera_calibration_parsers YAML
-        matrix = data["camera_matrix"]
-        k = matrix.get("data") if isinstance(matrix, Mapping) else matrix
-        info = {
-            "width": data.get("image_width", width),
-            "height": data.get("image_height", height),
-            "K": k,
-            "D": (data.get("distortion_coefficients") or {}).get("data"),
-            "distortion_model": data.get("distortion_model") or "plumb_bob",
-        }
-        return CameraIntrinsics.from_camera_info(info)
-    if "intrinsic_matrix" in data:  # Open3D PinholeCameraIntrinsic JSON, column-major
-        m = np.asarray(data["intrinsic_matrix"], dtype=np.float64)
-        if m.size != 9:
-            raise InputError(f"{str(path)!r}: intrinsic_matrix must have 9 numbers")
-        return CameraIntrinsics.from_K(
-            m.reshape(3, 3).T, data.get("width", width), data.get("height", height)
-        )
-    if any(k in data for k in ("K", "k")):  # a sensor_msgs/CameraInfo dump
-        return CameraIntrinsics.from_camera_info({"width": width, "height": height, **dict(data)})
-    if {"fx", "fy", "cx", "cy"} <= set(data):  # pcdcodec's camera.json
+    ``what`` names the value in errors (an argument, or the file a mapping came from): errors in
+    a mapping's values are prefixed with it. Raises :class:`~pcdcodec.InputTypeError` for any
+    other kind of value and :class:`~pcdcodec.InputError` for invalid values.
+    """
+    if isinstance(value, CameraIntrinsics):
+        return value
+    if isinstance(value, Mapping):
         size = {"width": width, "height": height}
-        return CameraIntrinsics.from_dict({k: data.get(k, size.get(k)) for k in _DICT_KEYS})
-    raise InputError(
-        f"{str(path)!r} is not an intrinsics file pcdcodec reads: expected a ROS CameraInfo "
-        "YAML (camera_matrix), an Open3D intrinsic JSON (intrinsic_matrix), a CameraInfo dump "
-        "(K) or fx/fy/cx/cy keys"
+        data = {**{k: v for k, v in size.items() if v is not None}, **value}
+        try:
+            return CameraIntrinsics.from_dict(data)
+        except InputError as exc:
+            if what is None:
+                raise
+            raise type(exc)(f"{what}: {exc}") from None
+    if isinstance(value, (str, os.PathLike)):
+        return read_intrinsics(value, width, height)
+    if type(value).__name__ == "PinholeCameraIntrinsic":
+        return CameraIntrinsics.from_open3d(value)
+    raise InputTypeError(
+        f"{what or 'intrinsics'} must be a CameraIntrinsics, a dict, an intrinsics file or an "
+        f"Open3D PinholeCameraIntrinsic, got {type(value).__name__}"
     )
 
 
@@ -661,23 +550,24 @@ def read_intrinsics(
     ``camera-intrinsics.txt``; the image size then comes from ``width``/``height``), a ROS
     ``camera_calibration`` YAML (``image_width``, ``camera_matrix``, ...), a
     ``sensor_msgs/CameraInfo`` dump (``K``), an Open3D ``PinholeCameraIntrinsic`` JSON
-    (``intrinsic_matrix``, column-major) or pcdcodec's ``camera.json``. ``width`` and
-    ``height`` fill in a size the file does not give. Raises :class:`~pcdcodec.InputError` for
-    a missing or unreadable file, naming it and what was expected.
+    (``intrinsic_matrix``, column-major) or pcdcodec's ``camera.json``
+    (:mod:`pcdcodec.geometry.dataset_cameras`). ``width`` and ``height`` fill in a size the
+    file does not give. Raises :class:`~pcdcodec.InputError` for a missing or unreadable file,
+    naming it and what was expected.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"intrinsics file {str(p)!r} does not exist")
-    text = p.read_text(errors="replace").lstrip()
-    if text.startswith("{"):
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{str(p)!r} is not valid JSON: {exc}") from None
-        return _from_mapping(data, p, width, height)
-    first = text.split(None, 1)[0] if text else ""
-    try:
-        float(first.rstrip(","))
-    except ValueError:
-        return _from_mapping(_yaml(p), p, width, height)
-    return _k_text(p, width, height)
+    from .dataset_cameras import describe_intrinsics_file
+
+    method, args = describe_intrinsics_file(path, width, height)
+    camera: CameraIntrinsics = getattr(CameraIntrinsics, method)(*args)
+    return camera
+
+
+def __getattr__(name: str) -> Any:
+    # What datasets publish is plain data in another module, loaded on first use.
+    if name == "CAMERA_PRESETS":
+        return _presets()
+    if name in ("INTRINSICS_FILE_NAMES", "find_intrinsics_file"):
+        from . import dataset_cameras
+
+        return getattr(dataset_cameras, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

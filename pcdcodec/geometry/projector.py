@@ -17,13 +17,13 @@ Depth and color may come from two cameras (RealSense, Azure Kinect): give the pr
 color camera's intrinsics and the rigid ``depth_to_color`` transform, and each point takes the
 color of the pixel it projects to in the color image, distortion included.
 :meth:`Projector.register_depth` makes depth registered to the color image. Open3D is imported
-only by the methods that return or accept Open3D objects.
+only by the methods that return or accept Open3D objects; RGBDImages are read by
+:mod:`pcdcodec.geometry.open3d`.
 """
 
 from __future__ import annotations
 
 import math
-import numbers
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -32,19 +32,17 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .._validate import check_color, check_depth
+from .._validate import check_color, check_depth, check_output_dtype, check_positive
 from ..errors import InputError, InputTypeError
-from ..frame import open3d_rgbd_kind
 from .camera import CameraIntrinsics
-from .transform import as_rigid
+
+# Served from here too, their home before: pcdcodec.geometry.projector.check_color_camera.
+from .transform import MAX_BASELINE as MAX_BASELINE
+from .transform import check_color_camera as check_color_camera
 
 __all__ = ["Projector", "Reprojection"]
 
 _F32_MAX = np.float32(np.finfo(np.float32).max)
-_OUTPUT_DTYPES: dict[str, np.dtype[Any]] = {
-    "uint16": np.dtype(np.uint16),
-    "float32": np.dtype(np.float32),
-}
 
 
 @dataclass(frozen=True, eq=False)
@@ -149,8 +147,12 @@ class Projector:
             )
         self._intrinsics = intrinsics
         self._color, self._d2c = check_color_camera(color_intrinsics, depth_to_color)
-        self._depth_scale = _positive(depth_scale, "depth_scale", finite=True)
-        trunc = None if depth_trunc is None else _positive(depth_trunc, "depth_trunc", finite=False)
+        self._depth_scale = check_positive(depth_scale, "depth_scale", finite=True)
+        trunc = (
+            None
+            if depth_trunc is None
+            else check_positive(depth_trunc, "depth_trunc", finite=False)
+        )
         self._depth_trunc = None if trunc == math.inf else trunc
         h, w = intrinsics.shape
         self._ray_ok: npt.NDArray[np.bool_] | None = None
@@ -380,7 +382,7 @@ class Projector:
         colors that are not uint8, and :class:`~pcdcodec.InputError` for an unknown ``dtype``,
         points that are neither H × W × 3 nor N × 3, or colors that do not match the points.
         """
-        out_dtype = _output_dtype(dtype)
+        out_dtype = check_output_dtype(dtype)
         pts = points if isinstance(points, np.ndarray) else np.asarray(points)
         if pts.dtype.kind != "f":
             raise InputTypeError(f"points must be float32 or float64 (metres), got {pts.dtype}")
@@ -436,7 +438,7 @@ class Projector:
         Without a color camera (registered input) this is the depth itself, converted to
         ``dtype``. Raises as :meth:`to_points`.
         """
-        out_dtype = _output_dtype(dtype)
+        out_dtype = check_output_dtype(dtype)
         if values not in ("color", "depth"):
             raise InputError(f"values must be 'color' or 'depth', got {values!r}")
         depth2d, scale, _ = self._inputs(depth, None)
@@ -578,13 +580,20 @@ class Projector:
         self, depth: Any, color: Any
     ) -> tuple[npt.NDArray[Any], float, npt.NDArray[np.uint8] | None]:
         """Validated (depth, its depth units per metre, color) from arrays or an RGBDImage."""
-        kind = open3d_rgbd_kind(depth)
-        if kind is not None:
-            if color is not None:
-                raise InputError("color must be None when depth is an RGBDImage (it has a color)")
-            depth, scale, color = _split_rgbd(depth, kind, self._depth_scale)
-        else:
-            scale = self._depth_scale
+        scale = self._depth_scale
+        kind = None
+        if not isinstance(depth, np.ndarray):
+            # Only a non-array can be an Open3D image: arrays never load the conversions.
+            from .open3d import open3d_rgbd_kind, split_rgbd
+
+            kind = open3d_rgbd_kind(depth)
+            if kind is not None:
+                if color is not None:
+                    raise InputError(
+                        "color must be None when depth is an RGBDImage (it has a color)"
+                    )
+                depth, scale, color = split_rgbd(depth, kind, scale)
+        if kind is None:
             depth = check_depth(depth)
         h, w = self._intrinsics.shape
         if depth.shape != (h, w):
@@ -762,44 +771,6 @@ class Projector:
         )
 
 
-#: The largest distance (metres) between a depth and a color camera that is taken as metres.
-MAX_BASELINE = 5.0
-
-
-def check_color_camera(
-    color_intrinsics: Any, depth_to_color: Any
-) -> tuple[CameraIntrinsics | None, npt.NDArray[np.float64] | None]:
-    """Validated ``(color_intrinsics, depth_to_color)`` of a second camera, or ``(None, None)``.
-
-    ``depth_to_color`` defaults to the identity when only ``color_intrinsics`` is given (a
-    color camera at the depth camera's centre, of another size or lens). Raises
-    :class:`~pcdcodec.InputError` for a transform without color intrinsics, a transform that
-    is not rigid, or a translation longer than :data:`MAX_BASELINE` (millimetres given as
-    metres, most likely).
-    """
-    if color_intrinsics is None:
-        if depth_to_color is not None:
-            raise InputError(
-                "depth_to_color was given without color_intrinsics: the transform needs the "
-                "color camera it leads to"
-            )
-        return None, None
-    if not isinstance(color_intrinsics, CameraIntrinsics):
-        raise InputTypeError(
-            "color_intrinsics must be a pcdcodec.CameraIntrinsics, got "
-            f"{type(color_intrinsics).__name__}"
-        )
-    d2c = np.eye(4) if depth_to_color is None else as_rigid(depth_to_color, "depth_to_color")
-    baseline = float(np.linalg.norm(d2c[:3, 3]))
-    if baseline > MAX_BASELINE:
-        raise InputError(
-            f"depth_to_color moves the camera by {baseline:.4g} m; expected a translation in "
-            f"metres of at most {MAX_BASELINE} m between the depth and color cameras "
-            "(was it given in millimetres?)"
-        )
-    return color_intrinsics, d2c
-
-
 def _rebuild(*args: Any) -> Projector:
     intrinsics, depth_scale, depth_trunc, color, d2c = args
     return Projector(
@@ -816,54 +787,3 @@ def _gather(
     copies it into ``out``, which makes the gather about three times slower.
     """
     return np.take(table, idx, axis=0, out=out, mode="clip")
-
-
-def _positive(value: Any, name: str, *, finite: bool) -> float:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise InputTypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
-    real = float(value)
-    if not real > 0 or (finite and not math.isfinite(real)):
-        what = "positive and finite" if finite else "positive"
-        raise InputError(f"{name} must be {what}, got {real!r}")
-    return real
-
-
-def _output_dtype(dtype: Any) -> np.dtype[Any]:
-    out: np.dtype[Any] | None = None
-    if dtype is not None:
-        try:
-            out = _OUTPUT_DTYPES.get(np.dtype(dtype).name)
-        except TypeError:
-            out = None
-    if out is None:
-        raise InputError(f"dtype must be 'uint16' or 'float32', got {dtype!r}")
-    return out
-
-
-def _split_rgbd(rgbd: Any, kind: str, depth_scale: float) -> tuple[Any, float, Any]:
-    """(depth, its depth units per metre, color or None) of an Open3D RGBDImage, as arrays."""
-    if kind == "legacy":
-        depth = check_depth(np.asarray(rgbd.depth), allowed=("float32",), name="RGBDImage depth")
-        color = np.asarray(rgbd.color)
-        scale = 1.0
-    else:
-        depth = rgbd.depth.as_tensor().cpu().numpy()
-        if depth.ndim == 3 and depth.shape[2] == 1:
-            depth = depth[..., 0]
-        depth = check_depth(depth, name="RGBDImage depth")
-        color = rgbd.color.as_tensor().cpu().numpy()
-        scale = depth_scale
-    if color.ndim == 3 and color.shape[2] == 1:
-        color = color[..., 0]
-    if color.size == 0:
-        return depth, scale, None
-    if color.ndim == 2 and color.dtype.kind == "f":
-        # Intensity in [0, 1] (convert_rgb_to_intensity=True): gray, rounded to 8 bits.
-        gray = np.rint(np.clip(color, 0.0, 1.0) * 255.0).astype(np.uint8)
-        return depth, scale, np.repeat(gray[..., None], 3, axis=2)
-    if color.dtype != np.uint8 or color.ndim != 3 or color.shape[2] != 3:
-        raise InputTypeError(
-            f"RGBDImage color must be uint8 RGB or float32 intensity, got {color.dtype} "
-            f"with shape {color.shape}"
-        )
-    return depth, scale, color

@@ -6,7 +6,8 @@ frame to ``R @ p + t`` in another. Camera poses are camera-to-world transforms; 
 ``depth_to_color`` maps points of the depth camera's frame into the color camera's frame.
 
 Quaternions are ``(x, y, z, w)``, the order of ROS ``geometry_msgs/Quaternion``, Foxglove and
-TUM trajectories.
+TUM trajectories. :func:`check_color_camera` checks the pair a color camera apart from the depth
+camera is given by: its intrinsics and the ``depth_to_color`` transform.
 """
 
 from __future__ import annotations
@@ -17,9 +18,12 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InputError, InputTypeError
+from .camera import CameraIntrinsics
 
 __all__ = [
+    "MAX_BASELINE",
     "as_rigid",
+    "check_color_camera",
     "interpolate_poses",
     "matrix_to_quaternion",
     "quaternion_to_matrix",
@@ -162,3 +166,43 @@ def interpolate_poses(
         m[:3, 3] = (1 - a) * p0[:3, 3] + a * p1[:3, 3]
         out.append(m)
     return out
+
+
+# -- two cameras ------------------------------------------------------------------------------
+
+#: The largest distance (metres) between a depth and a color camera that is taken as metres.
+MAX_BASELINE = 5.0
+
+
+def check_color_camera(
+    color_intrinsics: Any, depth_to_color: Any
+) -> tuple[CameraIntrinsics | None, npt.NDArray[np.float64] | None]:
+    """Validated ``(color_intrinsics, depth_to_color)`` of a second camera, or ``(None, None)``.
+
+    ``depth_to_color`` defaults to the identity when only ``color_intrinsics`` is given (a
+    color camera at the depth camera's centre, of another size or lens). Raises
+    :class:`~pcdcodec.InputError` for a transform without color intrinsics, a transform that
+    is not rigid, or a translation longer than :data:`MAX_BASELINE` (millimetres given as
+    metres, most likely).
+    """
+    if color_intrinsics is None:
+        if depth_to_color is not None:
+            raise InputError(
+                "depth_to_color was given without color_intrinsics: the transform needs the "
+                "color camera it leads to"
+            )
+        return None, None
+    if not isinstance(color_intrinsics, CameraIntrinsics):
+        raise InputTypeError(
+            "color_intrinsics must be a pcdcodec.CameraIntrinsics, got "
+            f"{type(color_intrinsics).__name__}"
+        )
+    d2c = np.eye(4) if depth_to_color is None else as_rigid(depth_to_color, "depth_to_color")
+    baseline = float(np.linalg.norm(d2c[:3, 3]))
+    if baseline > MAX_BASELINE:
+        raise InputError(
+            f"depth_to_color moves the camera by {baseline:.4g} m; expected a translation in "
+            f"metres of at most {MAX_BASELINE} m between the depth and color cameras "
+            "(was it given in millimetres?)"
+        )
+    return color_intrinsics, d2c

@@ -5,26 +5,38 @@ See ``docs/format.md`` for the layout and :func:`open` for use.
 
 from __future__ import annotations
 
+import importlib
 import os
 from typing import TYPE_CHECKING, Any, Literal, overload
 
 from ..errors import InputError
+from ..frame import Frame
 from ._index import FORMAT_VERSION
 from .encode import EncodeSummary, encode
-from .reader import Frame, Recording, VerifyReport
 from .recover import recover
-from .writer import RecordingWriter
 
 if TYPE_CHECKING:
     from ..convert.rosbag import export_bag
+    from .reader import Recording
+    from .verify import VerifyReport
+    from .writer import RecordingWriter
+
+#: Names whose modules load on first use, so that ``import pcdcodec`` stays light (the
+#: reader and the writer bring their codecs' machinery); export_bag lives in
+#: pcdcodec.convert.rosbag and is named here too.
+_LAZY = {
+    "Recording": "pcdcodec.recording.reader",
+    "RecordingWriter": "pcdcodec.recording.writer",
+    "VerifyReport": "pcdcodec.recording.verify",
+    "export_bag": "pcdcodec.convert.rosbag",
+}
 
 
 def __getattr__(name: str) -> Any:
-    # export_bag lives in pcdcodec.convert.rosbag; it is named here too, and loaded on first use
-    if name == "export_bag":
-        from ..convert.rosbag import export_bag
-
-        return export_bag
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module 'pcdcodec.recording' has no attribute {name!r}")
 
 
@@ -83,6 +95,9 @@ def open(path: str | os.PathLike[str], mode: str = "r", **options: Any) -> Any:
             for frame in rec:
                 cloud = frame.to_point_cloud()
     """
+    from .reader import Recording
+    from .writer import RecordingWriter
+
     if mode == "r":
         unknown = sorted(set(options) - {"threads"})
         if unknown:

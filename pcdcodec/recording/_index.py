@@ -1,36 +1,46 @@
-"""Finding messages in a ``.pcdc`` file: from MCAP's summary, or by scanning a damaged file.
+"""What a ``.pcdc`` file holds, by name, and how it vouches for it.
 
-A cleanly closed file ends with MCAP's summary, whose chunk indexes give every message's time,
-channel and byte offset without reading the data. The summary is used only when its CRC (in
-MCAP's footer) matches and what it says holds together (statistics, offsets, metadata records);
-otherwise, and for a file whose writer died before writing one, every record is read from the
-start. A scan stops at the first record that is cut short (an unfinished file) or damaged (a bad
-CRC, an unknown record type, a record that does not parse), so every message that was completely
-written before it is found, and says which of the two it was.
-
-The settings a recording is read with (camera, depth scale, codecs, user metadata) live in MCAP
-metadata records, which have no CRC of their own; each one carries a digest of its key/value
-pairs instead (:func:`seal`, :func:`check_metadata`).
+The names of a recording's channels, encodings and metadata records (``docs/format.md``), and
+its integrity records: the settings a recording is read with (camera, depth scale, codecs, user
+metadata) live in MCAP metadata records, which have no CRC of their own; each one carries a
+digest of its key/value pairs instead (:func:`seal`, :func:`check_metadata`). Frame digests and
+the seal vouch for the messages (:class:`Sealer`). :func:`load` finds a file's messages
+(:mod:`pcdcodec.recording._scan`) and trusts its summary only where the seal agrees.
 """
 
 from __future__ import annotations
 
 import hashlib
-import io
 import json
-import os
 import struct
-import zlib
-from collections.abc import Iterator
-from dataclasses import dataclass, field
-from typing import IO, Any
-
-import numpy as np
-import numpy.typing as npt
+from typing import IO
 
 from ..errors import DecodeError
+from ._scan import (
+    MAGIC,
+    ChannelInfo,
+    FileIndex,
+    SummaryError,
+    file_size,
+    from_summary,
+    read_at,
+    read_chunk_messages,
+    scan,
+)
 
-MAGIC = b"\x89MCAP0\r\n"
+#: Callers find a file's messages through this module too: :mod:`._scan`'s names are here.
+__all__ = [
+    "MAGIC",
+    "ChannelInfo",
+    "FileIndex",
+    "file_size",
+    "from_summary",
+    "load",
+    "read_at",
+    "read_chunk_messages",
+    "scan",
+]
+
 PROFILE = "pcdcodec"
 #: The newest format version this pcdcodec reads and writes. Files that need nothing of a newer
 #: version are written with the oldest one that holds them (see ``docs/format.md``).
@@ -78,181 +88,13 @@ SEALED_TOPICS = (
     TOPIC_POSE_MATRIX,
 )
 
-_OP_HEADER, _OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL = 0x01, 0x02, 0x03, 0x04
-_OP_MESSAGE, _OP_CHUNK, _OP_MESSAGE_INDEX, _OP_CHUNK_INDEX = 0x05, 0x06, 0x07, 0x08
-_OP_ATTACHMENT, _OP_ATTACHMENT_INDEX, _OP_STATISTICS = 0x09, 0x0A, 0x0B
-_OP_METADATA, _OP_METADATA_INDEX, _OP_SUMMARY_OFFSET, _OP_DATA_END = 0x0C, 0x0D, 0x0E, 0x0F
-#: Record types that may stand in the data section (anything else there is damage).
-_DATA_OPCODES = {
-    _OP_HEADER,
-    _OP_SCHEMA,
-    _OP_CHANNEL,
-    _OP_MESSAGE,
-    _OP_CHUNK,
-    _OP_MESSAGE_INDEX,
-    _OP_ATTACHMENT,
-    _OP_METADATA,
-    _OP_DATA_END,
-}
-_FOOTER = struct.Struct("<BQQQI")  # opcode, length (20), summary start, summary offsets, crc
-_TAIL_SIZE = _FOOTER.size + len(MAGIC)
-
-
-@dataclass
-class ChannelInfo:
-    id: int
-    topic: str
-    encoding: str
-    metadata: dict[str, str]
-    schema_name: str = ""
-
-
-@dataclass
-class FileIndex:
-    """Where every message of a recording is, by channel, as numpy arrays."""
-
-    profile: str = ""
-    channels: dict[int, ChannelInfo] = field(default_factory=dict)
-    #: schema id -> (name, encoding, data)
-    schemas: dict[int, tuple[str, str, bytes]] = field(default_factory=dict)
-    #: channel id -> schema id
-    channel_schema: dict[int, int] = field(default_factory=dict)
-    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
-    #: per topic: (log times, chunk offsets) in file order
-    times: dict[str, list[int]] = field(default_factory=dict)
-    offsets: dict[str, list[int]] = field(default_factory=dict)
-    #: metadata record name -> byte offset of the record
-    metadata_offsets: dict[str, int] = field(default_factory=dict)
-    #: True when the file ends with a summary that was used (closed cleanly, summary intact)
-    indexed: bool = False
-    #: where a scan stopped because the file ends inside a record (cut short), else None
-    truncated_at: int | None = None
-    #: where a scan stopped at a damaged record, and what was wrong there, else None
-    damaged_at: int | None = None
-    damage: str = ""
-    #: why the file's summary was not used although the file has one (or ends as if it had)
-    summary_problem: str | None = None
-    #: a scan that reached the end of the data section: (CRC stored there, CRC of the bytes read)
-    data_crc: tuple[int, int] | None = None
-    #: messages a scan found twice (same channel and time); the first one is kept
-    duplicates: int = 0
-    #: chunks a scan passed over (``skip_damaged_chunks``): (byte offset, what was wrong)
-    damaged_chunks: list[tuple[int, str]] = field(default_factory=list)
-    #: size of the file in bytes
-    size: int = 0
-    #: message records a scan found outside chunks (an unchunked MCAP file; not indexed)
-    loose_messages: int = 0
-
-    def add(self, channel_id: int, log_time: int, offset: int) -> None:
-        info = self.channels.get(channel_id)
-        if info is None:
-            return
-        self.times.setdefault(info.topic, []).append(log_time)
-        self.offsets.setdefault(info.topic, []).append(offset)
-
-    def arrays(self, topic: str) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
-        times = np.asarray(self.times.get(topic, []), dtype=np.int64)
-        offsets = np.asarray(self.offsets.get(topic, []), dtype=np.int64)
-        return times, offsets
-
-    def channel(self, topic: str) -> ChannelInfo | None:
-        return next((c for c in self.channels.values() if c.topic == topic), None)
-
-
-def _stream(data: bytes | memoryview) -> Any:
-    from mcap.data_stream import ReadDataStream
-
-    return ReadDataStream(io.BytesIO(data))
-
-
-def file_size(f: IO[bytes]) -> int:
-    try:
-        return os.fstat(f.fileno()).st_size
-    except (AttributeError, OSError, io.UnsupportedOperation):
-        return f.seek(0, io.SEEK_END)
-
-
-def read_at(f: IO[bytes], offset: int, length: int, size: int, *, what: str) -> bytes:
-    """``length`` bytes at ``offset``, or a :class:`DecodeError` saying what was expected there."""
-    if offset < 0 or length < 0 or offset + length > size:
-        raise DecodeError(
-            f"{what}: expected {length} bytes at byte offset {offset}, "
-            f"but the file is {size} bytes long"
-        )
-    try:
-        f.seek(offset)
-        data = f.read(length)
-    except (OSError, OverflowError, ValueError) as exc:
-        raise DecodeError(f"{what}: cannot read byte offset {offset}: {exc}") from exc
-    if len(data) != length:
-        raise DecodeError(f"{what}: the file ends before byte offset {offset + length}")
-    return data
-
-
-def _chunk_messages(content: bytes, offset: int, what: str) -> tuple[list[Any], list[Any]]:
-    """(messages, other records) of a chunk record's content; its CRC is always checked."""
-    from mcap.records import Chunk, Message
-    from mcap.stream_reader import breakup_chunk
-
-    try:
-        chunk = Chunk.read(_stream(content))
-        if chunk.compression == "":
-            # MCAP skips the check when the stored CRC is 0; pcdcodec always writes one.
-            crc = zlib.crc32(chunk.data)
-            if crc != chunk.uncompressed_crc:
-                raise DecodeError(
-                    f"CRC-32 {chunk.uncompressed_crc:#010x} stored, {crc:#010x} computed"
-                )
-        # (checked above for uncompressed chunks; MCAP checks the others after decompressing)
-        records = list(breakup_chunk(chunk, validate_crc=chunk.compression != ""))
-    except DecodeError as exc:
-        raise DecodeError(f"{what}: chunk at byte offset {offset} is corrupt ({exc})") from exc
-    except Exception as exc:
-        raise DecodeError(
-            f"{what}: chunk at byte offset {offset} is corrupt ({type(exc).__name__}: {exc})"
-        ) from exc
-    messages = [r for r in records if isinstance(r, Message)]
-    return messages, [r for r in records if not isinstance(r, Message)]
-
-
-def read_chunk_messages(
-    f: IO[bytes], offset: int, *, what: str, size: int | None = None
-) -> list[Any]:
-    """The Message records of the chunk at ``offset``, its CRC checked."""
-    size = file_size(f) if size is None else size
-    head = read_at(f, offset, 9, size, what=what)
-    if head[0] != _OP_CHUNK:
-        raise DecodeError(
-            f"{what}: expected a chunk record at byte offset {offset}, found record type "
-            f"{head[0]:#04x}"
-        )
-    (length,) = struct.unpack_from("<Q", head, 1)
-    if offset + 9 + length > size:
-        raise DecodeError(f"{what}: chunk at byte offset {offset} is cut short")
-    content = read_at(f, offset + 9, length, size, what=what)
-    return _chunk_messages(content, offset, what)[0]
-
-
-def _channel_info(channel: Any, schemas: dict[int, str]) -> ChannelInfo:
-    return ChannelInfo(
-        channel.id,
-        channel.topic,
-        channel.message_encoding,
-        dict(channel.metadata),
-        schemas.get(channel.schema_id, ""),
-    )
-
-
-class _SummaryError(Exception):
-    """The summary is there but cannot be trusted; the message says why."""
-
 
 def load(f: IO[bytes]) -> FileIndex:
     """The index of a recording: from its summary when that is intact, else from a scan."""
     problem: str | None = None
     try:
         index = from_summary(f)
-    except _SummaryError as exc:
+    except SummaryError as exc:
         index, problem = None, str(exc)
     if index is not None:
         # A summary that disagrees with the seal (written last, in the data section) is not
@@ -268,245 +110,6 @@ def load(f: IO[bytes]) -> FileIndex:
     if problem is None and index.data_crc is not None:
         problem = "the data section ends, but no intact summary and footer follow it"
     index.summary_problem = problem
-    return index
-
-
-def _records(data: bytes, base: int) -> Iterator[tuple[int, int, bytes]]:
-    """(offset, opcode, content) of the records packed in ``data`` (which starts at ``base``)."""
-    pos = 0
-    while pos < len(data):
-        if pos + 9 > len(data):
-            raise _SummaryError(f"a record at byte offset {base + pos} is cut short")
-        opcode, length = data[pos], struct.unpack_from("<Q", data, pos + 1)[0]
-        if pos + 9 + length > len(data):
-            raise _SummaryError(f"the record at byte offset {base + pos} runs past the summary")
-        yield base + pos, opcode, data[pos + 9 : pos + 9 + length]
-        pos += 9 + length
-
-
-def from_summary(f: IO[bytes]) -> FileIndex | None:
-    """The index from MCAP's summary, or ``None`` when the file has none (not closed).
-
-    Raises ``_SummaryError`` when a summary is there but its CRC or its contents do not hold up.
-    """
-    size = file_size(f)
-    if size < 8 + 9 + _TAIL_SIZE:
-        return None
-    tail = read_at(f, size - _TAIL_SIZE, _TAIL_SIZE, size, what="footer")
-    if tail[-8:] != MAGIC:
-        return None  # no footer: the writer did not finish
-    opcode, length, start, _offsets, crc = _FOOTER.unpack_from(tail)
-    if opcode != _OP_FOOTER or length != 20:
-        raise _SummaryError(f"the footer at byte offset {size - _TAIL_SIZE} is damaged")
-    if start == 0:
-        return None
-    end = size - _TAIL_SIZE
-    if not 8 + 9 <= start <= end:
-        raise _SummaryError(f"the footer says the summary starts at byte offset {start}")
-    summary = read_at(f, start, end - start, size, what="summary")
-    computed = zlib.crc32(tail[: _FOOTER.size - 4], zlib.crc32(summary))
-    if crc == 0 or computed != crc:
-        raise _SummaryError(
-            f"the summary at byte offset {start} fails its CRC "
-            f"({crc:#010x} stored, {computed:#010x} computed)"
-        )
-    try:
-        return _parse_summary(f, summary, start, size)
-    except _SummaryError:
-        raise
-    except DecodeError as exc:
-        raise _SummaryError(str(exc)) from exc
-    except Exception as exc:
-        raise _SummaryError(f"the summary does not parse ({type(exc).__name__}: {exc})") from exc
-
-
-def _parse_summary(f: IO[bytes], summary: bytes, start: int, size: int) -> FileIndex:
-    from mcap.records import (
-        Channel,
-        ChunkIndex,
-        Header,
-        Metadata,
-        MetadataIndex,
-        Schema,
-        Statistics,
-    )
-
-    head = read_at(f, 8, 9, size, what="header")
-    if head[0] != _OP_HEADER:
-        raise _SummaryError("no header record at byte offset 8")
-    (hlen,) = struct.unpack_from("<Q", head, 1)
-    header = Header.read(_stream(read_at(f, 17, hlen, size, what="header")))
-    index = FileIndex(profile=header.profile, indexed=True, size=size)
-    schemas: dict[int, str] = {}
-    chunk_indexes: list[Any] = []
-    metadata_indexes: list[Any] = []
-    statistics: Any = None
-    for offset, opcode, content in _records(summary, start):
-        stream = _stream(content)
-        if opcode == _OP_SCHEMA:
-            schema = Schema.read(stream)
-            schemas[schema.id] = schema.name
-            index.schemas[schema.id] = (schema.name, schema.encoding, bytes(schema.data))
-        elif opcode == _OP_CHANNEL:
-            channel = Channel.read(stream)
-            index.channels[channel.id] = _channel_info(channel, schemas)
-            index.channel_schema[channel.id] = channel.schema_id
-        elif opcode == _OP_CHUNK_INDEX:
-            chunk_indexes.append(ChunkIndex.read(stream))
-        elif opcode == _OP_METADATA_INDEX:
-            metadata_indexes.append(MetadataIndex.read(stream))
-        elif opcode == _OP_STATISTICS:
-            statistics = Statistics.read(stream)
-        elif opcode not in (_OP_ATTACHMENT_INDEX, _OP_SUMMARY_OFFSET):
-            raise _SummaryError(f"unexpected record type {opcode:#04x} at byte offset {offset}")
-    for mi in metadata_indexes:
-        record = read_at(f, mi.offset, mi.length, size, what=f"metadata {mi.name!r}")
-        if mi.length < 9 or record[0] != _OP_METADATA:
-            raise _SummaryError(f"no metadata record at byte offset {mi.offset}")
-        meta = Metadata.read(_stream(record[9:]))
-        if meta.name != mi.name:
-            raise _SummaryError(
-                f"the metadata record at byte offset {mi.offset} is named {meta.name!r}, "
-                f"the summary says {mi.name!r}"
-            )
-        index.metadata[meta.name] = dict(meta.metadata)
-        index.metadata_offsets[meta.name] = mi.offset
-    counts: dict[int, int] = {}
-    previous_end = 8
-    for ci in sorted(chunk_indexes, key=lambda c: c.chunk_start_offset):
-        if ci.chunk_start_offset < previous_end or ci.chunk_start_offset + ci.chunk_length > start:
-            raise _SummaryError(
-                f"a chunk index points at bytes {ci.chunk_start_offset}-"
-                f"{ci.chunk_start_offset + ci.chunk_length}, outside the data section or "
-                "overlapping another chunk"
-            )
-        previous_end = ci.chunk_start_offset + ci.chunk_length
-        ids = list(ci.message_index_offsets)
-        if len(ids) == 1 and ci.message_start_time == ci.message_end_time and _single(ci):
-            index.add(ids[0], ci.message_start_time, ci.chunk_start_offset)
-            counts[ids[0]] = counts.get(ids[0], 0) + 1
-            continue
-        # A chunk with several messages: read them from the chunk itself.
-        for message in read_chunk_messages(f, ci.chunk_start_offset, what="index", size=size):
-            index.add(message.channel_id, message.log_time, ci.chunk_start_offset)
-            counts[message.channel_id] = counts.get(message.channel_id, 0) + 1
-    if statistics is None and index.channels:
-        # Without statistics nothing says whether every message is in an indexed chunk.
-        raise _SummaryError("it has no statistics record to check its chunk indexes against")
-    unknown = set(counts) - set(index.channels)
-    if unknown:
-        raise _SummaryError(f"chunks hold messages of channels {sorted(unknown)} it does not list")
-    if statistics is not None:
-        stated = {cid: n for cid, n in statistics.channel_message_counts.items() if n}
-        if (
-            stated != counts
-            or statistics.message_count != sum(counts.values())
-            or statistics.chunk_count != len(chunk_indexes)
-            or statistics.channel_count != len(index.channels)
-            or statistics.metadata_count != len(metadata_indexes)
-        ):
-            raise _SummaryError(
-                f"its statistics ({statistics.message_count} messages, per channel {stated}) "
-                f"disagree with its chunk indexes ({sum(counts.values())} messages, per "
-                f"channel {counts})"
-            )
-    return index
-
-
-def _single(ci: Any) -> bool:
-    """Whether a chunk holds exactly one message, judged by the size of its message index."""
-    # One message index record with one entry: opcode, length, channel id, count, 16 bytes.
-    return bool(ci.message_index_length == 1 + 8 + 2 + 4 + 16)
-
-
-def scan(f: IO[bytes], *, skip_damaged_chunks: bool = False) -> FileIndex:
-    """Read every record from the start of the file, checking every CRC on the way.
-
-    Stops at the end of the data section, at a record the file ends inside of
-    (``truncated_at``) or at a damaged record (``damaged_at`` and ``damage``). With
-    ``skip_damaged_chunks``, a chunk that fails its CRC is listed in ``damaged_chunks`` and
-    passed over instead (its messages are missing from the index).
-    """
-    from mcap.records import Channel, DataEnd, Header, Metadata, Schema
-
-    size = file_size(f)
-    if read_at(f, 0, min(8, size), size, what="start") != MAGIC:
-        raise DecodeError("not an MCAP file: it does not start with the MCAP magic bytes")
-    index = FileIndex(size=size)
-    schemas: dict[int, str] = {}
-    seen: set[tuple[int, int]] = set()
-    crc = zlib.crc32(MAGIC)
-    pos = 8
-    f.seek(pos)
-    while True:
-        head = f.read(9)
-        if len(head) < 9:
-            index.truncated_at = pos if head else None
-            break
-        opcode, length = head[0], struct.unpack_from("<Q", head, 1)[0]
-        if opcode not in _DATA_OPCODES:
-            index.damaged_at, index.damage = pos, f"unknown record type {opcode:#04x}"
-            break
-        if pos + 9 + length > size:
-            index.truncated_at = pos
-            break
-        content = f.read(length)
-        try:
-            if opcode == _OP_CHUNK:
-                try:
-                    messages, others = _chunk_messages(content, pos, "scan")
-                except DecodeError as exc:
-                    if not skip_damaged_chunks:
-                        raise
-                    index.damaged_chunks.append((pos, str(exc)))
-                    messages, others = [], []
-                # Channels and schemas may sit inside the chunk too.
-                for record in others:
-                    if isinstance(record, Schema):
-                        schemas[record.id] = record.name
-                        index.schemas[record.id] = (
-                            record.name,
-                            record.encoding,
-                            bytes(record.data),
-                        )
-                    elif isinstance(record, Channel):
-                        index.channels[record.id] = _channel_info(record, schemas)
-                        index.channel_schema[record.id] = record.schema_id
-                for message in messages:
-                    key = (message.channel_id, message.log_time)
-                    if key in seen:
-                        index.duplicates += 1
-                        continue
-                    seen.add(key)
-                    index.add(message.channel_id, message.log_time, pos)
-            elif opcode == _OP_MESSAGE:
-                index.loose_messages += 1  # no CRC of its own: such files are refused
-            elif opcode == _OP_DATA_END:
-                stored = DataEnd.read(_stream(content)).data_section_crc
-                index.data_crc = (stored, crc)
-                break
-            elif opcode == _OP_HEADER:
-                if pos != 8:
-                    raise DecodeError("a second header record")
-                index.profile = Header.read(_stream(content)).profile
-            elif opcode == _OP_SCHEMA:
-                schema = Schema.read(_stream(content))
-                schemas[schema.id] = schema.name
-                index.schemas[schema.id] = (schema.name, schema.encoding, bytes(schema.data))
-            elif opcode == _OP_CHANNEL:
-                channel = Channel.read(_stream(content))
-                index.channels[channel.id] = _channel_info(channel, schemas)
-                index.channel_schema[channel.id] = channel.schema_id
-            elif opcode == _OP_METADATA:
-                meta = Metadata.read(_stream(content))
-                index.metadata[meta.name] = dict(meta.metadata)
-                index.metadata_offsets[meta.name] = pos
-        except Exception as exc:
-            text = str(exc) if isinstance(exc, DecodeError) else f"{type(exc).__name__}: {exc}"
-            index.damaged_at, index.damage = pos, f"a damaged record ({text})"
-            break
-        crc = zlib.crc32(content, zlib.crc32(head, crc))
-        pos += 9 + length
     return index
 
 

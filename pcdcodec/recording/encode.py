@@ -11,6 +11,7 @@ from typing import Any
 
 from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import InputError
+from ._header import writer_camera
 
 __all__ = ["EncodeSummary", "encode"]
 
@@ -96,6 +97,7 @@ def encode(
             )
         source, owned = src, False
     else:
+        # The reader takes the camera and the depth scale given, and checks them.
         opts = dict(source_options)
         if intrinsics is not None:
             opts.setdefault("intrinsics", intrinsics)
@@ -103,8 +105,8 @@ def encode(
             opts.setdefault("depth_scale", depth_scale)
         source, owned = open_source(src, **opts), True
     try:
-        if intrinsics is not None:
-            source.intrinsics = _as_intrinsics(intrinsics)
+        if intrinsics is not None and not owned:
+            source.intrinsics = writer_camera(intrinsics)
         if depth_scale is not None:
             source.depth_scale = float(depth_scale)
         if source.intrinsics is None:
@@ -147,7 +149,8 @@ def encode(
                     color_intrinsics=source.color_intrinsics,
                     depth_to_color=source.depth_to_color,
                 ) as writer:
-                    count = writer.write_source(source, progress=progress)
+                    # Opened from the source: its camera is the recording's, checked once.
+                    count = writer._write_source(source, progress)
             if count == 0:
                 raise InputError(
                     f"{str(source.path)!r} gave no frames" + _why_empty(source.describe())
@@ -223,13 +226,3 @@ def _why_empty(info: dict[str, Any]) -> str:
             "color_topic='' in Python) or pass a larger max_difference= in nanoseconds"
         )
     return ""
-
-
-def _as_intrinsics(value: Any) -> Any:
-    from ..geometry.camera import CameraIntrinsics
-
-    if isinstance(value, CameraIntrinsics):
-        return value
-    if isinstance(value, dict):
-        return CameraIntrinsics.from_dict(value)
-    raise InputError(f"intrinsics must be a CameraIntrinsics or a dict, got {type(value).__name__}")

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from .._atomic import atomic_output
 from ..errors import DecodeError, InputError
+from . import _header as header
 from . import _index as fmt
 
 __all__ = ["join"]
@@ -23,9 +24,7 @@ _SAME = (fmt.TOPIC_COLOR, fmt.TOPIC_DEPTH, fmt.TOPIC_KEYFRAMES, fmt.TOPIC_CALIBR
 
 def _load(path: Path) -> fmt.FileIndex:
     with path.open("rb") as f:
-        if f.read(8) != fmt.MAGIC:
-            raise DecodeError(f"{str(path)!r} is not a pcdcodec recording (not an MCAP file)")
-        f.seek(0)
+        header.check_magic(f, path)
         try:
             index = fmt.from_summary(f)
         except Exception as exc:
@@ -34,7 +33,7 @@ def _load(path: Path) -> fmt.FileIndex:
         raise DecodeError(
             f"{str(path)!r} was not closed by its writer (no index); `pcdcodec recover` it first"
         )
-    if index.profile != fmt.PROFILE or fmt.METADATA_NAME not in index.metadata:
+    if not header.is_recording(index):
         raise DecodeError(f"{str(path)!r} is not a pcdcodec recording")
     fmt.check_metadata(index, repr(str(path)))
     problems = fmt.seal_problems(index, repr(str(path)))
@@ -92,8 +91,6 @@ def join(
     extradata, when their timestamps overlap, or when ``dst`` exists and ``overwrite`` is
     false; :class:`~pcdcodec.DecodeError` for a part that is damaged or not a recording.
     """
-    from mcap.writer import CompressionType, Writer
-
     paths = [Path(p) for p in parts]
     if not paths:
         raise InputError("join needs at least one recording")
@@ -119,25 +116,11 @@ def join(
     frames = 0
     with atomic_output(dst_path) as tmp:  # noqa: SIM117 - the file closes before the rename
         with tmp.open("wb") as out:
-            writer = Writer(
-                out, chunk_size=0, compression=CompressionType.NONE, enable_data_crcs=True
-            )
-            writer.start(profile=fmt.PROFILE, library=_library(paths[0]))
+            writer = header.start_mcap(out, header.library_of(paths[0]))
             for name, data in _settings(first).items():
                 writer.add_metadata(name, data)
-            schema_ids = {
-                sid: writer.register_schema(name, encoding, data)
-                for sid, (name, encoding, data) in first.schemas.items()
-            }
-            topic_ids = {
-                ch.topic: writer.register_channel(
-                    ch.topic,
-                    ch.encoding,
-                    schema_ids.get(first.channel_schema.get(cid, 0), 0),
-                    ch.metadata,
-                )
-                for cid, ch in first.channels.items()
-            }
+            ids = header.copy_channels(writer, first)
+            topic_ids = {ch.topic: ids[cid] for cid, ch in first.channels.items()}
             # Sequence numbers continue across parts: the color packets (and the keyframe
             # markers, which share their packet's number), the depth frames and the frame
             # digests count apart.
@@ -185,7 +168,7 @@ def join(
                 frames += len(index.times.get(fmt.TOPIC_DEPTH, []))
             if integrity:
                 writer.add_metadata(fmt.SEAL_NAME, fmt.seal(fmt.SEAL_NAME, sealer.seal()))
-            writer.finish()  # type: ignore[no-untyped-call]
+            writer.finish()
             out.flush()
             os.fsync(out.fileno())
     return frames
@@ -204,10 +187,3 @@ def _rejoin(data: bytes, check: fmt.Sealer, sealer: fmt.Sealer, path: Path, offs
             "digest there"
         )
     return fmt.DIGEST_RECORD.pack(*sealer.group(), depth, pose)
-
-
-def _library(path: Path) -> str:
-    from mcap.reader import make_reader
-
-    with path.open("rb") as f:
-        return str(make_reader(f).get_header().library)

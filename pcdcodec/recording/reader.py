@@ -2,50 +2,33 @@
 
 from __future__ import annotations
 
-import base64
 import bisect
-import json
 import os
 import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ..color.base import Packet, StreamCodec, VideoDecoder
+from ..color.base import StreamCodec, VideoDecoder
 from ..depth.base import FrameCodec, read_header
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
 from ..frame import Frame
 from ..geometry.camera import CameraIntrinsics
 from ..geometry.projector import Projector
-from ..geometry.transform import as_rigid, quaternion_to_matrix
 from ..registry import codec_for_reading
-from ..ros.foxglove import CameraCalibration, CompressedVideo, FrameTransform
+from . import _header as header
 from . import _index as fmt
+from ._packets import PacketAccess
+from .verify import VerifyReport, index_problems, structure_problems
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
 
 
-@dataclass
-@dataclass
-class VerifyReport:
-    """What :meth:`Recording.verify` found: per-frame problems, empty when all is well."""
-
-    frames: int
-    errors: list[str]
-    indexed: bool
-    truncated_at: int | None
-
-    @property
-    def ok(self) -> bool:
-        return not self.errors
-
-
-class Recording:
+class Recording(PacketAccess):
     """A ``.pcdc`` recording opened for reading. Use :func:`pcdcodec.open`.
 
     ``len(rec)``, ``rec[i]``, ``rec[a:b]`` (a list), iteration, ``rec.nearest(t)`` and
@@ -83,10 +66,7 @@ class Recording:
 
     def _load(self) -> None:
         name = str(self.path)
-        head = self._file.read(8)
-        if head != fmt.MAGIC:
-            raise DecodeError(f"{name!r} is not a pcdcodec recording (not an MCAP file)")
-        self._file.seek(0)
+        header.check_magic(self._file, name)
         try:
             index = fmt.load(self._file)
         except DecodeError as exc:
@@ -109,7 +89,7 @@ class Recording:
                 "as its writer makes them"
             )
         meta = index.metadata.get(fmt.METADATA_NAME)
-        if index.profile != fmt.PROFILE or meta is None:
+        if not header.is_recording(index) or meta is None:
             raise DecodeError(
                 f"{name!r} is an MCAP file but not a pcdcodec recording "
                 f"(profile {index.profile!r}, no {fmt.METADATA_NAME!r} metadata)"
@@ -130,50 +110,17 @@ class Recording:
         where = f"{name!r}: the {fmt.METADATA_NAME!r} metadata at byte offset " + str(
             index.metadata_offsets.get(fmt.METADATA_NAME)
         )
-        try:
-            version = int(meta["format_version"])
-            if version < 1:
-                raise ValueError(f"format_version {version} is not a version")
-        except (KeyError, ValueError):
-            raise DecodeError(f"{where} has no valid format_version") from None
-        if version > fmt.FORMAT_VERSION:
-            raise DecodeError(
-                f"{name!r} is format version {version}, newer than this pcdcodec reads "
-                f"(version {fmt.FORMAT_VERSION}); upgrade pcdcodec to read it"
-            )
-        self.format_version = version
+        settings = header.Settings.parse(meta, name, where)
+        self.format_version = settings.format_version
         #: The color camera when it is apart from the depth camera (format version 2), else None.
-        self.color_intrinsics: CameraIntrinsics | None = None
+        self.color_intrinsics: CameraIntrinsics | None = settings.color_intrinsics
         #: The rigid 4 × 4 transform from the depth to the color camera frame, or None.
-        self.depth_to_color: npt.NDArray[np.float64] | None = None
-        if meta.get("color_intrinsics"):
-            try:
-                self.color_intrinsics = CameraIntrinsics.from_dict(
-                    json.loads(meta["color_intrinsics"])
-                )
-                self.depth_to_color = as_rigid(json.loads(meta["depth_to_color"]), "depth_to_color")
-            except (KeyError, ValueError) as exc:
-                raise DecodeError(f"{name!r} has a damaged color camera record: {exc}") from None
-        try:
-            self.intrinsics = CameraIntrinsics.from_dict(json.loads(meta["intrinsics"]))
-            self.depth_scale = float(meta["depth_scale"])
-            self.fps = float(meta.get("fps", "30"))
-            if not (np.isfinite(self.depth_scale) and self.depth_scale > 0):
-                raise ValueError(f"depth_scale {self.depth_scale} is not positive and finite")
-            if not (np.isfinite(self.fps) and self.fps > 0):
-                raise ValueError(f"fps {self.fps} is not positive and finite")
-            depth_config = json.loads(meta["depth_codec"])
-            color_config = json.loads(meta["color_codec"]) if meta.get("color_codec") else None
-        except Exception as exc:
-            raise DecodeError(
-                f"{where} is not valid ({type(exc).__name__}: {exc}); expected the intrinsics, "
-                "depth_scale, fps and codec configs a pcdcodec writer stores"
-            ) from exc
-        self.metadata: dict[str, str] = {
-            k: v
-            for k, v in index.metadata.get(fmt.USER_METADATA_NAME, {}).items()
-            if k != fmt.DIGEST_KEY
-        }
+        self.depth_to_color: npt.NDArray[np.float64] | None = settings.depth_to_color
+        self.intrinsics = settings.intrinsics
+        self.depth_scale = settings.depth_scale
+        self.fps = settings.fps
+        depth_config, color_config = settings.depth_codec, settings.color_codec
+        self.metadata: dict[str, str] = header.read_user_metadata(index)
         try:
             depth_codec = codec_for_reading(depth_config, kind="depth", threads=self.threads)
             color_codec = (
@@ -191,10 +138,13 @@ class Recording:
             raise DecodeError(
                 f"{where} names codecs that cannot be made ({type(exc).__name__}: {exc})"
             ) from exc
-        self._check_channels(name, depth_config, color_config)
+        header.check_channels(index, name, settings)
         if fmt.DIGEST_KEY not in meta:
             # Written before digests: the CRC-checked calibration message vouches for the camera.
-            wrong = self._check_calibration(index, readable_only=True)
+            with self._lock:
+                wrong = header.calibration_problems(
+                    self._file, index, self.intrinsics, readable_only=True
+                )
             if wrong:
                 raise DecodeError(f"{name!r}: {wrong[0]}")
         if not isinstance(depth_codec, FrameCodec):
@@ -238,8 +188,7 @@ class Recording:
             self._keyframes = [i for i, t in enumerate(c_pts.tolist()) if t in keyset]
             self._keyframe_set = set(self._keyframes)
             channel = index.channel(fmt.TOPIC_COLOR)
-            if channel is not None and channel.metadata.get("extradata"):
-                self._extradata = base64.b64decode(channel.metadata["extradata"])
+            self._extradata = header.extradata_of(index)
             self._is_cdr = channel is not None and channel.encoding == "cdr"
             self._packet_group = np.searchsorted(
                 self._digest_offsets, np.asarray(c_offsets, np.int64), side="right"
@@ -284,42 +233,6 @@ class Recording:
         self._next_packet = 0
         self._decoded: dict[int, npt.NDArray[np.uint8]] = {}
         self._projector: Projector | None = None
-
-    def _check_channels(
-        self, name: str, depth_config: Any, color_config: dict[str, Any] | None
-    ) -> None:
-        """The channels (inside CRC-checked chunks) must agree with the recording's metadata."""
-        cam = self.intrinsics
-        expected = {
-            fmt.TOPIC_DEPTH: {
-                "width": cam.width,
-                "height": cam.height,
-                "codec": depth_config,
-                "depth_scale": self.depth_scale,
-            },
-            fmt.TOPIC_COLOR: {
-                "width": self.color_shape[1],
-                "height": self.color_shape[0],
-                "codec": color_config,
-            },
-        }
-        for topic, want in expected.items():
-            channel = self.index.channel(topic)
-            if channel is None:
-                continue
-            for key, value in want.items():
-                if key not in channel.metadata:
-                    continue
-                text = channel.metadata[key]
-                try:
-                    got: Any = json.loads(text) if key == "codec" else float(text)
-                except ValueError:
-                    got = text
-                if got != value:
-                    raise DecodeError(
-                        f"{name!r}: channel {topic!r} says {key} is {text}, but the recording's "
-                        f"metadata says {value!r}"
-                    )
 
     # -- description ---------------------------------------------------------------------
 
@@ -409,16 +322,7 @@ class Recording:
             channel = self.index.channel(fmt.TOPIC_POSE_MATRIX)
             for m in messages:
                 if channel is not None and m.channel_id == channel.id and m.log_time == ts:
-                    if len(m.data) != 128:
-                        raise DecodeError(
-                            f"frame {i}: pose matrix at byte offset {exact} has {len(m.data)} "
-                            "bytes, expected 128 (16 float64)"
-                        )
-                    matrix = np.frombuffer(m.data, dtype="<f8").reshape(4, 4).astype(np.float64)
-                    try:
-                        return as_rigid(matrix, f"frame {i} pose")
-                    except PcdcodecError as exc:
-                        raise DecodeError(str(exc)) from None
+                    return header.parse_pose_matrix(m.data, i, exact)
         offset = self._pose_at.get(ts)
         if offset is None:
             return None
@@ -427,11 +331,7 @@ class Recording:
         channel = self.index.channel(fmt.TOPIC_POSE)
         for m in messages:
             if channel is not None and m.channel_id == channel.id and m.log_time == ts:
-                msg = FrameTransform.decode(m.data)
-                pose = np.eye(4)
-                pose[:3, :3] = quaternion_to_matrix(msg.rotation)
-                pose[:3, 3] = msg.translation
-                return pose
+                return header.transform_matrix(m.data)
         raise DecodeError(f"frame {i}: no pose message at byte offset {offset}")
 
     def poses(self) -> list[npt.NDArray[np.float64] | None]:
@@ -452,11 +352,10 @@ class Recording:
             f"{self.intrinsics.width}x{self.intrinsics.height}, codecs {self.codecs}>"
         )
 
-    # -- frames ----------------------------------------------------------------------------
-
-    # -- packet level: the encoded streams, as written (the counterpart of write_encoded) -----
+    # -- depth alone ---------------------------------------------------------------------
 
     def _index_of(self, i: int) -> int:
+        """Frame ``i`` as an index from 0, checked (once per call from outside)."""
         n = len(self)
         if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
             raise InputTypeError(f"frame index must be an int, got {type(i).__name__}")
@@ -468,7 +367,9 @@ class Recording:
         """The encoded depth of frame ``i``, exactly as its depth codec wrote it (see
         :func:`pcdcodec.decode_depth`). Raises :class:`~pcdcodec.DecodeError` when the file
         there is damaged."""
-        i = self._index_of(i)
+        return self._depth_bytes(self._index_of(i))
+
+    def _depth_bytes(self, i: int) -> bytes:
         offset = int(self._offsets[i])
         ts = int(self._times[i])
         what = f"{str(self.path)!r}: frame {i} (t={ts} ns): depth at byte offset {offset}"
@@ -491,8 +392,10 @@ class Recording:
 
     def depth(self, i: int) -> npt.NDArray[Any]:
         """The depth image of frame ``i`` alone, without decoding its color."""
-        i = self._index_of(i)
-        data = self.depth_bytes(i)
+        return self._depth(self._index_of(i))
+
+    def _depth(self, i: int) -> npt.NDArray[Any]:
+        data = self._depth_bytes(i)
         what = (
             f"{str(self.path)!r}: frame {i} (t={int(self._times[i])} ns): depth at byte offset "
             f"{int(self._offsets[i])}"
@@ -522,155 +425,7 @@ class Recording:
         except DecodeError as exc:
             raise DecodeError(f"{what}: {exc}") from exc
 
-    @property
-    def extradata(self) -> bytes | None:
-        """The color decoder's set-up bytes (FFV1, HuffYUV), or ``None``."""
-        return self._extradata
-
-    @property
-    def packet_timestamps(self) -> npt.NDArray[np.int64]:
-        """The pts (ns) of every color packet, in decode (file) order; empty without color."""
-        if self.color_codec is None:
-            return np.zeros(0, np.int64)
-        out: npt.NDArray[np.int64] = np.asarray(self._packet_pts, np.int64).copy()
-        return out
-
-    @property
-    def keyframes(self) -> list[int]:
-        """Indices (into :attr:`packet_timestamps`) of the color packets decoding can start at."""
-        return list(self._keyframes)
-
-    def packet(self, j: int) -> Packet:
-        """Color packet ``j`` in decode order, as written (``checksum`` is ``None``)."""
-        n = len(self.packet_timestamps)
-        if isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 0 <= j < n:
-            raise IndexError(f"packet index {j!r} is out of range for {n} packets")
-        j = int(j)
-        with self._lock:
-            self._check_packets(j, j, f"{str(self.path)!r}: color packet {j}")
-        return self._packet(j)
-
-    def packets(self, start: int = 0) -> Iterator[Packet]:
-        """The color packets from ``start`` on, in decode order, each read once: with
-        :attr:`extradata`, what a decoder (or a muxer) needs to play the color stream."""
-        for j in range(start, len(self.packet_timestamps)):
-            with self._lock:
-                self._check_packets(j, j, f"{str(self.path)!r}: color packet {j}")
-            yield self._packet(j)
-
-    def _packet(self, j: int) -> Packet:
-        m = self._packet_message(j)
-        data = CompressedVideo.decode(m.data).data if self._is_cdr else m.data
-        keyframe = j in self._keyframe_set
-        return Packet(data, int(m.log_time), int(m.publish_time), keyframe)
-
-    def _packet_message(self, j: int) -> Any:
-        """The MCAP message of color packet ``j``, as stored."""
-        cached = self._packet_cache.pop(j, None)
-        if cached is not None:
-            return cached
-        offset = int(self._packet_offsets[j])
-        pts = int(self._packet_pts[j])
-        what = f"{str(self.path)!r}: color packet {j} (pts {pts}) at byte offset {offset}"
-        with self._lock:
-            messages = fmt.read_chunk_messages(
-                self._file, offset, what=what, size=self.index.size or None
-            )
-        channel = self.index.channel(fmt.TOPIC_COLOR)
-        for m in messages:
-            if channel is not None and m.channel_id == channel.id and m.log_time == pts:
-                return m
-        raise DecodeError(f"{what}: no color message with that time in the chunk there")
-
-    def _check_packets(self, first: int, last: int, what: str) -> None:
-        """Check the digests of the groups holding color packets ``first`` … ``last``.
-
-        Files without color digests (written before them) are not checked. Raises
-        :class:`DecodeError` starting with ``what`` when a group's packets (their data, times,
-        keyframe flags, number or order) differ from its digest.
-        """
-        if not self.integrity or last < first:
-            return
-        groups = self._packet_group
-        for g in range(int(groups[first]), int(groups[last]) + 1):
-            if g in self._groups_checked:
-                continue
-            try:
-                problem = self._group_problem(g)
-            except DecodeError as exc:
-                raise DecodeError(f"{what}: {exc}") from exc
-            if problem:
-                raise DecodeError(f"{what}: {problem}")
-            self._groups_checked.add(g)
-
-    def _record(self, g: int) -> tuple[int, bytes, bytes, bytes]:
-        """Frame digest message ``g`` (in file order): packets, color, depth and pose digests."""
-        if g in self._records:
-            return self._records[g]
-        offset, ts = int(self._digest_offsets[g]), int(self._digest_times[g])
-        where = f"{str(self.path)!r}: the frame digest at byte offset {offset}"
-        with self._lock:
-            messages = fmt.read_chunk_messages(
-                self._file, offset, what=where, size=self.index.size or None
-            )
-        channel = self.index.channel(fmt.TOPIC_FRAME_DIGEST)
-        data = next(
-            (
-                bytes(m.data)
-                for m in messages
-                if channel is not None and m.channel_id == channel.id and m.log_time == ts
-            ),
-            None,
-        )
-        if data is None or len(data) != fmt.DIGEST_RECORD.size:
-            raise DecodeError(f"{where}: no frame digest message of {fmt.DIGEST_RECORD.size} bytes")
-        record: tuple[int, bytes, bytes, bytes] = fmt.DIGEST_RECORD.unpack(data)
-        self._records[g] = record
-        return record
-
-    def _frame_record(self, i: int, what: str) -> tuple[int, bytes, bytes, bytes] | None:
-        """The digest message of frame ``i``; ``None`` in files written without them."""
-        if not self.integrity:
-            return None
-        g = self._digest_of_time.get(int(self._times[i]))
-        if g is None:
-            raise DecodeError(f"{what}: the frame has no digest message")
-        return self._record(g)
-
-    def _group_problem(self, g: int) -> str:
-        """Why the color packets of digest group ``g`` differ from their digest, or ``""``."""
-        lo, hi = np.searchsorted(self._packet_group, [g, g + 1], side="left").tolist()
-        sealer = fmt.Sealer()
-        for j in range(lo, hi):
-            m = self._packet_message(j)
-            sealer.packet(int(m.log_time), int(m.publish_time), j in self._keyframe_set, m.data)
-            if len(self._packet_cache) < 64:  # decoding usually reads them next: once is enough
-                self._packet_cache[j] = m
-        count, digest = sealer.group()
-        if g < len(self._digest_offsets):
-            where = f"the frame digest at byte offset {int(self._digest_offsets[g])}"
-            want_count, want, _, _ = self._record(g)
-        elif self._seal is not None:
-            where = f"the seal's digest of the last {hi - lo} color packet(s)"
-            try:
-                want_count = int(self._seal.get("tail_packets", ""))
-                want = bytes.fromhex(self._seal.get("tail_digest", "").removeprefix("sha256:"))
-            except ValueError:
-                return "the seal's tail_packets/tail_digest are not a count and a digest"
-        else:
-            return f"the last {hi - lo} color packet(s) have no digest (the writer stopped first)"
-        if (count, digest) != (want_count, want):
-            found = (
-                f"the {count} color packet(s) from byte offset {int(self._packet_offsets[lo])}"
-                if hi > lo
-                else "no color packet"
-            )
-            return (
-                f"{found} do not match {where} "
-                f"({want_count} packet(s)): the color packets were changed, reordered, added or "
-                "removed"
-            )
-        return ""
+    # -- frames ----------------------------------------------------------------------------
 
     def _color(self, i: int) -> npt.NDArray[np.uint8] | None:
         if self.color_codec is None:
@@ -719,12 +474,7 @@ class Recording:
 
     def frame(self, i: int) -> Frame:
         """Frame ``i`` (negative counts from the end)."""
-        n = len(self)
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
-            raise InputTypeError(f"frame index must be an int, got {type(i).__name__}")
-        if not -n <= i < n:
-            raise IndexError(f"frame index {i} is out of range for {n} frames")
-        i = int(i) % n
+        i = self._index_of(i)
         try:
             color = self._color(i)
             ch, cw = self.color_shape
@@ -735,7 +485,7 @@ class Recording:
                 )
             return Frame(
                 color,
-                self.depth(i),
+                self._depth(i),
                 int(self._times[i]),
                 index=i,
                 pose=self._pose(i),
@@ -796,14 +546,17 @@ class Recording:
         """
         errors: list[str] = []
         index = self.index
-        if index.truncated_at is not None:
-            errors.append(f"the file is cut short: records end at byte offset {index.truncated_at}")
-        if index.summary_problem:
-            errors.append(
-                f"the summary (index) is unusable: {index.summary_problem}; the frames were "
-                "found by reading the whole file"
+        errors.extend(index_problems(index))
+        with self._lock:
+            errors.extend(
+                structure_problems(
+                    self._file,
+                    index,
+                    integrity=self.integrity,
+                    has_color=self.color_codec is not None,
+                    intrinsics=self.intrinsics,
+                )
             )
-        errors.extend(self._check_structure())
         if self.integrity and self.color_codec is not None:
             # Every group, also those no frame's color comes from (the end of the stream).
             groups = len(self._digest_offsets) + (self._seal is not None)
@@ -823,119 +576,6 @@ class Recording:
                 with self._lock:
                     self._decoder = None
         return VerifyReport(len(self), errors, index.indexed, index.truncated_at)
-
-    def _check_structure(self) -> list[str]:
-        """Problems found by reading every record, compared with the index the frames use."""
-        index = self.index
-        try:
-            with self._lock:
-                scanned = fmt.scan(self._file, skip_damaged_chunks=True)
-        except PcdcodecError as exc:
-            return [f"reading the whole file failed: {exc}"]
-        errors: list[str] = []
-        # Damaged chunks of frames are reported when those frames are decoded.
-        used = {
-            o for topic in (fmt.TOPIC_DEPTH, fmt.TOPIC_COLOR) for o in index.offsets.get(topic, [])
-        }
-        skipped = {offset for offset, _ in scanned.damaged_chunks}
-        errors.extend(text for offset, text in scanned.damaged_chunks if offset not in used)
-        if scanned.damaged_at is not None:
-            errors.append(f"damaged record at byte offset {scanned.damaged_at}: {scanned.damage}")
-        if scanned.duplicates:
-            errors.append(f"{scanned.duplicates} message(s) are stored twice")
-        crc = scanned.data_crc
-        if crc is not None and crc[0] not in (0, crc[1]) and not scanned.damaged_chunks:
-            stored, computed = crc
-            errors.append(
-                f"the data section fails its CRC ({stored:#010x} stored, {computed:#010x} "
-                "computed): bytes outside the chunks were changed"
-            )
-        if index.indexed and scanned.data_crc is None and scanned.damaged_at is None:
-            errors.append("the data section has no end record, although the file has a summary")
-        if index.indexed:
-            if scanned.metadata != index.metadata:
-                errors.append("the metadata records differ from those the summary points to")
-            for topic in sorted(set(index.times) | set(scanned.times)):
-                listed = [
-                    (t, o)
-                    for t, o in zip(
-                        index.times.get(topic, []), index.offsets.get(topic, []), strict=True
-                    )
-                    if o not in skipped
-                ]
-                if listed != list(
-                    zip(scanned.times.get(topic, []), scanned.offsets.get(topic, []), strict=True)
-                ):
-                    errors.append(
-                        f"channel {topic!r}: the index lists {len(index.times.get(topic, []))} "
-                        f"messages, the file holds {len(scanned.times.get(topic, []))} (or at "
-                        "other times or offsets)"
-                    )
-            described = {
-                (c.topic, c.encoding, tuple(sorted(c.metadata.items())))
-                for c in index.channels.values()
-            }
-            found = {
-                (c.topic, c.encoding, tuple(sorted(c.metadata.items())))
-                for c in scanned.channels.values()
-            }
-            if described != found:
-                errors.append("the channels in the summary differ from those in the chunks")
-        depth = np.asarray(sorted(scanned.times.get(fmt.TOPIC_DEPTH, [])), dtype=np.int64)
-        if np.any(np.diff(depth) <= 0):
-            errors.append("depth messages share timestamps")
-        if self.integrity and not scanned.damaged_chunks:  # (those are reported already)
-            try:
-                problems = fmt.seal_problems(scanned, "reading the whole file")
-            except PcdcodecError as exc:
-                problems = [str(exc)]
-            errors.extend(f"the file does not hold what was sealed: {p}" for p in problems)
-        if self.color_codec is not None:
-            pts = set(scanned.times.get(fmt.TOPIC_COLOR, []))
-            orphans = [int(t) for t in depth.tolist() if t not in pts]
-            # At the end of an unfinished file they were in flight; a closed file has none.
-            if orphans and (index.indexed or orphans != depth.tolist()[-len(orphans) :]):
-                errors.append(
-                    f"{len(orphans)} depth message(s) have no color packet, the first at "
-                    f"t={orphans[0]} ns"
-                )
-        errors.extend(self._check_calibration(scanned))
-        return errors
-
-    def _check_calibration(self, index: fmt.FileIndex, *, readable_only: bool = False) -> list[str]:
-        """The calibration message (inside a CRC-checked chunk) must match the intrinsics.
-
-        With ``readable_only``, a message that cannot be read is no problem (only one that
-        disagrees is).
-        """
-        offsets = index.offsets.get(fmt.TOPIC_CALIBRATION, [])
-        channel = index.channel(fmt.TOPIC_CALIBRATION)
-        if not offsets or channel is None:
-            return []
-        try:
-            with self._lock:
-                messages = fmt.read_chunk_messages(self._file, offsets[0], what="calibration")
-            data = next(m.data for m in messages if m.channel_id == channel.id)
-            cal = CameraCalibration.decode(data)
-        except PcdcodecError as exc:
-            return [] if readable_only else [str(exc)]
-        except Exception as exc:
-            return (
-                []
-                if readable_only
-                else [
-                    f"the calibration message at byte offset {offsets[0]} does not parse "
-                    f"({type(exc).__name__}: {exc})"
-                ]
-            )
-        cam = self.intrinsics
-        k = [cam.fx, 0.0, cam.cx, 0.0, cam.fy, cam.cy, 0.0, 0.0, 1.0]
-        if (cal.width, cal.height) != (cam.width, cam.height) or not np.allclose(cal.k, k):
-            return [
-                f"the calibration message at byte offset {offsets[0]} ({cal.width}x{cal.height}, "
-                f"K={list(cal.k)}) disagrees with the recording's intrinsics {cam}"
-            ]
-        return []
 
     def close(self) -> None:
         self._file.close()

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import IO, Any
+from typing import IO
 
 from ..errors import DecodeError, InputError, PcdcodecError
+from . import _header as header
 from . import _index as fmt
 
 __all__ = ["recover"]
@@ -23,8 +24,6 @@ def recover(
     ``src`` is not a pcdcodec recording and :class:`~pcdcodec.InputError` when ``dst`` exists
     and ``overwrite`` is false, or is the same file as ``src``.
     """
-    from mcap.writer import CompressionType, Writer
-
     from .._atomic import atomic_output, partial_path  # not loaded by `import pcdcodec`
     from .reader import Recording
 
@@ -39,7 +38,7 @@ def recover(
     try:
         with atomic_output(dst_path) as tmp:
             with src_path.open("rb") as f:
-                _copy(f, tmp, src_path, Writer, CompressionType)
+                _copy(f, tmp, src_path)
             with Recording(tmp) as rec:
                 count = len(rec)
     except PcdcodecError as exc:
@@ -57,17 +56,16 @@ def recover(
     return count
 
 
-def _copy(f: IO[bytes], tmp: Path, src_path: Path, writer_class: Any, compression: Any) -> None:
+def _copy(f: IO[bytes], tmp: Path, src_path: Path) -> None:
     """Write every complete message of the open source ``f`` into ``tmp``, with a summary."""
-    if f.read(8) != fmt.MAGIC:
-        raise DecodeError(f"{str(src_path)!r} is not a pcdcodec recording (not an MCAP file)")
+    header.check_magic(f, src_path)
     try:
         index = fmt.scan(f)
     except DecodeError:
         raise
     except Exception as exc:
         raise DecodeError(f"could not be read ({type(exc).__name__}: {exc})") from exc
-    if index.profile != fmt.PROFILE or fmt.METADATA_NAME not in index.metadata:
+    if not header.is_recording(index):
         raise DecodeError(f"{str(src_path)!r} is not a pcdcodec recording")
     if index.loose_messages:
         raise DecodeError(
@@ -82,22 +80,10 @@ def _copy(f: IO[bytes], tmp: Path, src_path: Path, writer_class: Any, compressio
         offsets = offsets[: _complete(f, index, offsets)]
         in_flight = _in_flight(index, set(offsets))
     with tmp.open("wb") as out:
-        writer = writer_class(
-            out, chunk_size=0, compression=compression.NONE, enable_data_crcs=True
-        )
-        writer.start(profile=fmt.PROFILE, library="pcdcodec recover")
+        writer = header.start_mcap(out, "pcdcodec recover")
         for name, data in index.metadata.items():
             writer.add_metadata(name, data)
-        schema_ids = {
-            sid: writer.register_schema(name, encoding, data)
-            for sid, (name, encoding, data) in index.schemas.items()
-        }
-        channel_ids = {
-            cid: writer.register_channel(
-                ch.topic, ch.encoding, schema_ids.get(_schema_of(index, cid), 0), ch.metadata
-            )
-            for cid, ch in index.channels.items()
-        }
+        channel_ids = header.copy_channels(writer, index)
         seen: set[tuple[int, int]] = set()
         sealer = fmt.Sealer()
         keyframes = set(index.times.get(fmt.TOPIC_KEYFRAMES, []))
@@ -192,7 +178,3 @@ def _complete(f: IO[bytes], index: fmt.FileIndex, offsets: list[int]) -> int:
     ):
         return len(offsets)
     return kept
-
-
-def _schema_of(index: fmt.FileIndex, channel_id: int) -> int:
-    return index.channel_schema.get(channel_id, 0)

@@ -7,7 +7,8 @@ implement it, and the recording writer consumes it through one path
 (:meth:`pcdcodec.RecordingWriter.write_source`).
 
 :func:`open_source` picks the reader from the content of the path (magic bytes, folder
-layout), never from its name. Readers register themselves with :func:`register_source`.
+layout), never from its name. Readers register themselves with :func:`register_source`; this
+module imports none of them (:mod:`pcdcodec.sources` loads the built-in ones on first use).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 from ..errors import InputError, PcdcodecError
 
 if TYPE_CHECKING:
-    from ..datasets import RGBDFrame
+    from ..frame import Frame
     from ..geometry.camera import CameraIntrinsics
 
 __all__ = [
@@ -117,10 +118,10 @@ class Source(abc.ABC):
                 setattr(cls, name, _naming(method, name))
 
     @abc.abstractmethod
-    def __iter__(self) -> Iterator[RGBDFrame]:
+    def __iter__(self) -> Iterator[Frame]:
         """The frames, in time order."""
 
-    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[RGBDFrame]:
+    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[Frame]:
         """Frames ``start`` to ``stop`` (exclusive), in time order.
 
         This reads and drops the frames before ``start``; sources that can seek override it, so
@@ -139,7 +140,7 @@ class Source(abc.ABC):
         """
         return None
 
-    def frames_at(self, index: FrameIndex) -> Iterator[RGBDFrame]:
+    def frames_at(self, index: FrameIndex) -> Iterator[Frame]:
         """The frames an :meth:`frame_index` slice lists, read without reading those before.
 
         The frames are those that iterating the whole source yields at those positions, with the
@@ -348,20 +349,12 @@ class CameraDefaults:
 
 
 def given_intrinsics(value: Any, width: int | None, height: int | None) -> CameraIntrinsics:
-    """A reader's ``intrinsics`` option as a camera: a :class:`~pcdcodec.CameraIntrinsics`, a
-    dict of its :meth:`~pcdcodec.CameraIntrinsics.to_dict` keys, or an intrinsics file (see
-    :func:`~pcdcodec.geometry.camera.read_intrinsics`), whose bare 3 x 3 matrix takes the depth
-    images' ``width`` x ``height`` (pixels), as a folder's does.
+    """A reader's ``intrinsics`` option as a camera (see
+    :func:`~pcdcodec.geometry.camera.as_intrinsics`); an intrinsics file's bare 3 x 3 matrix takes
+    the depth images' ``width`` x ``height`` (pixels), as a folder's does."""
+    from ..geometry.camera import as_intrinsics
 
-    Raises :class:`~pcdcodec.InputError` for a file that cannot be read or a bad dict.
-    """
-    from ..geometry.camera import CameraIntrinsics, read_intrinsics
-
-    if isinstance(value, CameraIntrinsics):
-        return value
-    if isinstance(value, (str, os.PathLike)):
-        return read_intrinsics(value, width, height)
-    return CameraIntrinsics.from_dict(value)
+    return as_intrinsics(value, "intrinsics", width, height)
 
 
 def _camera_text(camera: CameraIntrinsics) -> str:
@@ -460,17 +453,12 @@ def open_source(
     )
 
 
-_loaded = False
+#: Loaders of readers that register themselves when imported, run before the registry is first
+#: consulted. :mod:`pcdcodec.sources` adds the built-in readers' here, so that importing the
+#: package loads none of them and this module imports no reader.
+_LOADERS: list[Callable[[], None]] = []
 
 
 def _load_builtin() -> None:
-    global _loaded
-    if _loaded:
-        return
-    _loaded = True
-    from . import (  # noqa: F401 - each registers itself
-        azure_kinect,
-        folder,
-        realsense,
-        rosbag,
-    )
+    while _LOADERS:
+        _LOADERS.pop(0)()  # taken off first: a reader's probe may consult the registry

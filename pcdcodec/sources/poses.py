@@ -19,19 +19,13 @@ import numpy.typing as npt
 
 from ..errors import InputError
 from ..geometry.transform import as_rigid, interpolate_poses, rigid_from_quaternion
+from ._folder_layouts import seconds_to_ns
 
 __all__ = ["MAX_GAP_NS", "folder_poses", "read_tum_trajectory"]
 
 #: The longest gap between two trajectory samples that is interpolated across (0.1 s).
 MAX_GAP_NS = 100_000_000
-_NS = 1_000_000_000
-
 Pose = npt.NDArray[np.float64]
-
-
-def _seconds_to_ns(text: str) -> int:
-    whole, _, frac = text.partition(".")
-    return int(whole) * _NS + int((frac + "000000000")[:9])
 
 
 def read_tum_trajectory(path: Path) -> tuple[list[int], list[Pose]]:
@@ -50,7 +44,7 @@ def read_tum_trajectory(path: Path) -> tuple[list[int], list[Pose]]:
                 f"{path}:{lineno}: expected 'timestamp tx ty tz qx qy qz qw', got {line!r}"
             )
         try:
-            t = _seconds_to_ns(parts[0])
+            t = seconds_to_ns(parts[0])
             values = [float(v) for v in parts[1:]]
             poses.append(rigid_from_quaternion(values[:3], values[3:]))
         except (ValueError, InputError) as exc:
@@ -64,7 +58,7 @@ def read_tum_trajectory(path: Path) -> tuple[list[int], list[Pose]]:
 
 def _depth_time(path: Path, fallback: int) -> int:
     try:
-        return _seconds_to_ns(path.name.rsplit(".", 1)[0])
+        return seconds_to_ns(path.name.rsplit(".", 1)[0])
     except ValueError:
         return fallback
 

@@ -1,20 +1,44 @@
-"""The sequences the repository's benchmarks run on: the bundled sample, and the real
-sequences in ``../shared/data`` when they are present (each benchmark skips those absent)."""
+"""The sequences the repository's tests and benchmarks run on: the bundled sample, and the real
+sequences in ``../shared/data`` beside the checkout when they are present.
+
+Each sequence says where it lives, how its files are named and its camera; the loaders read
+frames spread over a sequence (cached), and skip the calling test or benchmark when its data is
+absent. Tests, benchmarks and scripts all import this one module, so they read the same frames.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
-import pytest
 
-import pcdcodec
+from ..datasets import sample_dir
+from ..geometry.camera import CameraIntrinsics
+from .sparse import sparsify_depth
 
-REPO = Path(__file__).resolve().parents[1]
+__all__ = [
+    "DEPTH_SETS",
+    "PRESENT",
+    "REPO",
+    "SAMPLE",
+    "SEQUENCES",
+    "SHARED_DATA",
+    "SPOT_BAG",
+    "SPOT_TOPIC",
+    "Sequence",
+    "load_colors",
+    "load_depths",
+    "load_frames",
+    "load_spot_depth",
+    "read_image",
+]
+
+#: The checkout pcdcodec is imported from; the shared data sits beside it.
+REPO = Path(__file__).resolve().parents[2]
 SHARED_DATA = REPO.parent / "shared" / "data"
-SAMPLE = REPO / "pcdcodec" / "data" / "tum_fr1_rpy"
+SAMPLE = sample_dir()
 
 
 @dataclass(frozen=True)
@@ -25,7 +49,7 @@ class Sequence:
     root: Path
     depth_glob: str
     depth_scale: float
-    camera: pcdcodec.CameraIntrinsics
+    camera: CameraIntrinsics
     color_glob: str = "rgb/*.png"
     layout: str = "auto"
 
@@ -41,7 +65,7 @@ class Sequence:
         return {"depth_scale": self.depth_scale, "intrinsics": self.camera, "layout": self.layout}
 
 
-_TUM = pcdcodec.CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
+_TUM = CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
 SEQUENCES = {
     "sample": Sequence("sample", SAMPLE, "depth/*.png", 5000.0, _TUM),
     "tum_fr1_rpy": Sequence(
@@ -53,7 +77,7 @@ SEQUENCES = {
         SHARED_DATA / "realsense_d435_office",
         "depth/*.png",
         1000.0,
-        pcdcodec.CameraIntrinsics(640, 480, 615.0, 615.0, 320.0, 240.0),
+        CameraIntrinsics(640, 480, 615.0, 615.0, 320.0, 240.0),
         layout="folders",
     ),
     "7scenes_redkitchen": Sequence(
@@ -61,14 +85,29 @@ SEQUENCES = {
         SHARED_DATA / "7scenes_redkitchen",
         "depth/*.depth.png",
         1000.0,
-        pcdcodec.CameraIntrinsics(640, 480, 585.0, 585.0, 320.0, 240.0),
+        CameraIntrinsics(640, 480, 585.0, 585.0, 320.0, 240.0),
         "rgb/*.color.jpg",
     ),
 }
 PRESENT = [name for name, seq in SEQUENCES.items() if seq.present]
 
 
-def _read(path: Path) -> np.ndarray[Any, Any]:
+def _skip(what: Path) -> NoReturn:
+    import pytest
+
+    pytest.skip(f"{what} is not present")
+
+
+def _present(name: str) -> Sequence:
+    """Sequence ``name``; skips the calling test when its data is absent."""
+    seq = SEQUENCES[name]
+    if not seq.present:
+        _skip(seq.root)
+    return seq
+
+
+def read_image(path: Path) -> np.ndarray[Any, Any]:
+    """An image file as an array (imagecodecs: PNG, JPEG, ...)."""
     import imagecodecs
 
     return np.asarray(imagecodecs.imread(str(path)))
@@ -79,26 +118,22 @@ _cache: dict[tuple[str, str, int], list[np.ndarray[Any, Any]]] = {}
 
 def load_depths(name: str, count: int) -> list[np.ndarray[Any, Any]]:
     """``count`` depth frames spread evenly over sequence ``name``; skips when it is absent."""
-    seq = SEQUENCES[name]
-    if not seq.present:
-        pytest.skip(f"{seq.root} is not present")
+    seq = _present(name)
     key = ("depth", name, count)
     if key not in _cache:
         paths = seq.depth_paths()
         picks = np.linspace(0, len(paths) - 1, min(count, len(paths))).round().astype(int)
-        _cache[key] = [_read(paths[i]) for i in sorted(set(picks))]
+        _cache[key] = [read_image(paths[i]) for i in sorted(set(picks))]
     return _cache[key]
 
 
 def load_colors(name: str, count: int) -> list[np.ndarray[Any, Any]]:
     """The first ``count`` consecutive RGB frames of sequence ``name``; skips when absent."""
-    seq = SEQUENCES[name]
-    if not seq.present:
-        pytest.skip(f"{seq.root} is not present")
+    seq = _present(name)
     key = ("color", name, count)
     if key not in _cache:
         paths = sorted(seq.root.glob(seq.color_glob))[:count]
-        _cache[key] = [_read(p)[..., :3] for p in paths]
+        _cache[key] = [read_image(p)[..., :3] for p in paths]
     return _cache[key]
 
 
@@ -110,7 +145,7 @@ _spot: list[np.ndarray[Any, Any]] = []
 def load_spot_depth() -> np.ndarray[Any, Any]:
     """The one Spot front-left depth frame (424×240 16UC1, mm, 36 % holes); skips when absent."""
     if not SPOT_BAG.is_file():
-        pytest.skip(f"{SPOT_BAG} is not present")
+        _skip(SPOT_BAG)
     if not _spot:
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
@@ -119,7 +154,7 @@ def load_spot_depth() -> np.ndarray[Any, Any]:
         with AnyReader([SPOT_BAG], default_typestore=typestore) as reader:
             conns = [c for c in reader.connections if c.topic == SPOT_TOPIC]
             _, _, raw = next(iter(reader.messages(connections=conns)))
-            msg = reader.deserialize(raw, conns[0].msgtype)
+            msg: Any = reader.deserialize(raw, conns[0].msgtype)
         order = ">u2" if msg.is_bigendian else "<u2"
         image = np.frombuffer(bytes(msg.data), order).reshape(msg.height, msg.width)
         _spot.append(np.ascontiguousarray(image, dtype=np.uint16))
@@ -128,8 +163,6 @@ def load_spot_depth() -> np.ndarray[Any, Any]:
 
 def load_frames(name: str, count: int) -> list[np.ndarray[Any, Any]]:
     """Depth frames of a sequence, of its ``-sparse`` variant, or the Spot frame (``spot``)."""
-    from pcdcodec.bench.sparse import sparsify_depth
-
     if name == "spot":
         return [load_spot_depth()]
     if name.endswith("-sparse"):

@@ -1,0 +1,243 @@
+"""The tasks an archive run submits, each run on a worker: probe an input, encode one segment,
+join the segments, verify the output against its source.
+
+They take and return only plain values (paths as strings, dicts), so that any worker can run
+them and the client can keep their results in the manifest.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from .._atomic import partial_path
+from ..errors import InputError, VerificationError
+from .discover import _hash, _stat
+from .manifest import _disk_full
+from .plan import segment_plan
+
+#: What an input without a camera needs, in the library's words (the CLI says its flags).
+NO_CAMERA_HINT = "pass camera= (for every input that lacks one) or input_options= (for this input)"
+
+
+def _probe(
+    src: str, options: dict[str, Any], segment_frames: int | None, keyframes: int
+) -> dict[str, Any]:
+    """Size, hash and frame count of one input, and its frame index where it needs one."""
+    import operator
+
+    from ..sources import open_source
+
+    path = Path(src)
+    size, mtime = _stat(path)
+    digest = _hash(path)
+    index = None
+    with open_source(path, **options) as source:
+        if source.intrinsics is None:
+            raise InputError(
+                f"{src!r} does not say its camera intrinsics; {NO_CAMERA_HINT}, or put a "
+                "camera.json in the folder"
+            )
+        camera = {
+            "camera": source.intrinsics.to_dict(),
+            "camera_from": source.intrinsics_origin,
+            "depth_scale": float(source.depth_scale),
+            "depth_scale_from": source.depth_scale_origin,
+            "notes": list(source.camera_notes),
+        }
+        frames = source.frame_count
+        # Index only inputs that may need more than one segment: a bag's message count bounds
+        # its frame count from above.
+        most = frames if frames is not None else operator.length_hint(source, -1)
+        if most < 0 or len(segment_plan(most, size or 0, segment_frames, keyframes)) > 1:
+            index = source.frame_index()
+            if index is not None:
+                frames = len(index)
+    return {
+        "size": size,
+        "mtime_ns": mtime,
+        "hash": digest,
+        "frames": frames,
+        "index": index,
+        "camera": camera,
+    }
+
+
+def _encode_segment(
+    src: str,
+    options: dict[str, Any],
+    part: str,
+    start: int,
+    stop: int | None,
+    writer_options: dict[str, Any],
+    digests: bool,
+    index: Any = None,
+) -> dict[str, Any]:
+    """Write frames ``start:stop`` of ``src`` into the recording ``part`` (atomically); with
+    ``index`` (a :class:`~pcdcodec.sources.FrameIndex` slice), the frames it lists."""
+    from ..recording import Recording, RecordingWriter
+    from ..sources import open_source
+
+    target = Path(part)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = partial_path(target, unique=True)
+    try:
+        with open_source(src, **options) as source:
+            frames = source.frames_at(index) if index is not None else source.frames(start, stop)
+            meta = dict(source.metadata)
+            opts = dict(writer_options)
+            if not source.has_color:
+                opts["color"] = None  # a depth-only input gives a depth-only recording
+            with RecordingWriter(
+                tmp,
+                intrinsics=source.intrinsics,
+                depth_scale=source.depth_scale,
+                metadata=meta,
+                # Sensors whose color camera is apart from the depth camera (RealSense bags).
+                color_intrinsics=source.color_intrinsics,
+                depth_to_color=source.depth_to_color,
+                **opts,
+            ) as writer:
+                count = writer.write_frames(frames)
+        if count == 0:
+            raise InputError(f"{src!r} has no frames in {start}:{stop}")
+        colors: list[str] = []
+        if digests:
+            # The codec's own decode of this segment, read alone: the joined file must give
+            # back exactly these frames.
+            with Recording(tmp) as rec:
+                colors = [_digest(f.color) for f in rec]
+        os.replace(tmp, target)
+    except BaseException as exc:
+        tmp.unlink(missing_ok=True)
+        full = _disk_full(exc, target)
+        if full is not None:
+            raise full from None
+        raise
+    return {"frames": count, "bytes": target.stat().st_size, "colors": colors}
+
+
+def _existing_segment(part: str, digests: bool) -> dict[str, Any]:
+    """What :func:`_encode_segment` returns, for a segment an earlier run wrote."""
+    from ..recording import Recording
+
+    with Recording(part) as rec:
+        count = len(rec)
+        colors = [_digest(f.color) for f in rec] if digests else []
+    return {"frames": count, "bytes": Path(part).stat().st_size, "colors": colors}
+
+
+def _digest(array: Any) -> str:
+    """A digest of an image's values, shape and dtype, whatever its memory layout ("" for
+    ``None``)."""
+    import numpy as np
+
+    if array is None:
+        return ""
+    a = np.ascontiguousarray(array)
+    h = hashlib.blake2b(f"{a.dtype.str}{a.shape}".encode(), digest_size=16)
+    h.update(a.data)
+    return h.hexdigest()
+
+
+def _join_parts(parts: list[str], output: str) -> dict[str, Any]:
+    """Join the segments into ``output`` (atomically) and return its size."""
+    from ..recording.join import join
+
+    target = Path(output)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        if len(parts) == 1:
+            os.replace(parts[0], target)  # already complete; a rename is atomic
+            frames = -1
+        else:
+            frames = join(parts, target, overwrite=True)
+    except BaseException as exc:
+        full = _disk_full(exc, target)
+        if full is not None:
+            raise full from None
+        raise
+    return {"bytes": target.stat().st_size, "frames": frames}
+
+
+def _verify(
+    src: str, options: dict[str, Any], output: str, colors: list[str] | None
+) -> dict[str, Any]:
+    """Decode ``output`` and compare it with ``src`` read again; raise on any difference."""
+
+    from ..recording import Recording
+    from ..sources import open_source
+
+    name = Path(output).name
+    n = 0
+    with open_source(src, **options) as source, Recording(output) as rec:
+        if not rec.indexed:
+            raise VerificationError(f"{name}: the output has no index")
+        if colors is not None and len(colors) != len(rec):
+            raise VerificationError(
+                f"{name}: {len(rec)} frames, but its segments decoded {len(colors)}"
+            )
+        bound = _depth_bound(rec.codecs.get("depth") or {})
+        decoded: Iterator[Any] = iter(rec)
+        for original in source:
+            frame = next(decoded, None)
+            if frame is None:
+                raise VerificationError(f"{name}: frame {n} of the source is missing")
+            if frame.timestamp_ns != original.timestamp_ns:
+                raise VerificationError(
+                    f"{name}: frame {n} is at {frame.timestamp_ns} ns, the source's at "
+                    f"{original.timestamp_ns} ns"
+                )
+            problem = _depth_mismatch(frame.depth, original.depth, bound)
+            if problem:
+                raise VerificationError(f"{name}: frame {n} depth {problem}")
+            if colors is not None and _digest(frame.color) != colors[n]:
+                raise VerificationError(
+                    f"{name}: frame {n} color differs from the codec's decode of its segment"
+                )
+            n += 1
+        if next(decoded, None) is not None:
+            raise VerificationError(f"{name}: more frames than the source ({n})")
+    return {"frames": n}
+
+
+def _depth_bound(config: dict[str, Any]) -> Any:
+    """The error bound a depth codec config states, or ``None`` for lossless coding."""
+    from ..depth import FrameCodec
+    from ..registry import get_codec
+
+    codec = get_codec(config)
+    return codec.error_bound if isinstance(codec, FrameCodec) else None
+
+
+def _depth_mismatch(decoded: Any, original: Any, bound: Any) -> str:
+    """Why decoded depth does not stand for the source's ('' when it does).
+
+    Lossless codecs must give the same bits (NaN, float32 "no measurement", equals itself);
+    a codec with an error bound must keep every hole, and every valid pixel within its bound.
+    """
+    if decoded.dtype != original.dtype or decoded.shape != original.shape:
+        return f"is {decoded.dtype} {decoded.shape}, the source's {original.dtype} {original.shape}"
+    import numpy as np
+
+    floats = decoded.dtype.kind == "f"
+    if bound is None:
+        same = np.array_equal(decoded, original, equal_nan=floats)
+        return "" if same else "differs from the source"
+    holes = ~np.isfinite(original) if floats else original == 0
+    kept = ~np.isfinite(decoded) if floats else decoded == 0
+    if not np.array_equal(holes, kept):
+        return "has holes where the source has none, or the other way round"
+    ref = original[~holes].astype(np.float64)
+    err = np.abs(decoded[~holes].astype(np.float64) - ref)
+    over = err > bound.of(ref)
+    if over.any():
+        i = int(np.argmax(over))
+        return (
+            f"is off by {err[i]:g} at a value of {ref[i]:g}, more than the codec's bound "
+            f"(max_error={bound.abs_error:g}, max_rel_error={bound.rel_error:g})"
+        )
+    return ""

@@ -1,0 +1,178 @@
+"""From parsed options to the library's arguments, one rule for every command.
+
+The camera flags (``--camera``, ``--intrinsics``, ``--fx``...), the RGB-D folder flags and the
+bag topic flags become reader options here; codec specs become codecs; and :func:`cli_message`
+puts a library error message in the CLI's words (flags instead of keyword arguments).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from ..registry import parse_codec_spec
+
+#: ``"h264:crf=20,preset=fast"`` to a codec (:func:`pcdcodec.registry.parse_codec_spec`).
+parse_codec = parse_codec_spec
+
+
+def _intrinsics_from_args(args: argparse.Namespace, width: int, height: int) -> Any:
+    """``--fx --fy --cx --cy`` (all or none) as the camera of frames of this size."""
+    from ..geometry.camera import as_intrinsics
+
+    given = {k: getattr(args, k) for k in ("fx", "fy", "cx", "cy")}
+    if all(v is None for v in given.values()):
+        return None
+    missing = [f"--{k}" for k, v in given.items() if v is None]
+    if missing:
+        raise InputError(f"intrinsics need --fx --fy --cx --cy; missing {' '.join(missing)}")
+    return as_intrinsics(given, width=width, height=height)
+
+
+def frame_size(
+    src: str, depth_scale: float | None, options: dict[str, Any] | None = None
+) -> tuple[int, int]:
+    """(width, height) of the input's frames: a recording's camera, or a folder's first frame."""
+    from ..sources.base import detect_kind
+
+    path = Path(src)
+    if path.is_file() and detect_kind(src) is None:
+        from ..recording import open as open_recording
+
+        with open_recording(path) as rec:
+            return rec.intrinsics.width, rec.intrinsics.height
+    from ..sources import open_source
+
+    opts = {**(options or {}), "max_frames": 1, "depth_scale": depth_scale or 1000.0}
+    with open_source(path, **opts) as source:
+        first = next(iter(source), None)
+    if first is None:
+        raise InputError(f"{src!r} gives no frames")
+    h, w = first.depth.shape
+    return w, h
+
+
+def camera_from_args(args: argparse.Namespace) -> tuple[Any, float | None]:
+    """The camera flags, one rule for ``encode`` and ``bench``: at most one of --fx/--fy/--cx/--cy,
+    --intrinsics FILE and --camera NAME; without them the input's own camera (a recording's, or
+    the intrinsics file a folder ships with). Returns (intrinsics or None, depth scale or None);
+    --depth-scale wins over a preset's."""
+    from ..geometry.camera import camera_preset, read_intrinsics
+
+    by_values = any(getattr(args, k) is not None for k in ("fx", "fy", "cx", "cy"))
+    chosen = [
+        flag
+        for flag, on in (
+            ("--fx/--fy/--cx/--cy", by_values),
+            ("--intrinsics", args.intrinsics is not None),
+            ("--camera", args.camera is not None),
+        )
+        if on
+    ]
+    if len(chosen) > 1:
+        raise InputError(f"give the camera one way: {' and '.join(chosen)} were both given")
+    scale = args.depth_scale
+    if args.camera is not None:
+        preset = camera_preset(args.camera)
+        return preset.intrinsics, scale if scale is not None else preset.depth_scale
+    if args.intrinsics is not None:
+        w, h = frame_size(args.src, scale, folder_options(args))
+        return read_intrinsics(args.intrinsics, w, h), scale
+    if by_values:
+        w, h = frame_size(args.src, scale, folder_options(args))
+        return _intrinsics_from_args(args, w, h), scale
+    return None, scale
+
+
+#: Library wording (keyword arguments) and the CLI flag that says the same.
+_CLI_WORDS = (
+    ("pass overwrite=True", "pass --overwrite"),
+    ("overwrite=True", "--overwrite"),
+    (
+        "pass intrinsics=pcdcodec.CameraIntrinsics(width, height, fx, fy, cx, cy)",
+        "pass --intrinsics FILE, --camera NAME or --fx --fy --cx --cy",
+    ),
+    ("pass depth_scale=", "pass --depth-scale "),
+    (
+        "pass color_intrinsics= (and depth_to_color=, the 4x4 depth-to-color transform in metres)",
+        "pass --color-intrinsics FILE (and --depth-to-color FILE, the 4x4 depth-to-color "
+        "transform in metres)",
+    ),
+    ("(color=False)", "(--depth-only)"),
+    ("need depth_pattern= and color_pattern=", "need --depth-pattern and --color-pattern"),
+    ("color_pattern needs depth_pattern", "--color-pattern needs --depth-pattern"),
+    ("with depth_pattern= and color_pattern=", "with --depth-pattern and --color-pattern"),
+    ("input_options names", "--input-camera names"),
+    ("matching depth_pattern", "matching --depth-pattern"),
+    ("matching color_pattern", "matching --color-pattern"),
+    ("or no color_pattern for depth only", "or no --color-pattern for depth only"),
+    (
+        "pass camera= (for every input that lacks one) or input_options= (for this input)",
+        "pass --camera NAME or --intrinsics FILE (for every input that lacks one) or "
+        "--input-camera INPUT=CAMERA (for this input)",
+    ),
+)
+
+
+def cli_message(message: str) -> str:
+    """A library error message in the CLI's words: flags instead of keyword arguments."""
+    for library, flag in _CLI_WORDS:
+        message = message.replace(library, flag)
+    return message
+
+
+def folder_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The folder flags as options of :func:`pcdcodec.datasets.open_folder`."""
+    opts: dict[str, Any] = {}
+    for key in ("depth_pattern", "color_pattern", "color_intrinsics", "depth_to_color"):
+        if getattr(args, key, None) is not None:
+            opts[key] = getattr(args, key)
+    if getattr(args, "depth_only", False):
+        opts["color"] = False
+    return opts
+
+
+def source_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The reader options of ``args.src`` from the flags (``--max-frames``, ``--depth-scale``,
+    the folder and the topic flags), refusing flags that do not apply to that kind of input."""
+    from ..sources.base import detect_kind
+
+    opts: dict[str, Any] = {}
+    if args.max_frames is not None:
+        opts["max_frames"] = args.max_frames
+    if args.depth_scale is not None:
+        opts["depth_scale"] = args.depth_scale
+    kind = detect_kind(args.src)
+    folder = folder_options(args)
+    if kind is None and folder.get("depth_pattern") is not None and Path(args.src).is_dir():
+        kind = "folder"  # a folder of files named as the patterns say
+    if kind == "folder":
+        opts["fps"] = args.fps
+        opts.update(folder)
+    elif folder and kind is not None:
+        names = ["--depth-only" if k == "color" else "--" + k.replace("_", "-") for k in folder]
+        hint = ""
+        if "color" in folder and kind == "rosbag":  # topic flags are for ROS bags only
+            hint = " (a bag's depth alone: --color-topic '')"
+        raise InputError(
+            f"{' '.join(names)} apply to RGB-D folders; {args.src!r} is a {kind}{hint}"
+        )
+    topics = {
+        "depth_topic": args.depth_topic,
+        "color_topic": args.color_topic,
+        "info_topic": args.info_topic,
+        "cloud_topic": args.cloud_topic,
+    }
+    given = {k: v for k, v in topics.items() if v is not None}
+    if given and kind != "rosbag" and kind is not None:
+        flags = " ".join("--" + k.replace("_", "-") for k in given)
+        raise InputError(f"{flags} apply to bags; {args.src!r} is a {kind}")
+    opts.update(given)
+    return opts
+
+
+def mib(n: float) -> str:
+    """A byte count in MiB, as the commands print it."""
+    return f"{n / 2**20:.2f} MiB"

@@ -1,0 +1,130 @@
+"""The commands that write and check recordings: ``encode``, ``decode``, ``verify``, ``recover``.
+
+Each takes the parsed command line and returns the exit status.
+"""
+
+from __future__ import annotations
+
+import argparse
+import operator
+
+from .._progress import Progress
+from ..errors import InputError
+from .options import camera_from_args, mib, parse_codec, source_options
+
+
+def cmd_encode(args: argparse.Namespace) -> int:
+    """``pcdcodec encode SRC -o REC``: any input into a recording; says what camera it used."""
+    from ..recording import encode
+    from ..sources import open_source
+
+    camera, depth_scale = camera_from_args(args)
+    options = source_options(args)
+    if depth_scale is not None:
+        options["depth_scale"] = depth_scale
+    with open_source(args.src, **options) as source:
+        intrinsics = camera
+        if intrinsics is None and source.intrinsics is None:
+            raise InputError(
+                f"no intrinsics for {args.src!r}: pass --intrinsics FILE, --camera NAME or --fx "
+                "--fy --cx --cy, or put a camera.json or intrinsics.K.txt in the folder"
+            )
+        total = operator.length_hint(source) or None
+        with Progress(total, "encoding", enabled=None if not args.quiet else False) as bar:
+            summary = encode(
+                source,
+                args.output,
+                color=parse_codec(args.color, "color"),
+                depth=parse_codec(args.depth, "depth"),
+                intrinsics=intrinsics,
+                fps=args.fps,
+                overwrite=args.overwrite,
+                progress=bar.update,
+                passthrough=args.passthrough,
+            )
+        # encode() put the camera and scale it recorded into the source.
+        used_camera, used_scale = source.intrinsics, source.depth_scale
+        assert used_camera is not None  # encode() refuses a source without a camera
+        if args.depth_scale is not None:
+            scale_from = "--depth-scale"
+        elif args.camera is not None:
+            scale_from = f"--camera {args.camera}"
+        else:
+            origin = source.depth_scale_origin
+            scale_from = "the input" if origin in ("input", "given") else origin
+    camera_from = "the input" if camera is None else "the camera flags"
+    n = summary.frames
+    print(
+        f"wrote {n} frames to {args.output} ({mib(summary.bytes)}, "
+        f"{summary.bytes / n / 1024:.1f} KiB/frame, {summary.fps:.1f} fps)"
+    )
+    print(f"  depth scale  {used_scale:g} units per metre (from {scale_from})")
+    print(
+        f"  intrinsics   {used_camera.width}x{used_camera.height}, fx={used_camera.fx:g} "
+        f"fy={used_camera.fy:g} cx={used_camera.cx:g} cy={used_camera.cy:g} (from {camera_from})"
+    )
+    info = summary.source
+    for key in ("depth_topic", "color_topic", "info_topic", "cloud_topic"):
+        if info.get(key):
+            print(f"  {key.replace('_', ' '):12} {info[key]}")
+    dropped = summary.dropped
+    if any(dropped.values()):
+        print(
+            f"  dropped      {dropped.get('color', 0)} color and {dropped.get('depth', 0)} depth "
+            "images without a partner"
+        )
+    if info.get("out_of_order"):
+        print(f"  skipped      {info['out_of_order']} messages whose stamp did not increase")
+    for note in info.get("notes", []):
+        print(f"  note         {note}")
+    return 0
+
+
+def cmd_decode(args: argparse.Namespace) -> int:
+    """``pcdcodec decode REC -o FOLDER``: a TUM-layout folder, with point clouds if asked."""
+    from ..datasets import write_folder
+    from ..recording import open as open_recording
+
+    clouds = tuple(ext for ext, on in (("ply", args.ply), ("pcd", args.pcd)) if on)
+    with (
+        open_recording(args.input) as rec,
+        Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar,
+    ):
+        count = write_folder(
+            rec,
+            args.output,
+            intrinsics=rec.intrinsics,
+            depth_scale=rec.depth_scale,
+            color_intrinsics=rec.color_intrinsics,
+            depth_to_color=rec.depth_to_color,
+            clouds=clouds,
+            overwrite=args.overwrite,
+            progress=bar.update,
+        )
+    if not args.quiet:
+        print(f"wrote {count} frames to {args.output}")
+    return 0
+
+
+def cmd_verify(args: argparse.Namespace) -> int:
+    """``pcdcodec verify REC``: every frame decoded and checked; 1 on any problem."""
+    from ..recording import open as open_recording
+
+    with open_recording(args.input) as rec:
+        report = rec.verify()
+    for error in report.errors:
+        print(f"  {error}")
+    if not report.indexed:
+        print("  note: the file has no index (unfinished writer); `pcdcodec recover` rewrites it")
+    status = "OK" if report.ok else f"{len(report.errors)} problem(s)"
+    print(f"{args.input}: {report.frames} frames checked, {status}")
+    return 0 if report.ok else 1
+
+
+def cmd_recover(args: argparse.Namespace) -> int:
+    """``pcdcodec recover REC -o OUT``: a damaged or unfinished recording rewritten."""
+    from ..recording import recover
+
+    count = recover(args.input, args.output, overwrite=args.overwrite)
+    print(f"recovered {count} frames into {args.output}")
+    return 0

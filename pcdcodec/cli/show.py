@@ -1,0 +1,239 @@
+"""The commands that show what is there: ``info`` (a recording, or an input and what ``encode``
+would make of it), ``codecs`` and ``view``.
+
+Each takes the parsed command line and returns the exit status.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from ..codec import KINDS
+from ..errors import InputError
+from ..registry import codec_class, list_codecs
+from .options import camera_from_args, mib, source_options
+
+
+def _info(rec: Any) -> dict[str, Any]:
+    """What ``info`` says of a recording, as JSON-ready values."""
+    size = rec.path.stat().st_size
+    return {
+        "path": str(rec.path),
+        "format_version": rec.format_version,
+        "frames": len(rec),
+        "duration_s": round(rec.duration, 3),
+        "fps": rec.fps,
+        "size_bytes": size,
+        "bytes_per_frame": round(size / len(rec)) if len(rec) else None,
+        "intrinsics": rec.intrinsics.to_dict(),
+        "color_intrinsics": rec.color_intrinsics.to_dict() if rec.color_intrinsics else None,
+        "depth_to_color": rec.depth_to_color.tolist() if rec.depth_to_color is not None else None,
+        "depth_scale": rec.depth_scale,
+        "codecs": rec.codecs,
+        "indexed": rec.indexed,
+        "metadata": rec.metadata,
+        "first_timestamp_ns": int(rec.timestamps[0]) if len(rec) else None,
+    }
+
+
+def _info_of_source(args: argparse.Namespace) -> int:
+    """``info`` of an input (a folder, a bag...): what it holds and what ``encode`` would use."""
+    from ..sources import CameraDefaults, open_source
+
+    args.src = args.input
+    camera, depth_scale = camera_from_args(args)
+    options = source_options(args)
+    if camera is not None:
+        options["intrinsics"] = camera
+    if depth_scale is not None:
+        options["depth_scale"] = depth_scale
+    # Without a depth scale, describe what can be known: a stand-in scale is marked unknown.
+    unknown = CameraDefaults(depth_scale=1.0, origin="unknown") if depth_scale is None else None
+    with open_source(args.input, defaults=unknown, **options) as source:
+        info = source.describe()
+        if source.depth_scale_origin == "unknown":
+            info["depth_scale"] = None
+        info["intrinsics_from"] = (
+            "the camera flags" if camera is not None else source.intrinsics_origin
+        )
+        info["depth_scale_from"] = (
+            "the camera flags" if depth_scale is not None else source.depth_scale_origin
+        )
+        candidates = getattr(source, "candidates", None)
+        topics = [c.to_dict() for c in candidates()] if callable(candidates) else []
+    if args.json:
+        print(json.dumps({**info, "topics": topics}, indent=2, default=str))
+        return 0
+    print(f"{args.input}: {info['source']}")
+    for key, label in (("layout", "layout"), ("frames", "frames"), ("size", "size")):
+        if info.get(key) is not None:
+            print(f"  {label:12} {info[key]}")
+    if info.get("timestamps"):
+        print(f"  {'timestamps':12} {info['timestamps']}")
+    if topics:
+        print("  topics (role from the type and the first message):")
+        for t in topics:
+            role = t["role"] or "-"
+            extra = " ".join(x for x in (t["encoding"], t["size"], t["note"]) if x)
+            print(f"    {role:6} {t['topic']}  [{t['type']}, {t['messages']} msgs] {extra}")
+    print("  chosen:")
+    for key in ("mode", "depth_topic", "color_topic", "info_topic", "cloud_topic"):
+        if info.get(key):
+            print(f"    {key.replace('_', ' '):12} {info[key]}")
+    cam = info.get("intrinsics")
+    if cam:
+        print(
+            f"    camera       {cam['width']}x{cam['height']}, fx={cam['fx']:.6g} "
+            f"fy={cam['fy']:.6g} cx={cam['cx']:.6g} cy={cam['cy']:.6g} "
+            f"(from {info['intrinsics_from']})"
+        )
+    else:
+        print("    camera       unknown (pass --camera NAME, --intrinsics FILE or --fx ...)")
+    color_cam = info.get("color_intrinsics")
+    if color_cam:
+        print(
+            f"    color camera {color_cam['width']}x{color_cam['height']}, "
+            f"fx={color_cam['fx']:.6g} fy={color_cam['fy']:.6g} cx={color_cam['cx']:.6g} "
+            f"cy={color_cam['cy']:.6g}"
+        )
+    if info["depth_scale"] is None:
+        print("    depth scale  unknown (pass --depth-scale UNITS_PER_METRE)")
+    else:
+        print(
+            f"    depth scale  {info['depth_scale']:g} per metre (from {info['depth_scale_from']})"
+        )
+    for note in info.get("notes", []):
+        print(f"    note         {note}")
+    return 0
+
+
+#: Options of ``info`` that say how to read an input (a folder, a bag), not a recording.
+_INPUT_FLAGS = (
+    "intrinsics",
+    "camera",
+    "fx",
+    "fy",
+    "cx",
+    "cy",
+    "depth_scale",
+    "depth_pattern",
+    "color_pattern",
+    "color_intrinsics",
+    "depth_to_color",
+    "depth_only",
+    "depth_topic",
+    "color_topic",
+    "info_topic",
+    "cloud_topic",
+    "passthrough",
+)
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    """``pcdcodec info PATH``: a recording described, or an input and what ``encode`` would use."""
+    from ..recording import open as open_recording
+    from ..sources.base import detect_kind
+
+    path = Path(args.input)
+    # A ROS 2 bag stored as MCAP starts with the same magic as a recording: the readers'
+    # probes tell them apart by the MCAP profile.
+    if detect_kind(path) is not None:
+        return _info_of_source(args)
+    given = [
+        "--" + key.replace("_", "-")
+        for key in _INPUT_FLAGS
+        if getattr(args, key, None) not in (None, False)
+    ]
+    if given and path.is_file():
+        raise InputError(
+            f"{' '.join(given)} describe how to read an input; {args.input!r} is not one "
+            "(a recording keeps its own camera and depth scale)"
+        )
+    with open_recording(args.input) as rec:
+        info = _info(rec)
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    cam = info["intrinsics"]
+    print(f"{info['path']}: pcdcodec recording, format version {info['format_version']}")
+    print(f"  frames     {info['frames']} over {info['duration_s']} s (nominal {info['fps']} fps)")
+    print(
+        f"  size       {mib(info['size_bytes'])}"
+        + (f", {info['bytes_per_frame'] / 1024:.1f} KiB per frame" if info["frames"] else "")
+    )
+    print(
+        f"  camera     {cam['width']}x{cam['height']}, fx={cam['fx']} fy={cam['fy']} "
+        f"cx={cam['cx']} cy={cam['cy']}, depth scale {info['depth_scale']} per metre"
+    )
+    if cam.get("distortion_model"):
+        print(f"             lens {cam['distortion_model']} {cam['distortion']}")
+    color_cam = info.get("color_intrinsics")
+    if color_cam:
+        t = [round(v[3] * 1000, 2) for v in info["depth_to_color"][:3]]
+        print(
+            f"  color cam  {color_cam['width']}x{color_cam['height']}, fx={color_cam['fx']} "
+            f"fy={color_cam['fy']} cx={color_cam['cx']} cy={color_cam['cy']}"
+            + (
+                f", lens {color_cam['distortion_model']}"
+                if color_cam.get("distortion_model")
+                else ""
+            )
+            + f"; depth-to-color translation {t} mm"
+        )
+    print(f"  color      {json.dumps(info['codecs']['color'])}")
+    print(f"  depth      {json.dumps(info['codecs']['depth'])}")
+    stamps = info["metadata"].get("timestamps", "")
+    if stamps.startswith("not recorded"):
+        print(f"  times      {stamps} (the input had no timestamps)")
+    if info["metadata"]:
+        print(f"  metadata   {json.dumps(info['metadata'])}")
+    problem = rec.index.summary_problem
+    if problem:
+        print(f"  index      unusable ({problem}); frames found by reading the whole file")
+    elif not info["indexed"]:
+        print("  index      missing: the writer did not finish; `pcdcodec recover` rewrites it")
+    return 0
+
+
+def cmd_codecs(args: argparse.Namespace) -> int:
+    """``pcdcodec codecs``: the registered codecs, lossless or lossy, and their defaults."""
+    kinds = KINDS if args.kind is None else (args.kind,)
+    for kind in kinds:
+        print(f"{kind} codecs:")
+        for name in list_codecs(kind):
+            cls = codec_class(name)
+            reason = cls.unavailable_reason()
+            codec = cls()
+            lossless = "lossless" if getattr(codec, "lossless", False) else "lossy"
+            if reason is not None:
+                state = f"unavailable: {reason}"
+            else:
+                config = codec.get_config()
+                state = ", ".join(f"{k}={v!r}" for k, v in config.items() if k != "id")
+            if "max_rel_error" in cls.param_names():
+                bounded = "or lossy within max_error=, max_rel_error="
+                state = f"{state}; {bounded}" if state else bounded
+            print(f"  {name:14} {lossless:9} {state or '(no parameters)'}")
+    return 0
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    """``pcdcodec view REC``: the recording in the Rerun viewer (or Open3D's)."""
+    from ..viewer import view, view_open3d
+
+    if args.open3d:
+        view_open3d(args.input, every=args.every)
+        return 0
+    saved = view(
+        args.input,
+        save=args.save,
+        every=args.every,
+        max_frames=args.max_frames,
+        stride=args.stride,
+    )
+    if saved is not None:
+        print(f"wrote {saved} (open it with: rerun {saved})")
+    return 0

@@ -1,0 +1,198 @@
+"""The encoded streams of a recording as written, and the frame digests that vouch for them.
+
+:class:`PacketAccess` gives :class:`~pcdcodec.Recording` its packet level (the counterpart of
+:meth:`~pcdcodec.RecordingWriter.write_encoded`): the color packets in decode order, each read
+from its chunk, and the check of every group of packets, depth message and pose against the
+frame's digest message (``docs/format.md``).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..color.base import Packet, StreamCodec
+from ..errors import DecodeError
+from ..ros.foxglove import CompressedVideo
+from . import _index as fmt
+
+
+class PacketAccess:
+    """Color packets and frame digests of a :class:`~pcdcodec.Recording`."""
+
+    path: Path
+    index: fmt.FileIndex
+    integrity: int
+    color_codec: StreamCodec | None
+    _file: IO[bytes]
+    _lock: threading.RLock
+    _seal: dict[str, str] | None
+    _times: npt.NDArray[np.int64]
+    _extradata: bytes | None
+    _is_cdr: bool
+    _keyframes: list[int]
+    _keyframe_set: set[int]
+    _packet_pts: npt.NDArray[np.int64]
+    _packet_offsets: npt.NDArray[np.int64]
+    _packet_group: npt.NDArray[np.int64]
+    _packet_cache: dict[int, Any]
+    _groups_checked: set[int]
+    _records: dict[int, tuple[int, bytes, bytes, bytes]]
+    _digest_times: npt.NDArray[np.int64]
+    _digest_offsets: npt.NDArray[np.int64]
+    _digest_of_time: dict[int, int]
+
+    @property
+    def extradata(self) -> bytes | None:
+        """The color decoder's set-up bytes (FFV1, HuffYUV), or ``None``."""
+        return self._extradata
+
+    @property
+    def packet_timestamps(self) -> npt.NDArray[np.int64]:
+        """The pts (ns) of every color packet, in decode (file) order; empty without color."""
+        if self.color_codec is None:
+            return np.zeros(0, np.int64)
+        out: npt.NDArray[np.int64] = np.asarray(self._packet_pts, np.int64).copy()
+        return out
+
+    @property
+    def keyframes(self) -> list[int]:
+        """Indices (into :attr:`packet_timestamps`) of the color packets decoding can start at."""
+        return list(self._keyframes)
+
+    def packet(self, j: int) -> Packet:
+        """Color packet ``j`` in decode order, as written (``checksum`` is ``None``)."""
+        n = len(self.packet_timestamps)
+        if isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 0 <= j < n:
+            raise IndexError(f"packet index {j!r} is out of range for {n} packets")
+        j = int(j)
+        with self._lock:
+            self._check_packets(j, j, f"{str(self.path)!r}: color packet {j}")
+        return self._packet(j)
+
+    def packets(self, start: int = 0) -> Iterator[Packet]:
+        """The color packets from ``start`` on, in decode order, each read once: with
+        :attr:`extradata`, what a decoder (or a muxer) needs to play the color stream."""
+        for j in range(start, len(self.packet_timestamps)):
+            with self._lock:
+                self._check_packets(j, j, f"{str(self.path)!r}: color packet {j}")
+            yield self._packet(j)
+
+    def _packet(self, j: int) -> Packet:
+        m = self._packet_message(j)
+        data = CompressedVideo.decode(m.data).data if self._is_cdr else m.data
+        keyframe = j in self._keyframe_set
+        return Packet(data, int(m.log_time), int(m.publish_time), keyframe)
+
+    def _packet_message(self, j: int) -> Any:
+        """The MCAP message of color packet ``j``, as stored."""
+        cached = self._packet_cache.pop(j, None)
+        if cached is not None:
+            return cached
+        offset = int(self._packet_offsets[j])
+        pts = int(self._packet_pts[j])
+        what = f"{str(self.path)!r}: color packet {j} (pts {pts}) at byte offset {offset}"
+        with self._lock:
+            messages = fmt.read_chunk_messages(
+                self._file, offset, what=what, size=self.index.size or None
+            )
+        channel = self.index.channel(fmt.TOPIC_COLOR)
+        for m in messages:
+            if channel is not None and m.channel_id == channel.id and m.log_time == pts:
+                return m
+        raise DecodeError(f"{what}: no color message with that time in the chunk there")
+
+    def _check_packets(self, first: int, last: int, what: str) -> None:
+        """Check the digests of the groups holding color packets ``first`` … ``last``.
+
+        Files without color digests (written before them) are not checked. Raises
+        :class:`DecodeError` starting with ``what`` when a group's packets (their data, times,
+        keyframe flags, number or order) differ from its digest.
+        """
+        if not self.integrity or last < first:
+            return
+        groups = self._packet_group
+        for g in range(int(groups[first]), int(groups[last]) + 1):
+            if g in self._groups_checked:
+                continue
+            try:
+                problem = self._group_problem(g)
+            except DecodeError as exc:
+                raise DecodeError(f"{what}: {exc}") from exc
+            if problem:
+                raise DecodeError(f"{what}: {problem}")
+            self._groups_checked.add(g)
+
+    def _record(self, g: int) -> tuple[int, bytes, bytes, bytes]:
+        """Frame digest message ``g`` (in file order): packets, color, depth and pose digests."""
+        if g in self._records:
+            return self._records[g]
+        offset, ts = int(self._digest_offsets[g]), int(self._digest_times[g])
+        where = f"{str(self.path)!r}: the frame digest at byte offset {offset}"
+        with self._lock:
+            messages = fmt.read_chunk_messages(
+                self._file, offset, what=where, size=self.index.size or None
+            )
+        channel = self.index.channel(fmt.TOPIC_FRAME_DIGEST)
+        data = next(
+            (
+                bytes(m.data)
+                for m in messages
+                if channel is not None and m.channel_id == channel.id and m.log_time == ts
+            ),
+            None,
+        )
+        if data is None or len(data) != fmt.DIGEST_RECORD.size:
+            raise DecodeError(f"{where}: no frame digest message of {fmt.DIGEST_RECORD.size} bytes")
+        record: tuple[int, bytes, bytes, bytes] = fmt.DIGEST_RECORD.unpack(data)
+        self._records[g] = record
+        return record
+
+    def _frame_record(self, i: int, what: str) -> tuple[int, bytes, bytes, bytes] | None:
+        """The digest message of frame ``i``; ``None`` in files written without them."""
+        if not self.integrity:
+            return None
+        g = self._digest_of_time.get(int(self._times[i]))
+        if g is None:
+            raise DecodeError(f"{what}: the frame has no digest message")
+        return self._record(g)
+
+    def _group_problem(self, g: int) -> str:
+        """Why the color packets of digest group ``g`` differ from their digest, or ``""``."""
+        lo, hi = np.searchsorted(self._packet_group, [g, g + 1], side="left").tolist()
+        sealer = fmt.Sealer()
+        for j in range(lo, hi):
+            m = self._packet_message(j)
+            sealer.packet(int(m.log_time), int(m.publish_time), j in self._keyframe_set, m.data)
+            if len(self._packet_cache) < 64:  # decoding usually reads them next: once is enough
+                self._packet_cache[j] = m
+        count, digest = sealer.group()
+        if g < len(self._digest_offsets):
+            where = f"the frame digest at byte offset {int(self._digest_offsets[g])}"
+            want_count, want, _, _ = self._record(g)
+        elif self._seal is not None:
+            where = f"the seal's digest of the last {hi - lo} color packet(s)"
+            try:
+                want_count = int(self._seal.get("tail_packets", ""))
+                want = bytes.fromhex(self._seal.get("tail_digest", "").removeprefix("sha256:"))
+            except ValueError:
+                return "the seal's tail_packets/tail_digest are not a count and a digest"
+        else:
+            return f"the last {hi - lo} color packet(s) have no digest (the writer stopped first)"
+        if (count, digest) != (want_count, want):
+            found = (
+                f"the {count} color packet(s) from byte offset {int(self._packet_offsets[lo])}"
+                if hi > lo
+                else "no color packet"
+            )
+            return (
+                f"{found} do not match {where} "
+                f"({want_count} packet(s)): the color packets were changed, reordered, added or "
+                "removed"
+            )
+        return ""

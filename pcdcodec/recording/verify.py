@@ -1,0 +1,131 @@
+"""Checking a whole recording: what :meth:`pcdcodec.Recording.verify` finds besides decoding.
+
+A file is read from start to end without its summary, and what that finds (channels, messages,
+their times, the data section's CRC, the metadata, the seal, the calibration) is compared with
+the index the frames are read through (``docs/format.md``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import IO
+
+import numpy as np
+
+from ..errors import PcdcodecError
+from ..geometry.camera import CameraIntrinsics
+from . import _header as header
+from . import _index as fmt
+
+__all__ = ["VerifyReport", "index_problems", "structure_problems"]
+
+
+@dataclass
+class VerifyReport:
+    """What :meth:`Recording.verify` found: per-frame problems, empty when all is well."""
+
+    frames: int
+    errors: list[str]
+    indexed: bool
+    truncated_at: int | None
+
+    @property
+    def ok(self) -> bool:
+        return not self.errors
+
+
+def index_problems(index: fmt.FileIndex) -> list[str]:
+    """What finding the messages of a file met: its end cut short, an unusable summary."""
+    errors: list[str] = []
+    if index.truncated_at is not None:
+        errors.append(f"the file is cut short: records end at byte offset {index.truncated_at}")
+    if index.summary_problem:
+        errors.append(
+            f"the summary (index) is unusable: {index.summary_problem}; the frames were "
+            "found by reading the whole file"
+        )
+    return errors
+
+
+def structure_problems(
+    f: IO[bytes],
+    index: fmt.FileIndex,
+    *,
+    integrity: int,
+    has_color: bool,
+    intrinsics: CameraIntrinsics,
+) -> list[str]:
+    """Problems found by reading every record of ``f``, compared with the ``index`` the frames
+    use (of a file written with ``integrity`` records, with color or not, of a camera with
+    ``intrinsics``). The caller holds whatever lock guards ``f``."""
+    try:
+        scanned = fmt.scan(f, skip_damaged_chunks=True)
+    except PcdcodecError as exc:
+        return [f"reading the whole file failed: {exc}"]
+    errors: list[str] = []
+    # Damaged chunks of frames are reported when those frames are decoded.
+    used = {o for topic in (fmt.TOPIC_DEPTH, fmt.TOPIC_COLOR) for o in index.offsets.get(topic, [])}
+    skipped = {offset for offset, _ in scanned.damaged_chunks}
+    errors.extend(text for offset, text in scanned.damaged_chunks if offset not in used)
+    if scanned.damaged_at is not None:
+        errors.append(f"damaged record at byte offset {scanned.damaged_at}: {scanned.damage}")
+    if scanned.duplicates:
+        errors.append(f"{scanned.duplicates} message(s) are stored twice")
+    crc = scanned.data_crc
+    if crc is not None and crc[0] not in (0, crc[1]) and not scanned.damaged_chunks:
+        stored, computed = crc
+        errors.append(
+            f"the data section fails its CRC ({stored:#010x} stored, {computed:#010x} "
+            "computed): bytes outside the chunks were changed"
+        )
+    if index.indexed and scanned.data_crc is None and scanned.damaged_at is None:
+        errors.append("the data section has no end record, although the file has a summary")
+    if index.indexed:
+        if scanned.metadata != index.metadata:
+            errors.append("the metadata records differ from those the summary points to")
+        for topic in sorted(set(index.times) | set(scanned.times)):
+            listed = [
+                (t, o)
+                for t, o in zip(
+                    index.times.get(topic, []), index.offsets.get(topic, []), strict=True
+                )
+                if o not in skipped
+            ]
+            if listed != list(
+                zip(scanned.times.get(topic, []), scanned.offsets.get(topic, []), strict=True)
+            ):
+                errors.append(
+                    f"channel {topic!r}: the index lists {len(index.times.get(topic, []))} "
+                    f"messages, the file holds {len(scanned.times.get(topic, []))} (or at "
+                    "other times or offsets)"
+                )
+        described = {
+            (c.topic, c.encoding, tuple(sorted(c.metadata.items())))
+            for c in index.channels.values()
+        }
+        found = {
+            (c.topic, c.encoding, tuple(sorted(c.metadata.items())))
+            for c in scanned.channels.values()
+        }
+        if described != found:
+            errors.append("the channels in the summary differ from those in the chunks")
+    depth = np.asarray(sorted(scanned.times.get(fmt.TOPIC_DEPTH, [])), dtype=np.int64)
+    if np.any(np.diff(depth) <= 0):
+        errors.append("depth messages share timestamps")
+    if integrity and not scanned.damaged_chunks:  # (those are reported already)
+        try:
+            problems = fmt.seal_problems(scanned, "reading the whole file")
+        except PcdcodecError as exc:
+            problems = [str(exc)]
+        errors.extend(f"the file does not hold what was sealed: {p}" for p in problems)
+    if has_color:
+        pts = set(scanned.times.get(fmt.TOPIC_COLOR, []))
+        orphans = [int(t) for t in depth.tolist() if t not in pts]
+        # At the end of an unfinished file they were in flight; a closed file has none.
+        if orphans and (index.indexed or orphans != depth.tolist()[-len(orphans) :]):
+            errors.append(
+                f"{len(orphans)} depth message(s) have no color packet, the first at "
+                f"t={orphans[0]} ns"
+            )
+    errors.extend(header.calibration_problems(f, scanned, intrinsics))
+    return errors
