@@ -16,9 +16,8 @@ and the bag time):
 * for frames with a pose, ``/tf``: ``tf2_msgs/TFMessage`` with one ``TransformStamped`` from
   ``world`` to the camera frame (the camera-to-world pose), so the trajectory plays in RViz.
 
-Connection headers, message definitions and MD5 sums (ROS 1) or type hashes (ROS 2) come from
-the rosbags typestores of ROS 1 Noetic and ROS 2 Humble. The bag is written beside its final
-name and moved into place when complete.
+The messages are built and the bag written by :mod:`pcdcodec.ros.bagwriter`. The bag is written
+beside its final name and moved into place when complete.
 """
 
 from __future__ import annotations
@@ -33,21 +32,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
+from .._atomic import atomic_output
 from ..errors import InputError
+from ..geometry.projector import Projector
+from ..recording.reader import Recording
+from ..ros.bagfile import MCAP_MAGIC
+from ..ros.bagwriter import BagWriter, MessageBuilder
+from ..ros.clouds import CLOUD_DTYPE, cloud_array
+from ..ros.messages import compressed_depth_encode
+from ..sources.base import Source, open_source
 
 __all__ = ["CLOUD_DTYPE", "cloud_array", "export_bag"]
 
-_NS = 1_000_000_000
 FORMATS = ("rosbag1", "rosbag2")
 STORAGES = ("mcap", "sqlite3")
-
-#: The point layout of the clouds written: PCL's PointXYZRGB, 32 bytes per point.
-CLOUD_DTYPE = np.dtype(
-    {"names": ["x", "y", "z", "rgb"], "formats": ["<f4", "<f4", "<f4", "<u4"],
-     "offsets": [0, 4, 8, 16], "itemsize": 32}
-)  # fmt: skip
 
 
 @dataclass
@@ -64,18 +63,13 @@ class _Input:
 
 
 def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
-    from ..recording.reader import Recording
-    from ..sources.base import Source, open_source
-
     if isinstance(src, (str, os.PathLike)):
         p = Path(src)
         head = b""
         if p.is_file():
             with p.open("rb") as f:
                 head = f.read(8)
-        from ..recording import _index as fmt
-
-        if head == fmt.MAGIC:
+        if head == MCAP_MAGIC:  # a recording, or a ROS 2 bag (which Recording refuses)
             try:
                 rec = Recording(p)
             except Exception:
@@ -126,181 +120,6 @@ def _from_recording(rec: Any, close: Callable[[], None]) -> _Input:
     )
 
 
-def cloud_array(
-    projector: Any, depth: npt.NDArray[Any], color: npt.NDArray[np.uint8] | None
-) -> npt.NDArray[Any]:
-    """An organized H×W array of :data:`CLOUD_DTYPE` points from depth and color.
-
-    x, y, z come from ``projector.to_organized`` (NaN where there is no depth); ``rgb`` packs the
-    color as ``r << 16 | g << 8 | b`` for every pixel, holes included.
-    """
-    xyz = projector.to_organized(depth)
-    h, w = depth.shape
-    pts = np.zeros((h, w), CLOUD_DTYPE)
-    pts["x"] = xyz[..., 0]
-    pts["y"] = xyz[..., 1]
-    pts["z"] = xyz[..., 2]
-    if color is not None:
-        c = color.astype(np.uint32)
-        pts["rgb"] = (c[..., 0] << 16) | (c[..., 1] << 8) | c[..., 2]
-    return pts
-
-
-class _Messages:
-    """Builds the messages of one bag flavour (ROS 1 or ROS 2 field names, serializer)."""
-
-    def __init__(self, ros2: bool, frame_id: str) -> None:
-        from rosbags.typesys import Stores, get_typestore
-
-        self.ros2 = ros2
-        self.store = get_typestore(Stores.ROS2_HUMBLE if ros2 else Stores.ROS1_NOETIC)
-        if "tf2_msgs/msg/TFMessage" not in self.store.types:
-            from rosbags.typesys import get_types_from_msg
-
-            # Noetic's store lacks tf2_msgs; its definition is this one line.
-            self.store.register(
-                get_types_from_msg(
-                    "geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"
-                )
-            )
-        self.types = self.store.types
-        self.frame_id = frame_id
-        self.seq = 0
-
-    def serialize(self, msg: Any) -> bytes:
-        typename = msg.__msgtype__
-        if self.ros2:
-            return bytes(self.store.serialize_cdr(msg, typename))
-        return bytes(self.store.serialize_ros1(msg, typename))
-
-    def header(self, ns: int) -> Any:
-        stamp = self.types["builtin_interfaces/msg/Time"](sec=ns // _NS, nanosec=ns % _NS)
-        if self.ros2:
-            return self.types["std_msgs/msg/Header"](stamp=stamp, frame_id=self.frame_id)
-        self.seq += 1
-        return self.types["std_msgs/msg/Header"](
-            seq=self.seq - 1, stamp=stamp, frame_id=self.frame_id
-        )
-
-    def image(self, ns: int, array: npt.NDArray[Any], encoding: str) -> bytes:
-        h, w = array.shape[:2]
-        data = np.ascontiguousarray(array)
-        step = data.nbytes // h
-        msg = self.types["sensor_msgs/msg/Image"](
-            header=self.header(ns),
-            height=h,
-            width=w,
-            encoding=encoding,
-            is_bigendian=0,
-            step=step,
-            data=data.reshape(-1).view(np.uint8),
-        )
-        return self.serialize(msg)
-
-    def compressed(self, ns: int, data: bytes, fmt: str) -> bytes:
-        msg = self.types["sensor_msgs/msg/CompressedImage"](
-            header=self.header(ns), format=fmt, data=np.frombuffer(data, np.uint8)
-        )
-        return self.serialize(msg)
-
-    def camera_info(self, ns: int, intrinsics: Any, model: str, dist: list[float]) -> bytes:
-        info = intrinsics.to_camera_info()
-        roi = self.types["sensor_msgs/msg/RegionOfInterest"](
-            x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
-        )
-        arrays = {
-            "d": np.asarray(dist, np.float64),
-            "k": np.asarray(info["K"], np.float64),
-            "r": np.asarray(info["R"], np.float64),
-            "p": np.asarray(info["P"], np.float64),
-        }
-        if not self.ros2:
-            arrays = {k.upper(): v for k, v in arrays.items()}
-        msg = self.types["sensor_msgs/msg/CameraInfo"](
-            header=self.header(ns),
-            height=intrinsics.height,
-            width=intrinsics.width,
-            distortion_model=model,
-            binning_x=0,
-            binning_y=0,
-            roi=roi,
-            **arrays,
-        )
-        return self.serialize(msg)
-
-    def tf(self, ns: int, pose: npt.NDArray[np.float64], parent: str) -> bytes:
-        """A ``tf2_msgs/TFMessage`` placing this camera frame in ``parent`` (camera-to-world)."""
-        from ..geometry.transform import matrix_to_quaternion
-
-        t = self.types
-        q = matrix_to_quaternion(pose[:3, :3])
-        header = self.header(ns)
-        header.frame_id = parent
-        stamped = t["geometry_msgs/msg/TransformStamped"](
-            header=header,
-            child_frame_id=self.frame_id,
-            transform=t["geometry_msgs/msg/Transform"](
-                translation=t["geometry_msgs/msg/Vector3"](
-                    x=float(pose[0, 3]), y=float(pose[1, 3]), z=float(pose[2, 3])
-                ),
-                rotation=t["geometry_msgs/msg/Quaternion"](
-                    x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])
-                ),
-            ),
-        )
-        return self.serialize(t["tf2_msgs/msg/TFMessage"](transforms=[stamped]))
-
-    def cloud(self, ns: int, pts: npt.NDArray[Any]) -> bytes:
-        field = self.types["sensor_msgs/msg/PointField"]
-        h, w = pts.shape
-        fields = [
-            field(name=n, offset=o, datatype=7, count=1)
-            for n, o in (("x", 0), ("y", 4), ("z", 8), ("rgb", 16))
-        ]
-        msg = self.types["sensor_msgs/msg/PointCloud2"](
-            header=self.header(ns),
-            height=h,
-            width=w,
-            fields=fields,
-            is_bigendian=False,
-            point_step=pts.dtype.itemsize,
-            row_step=pts.dtype.itemsize * w,
-            data=pts.reshape(-1).view(np.uint8),
-            is_dense=False,
-        )
-        return self.serialize(msg)
-
-
-class _BagWriter:
-    """One flavour of bag writer behind a common add/write/close."""
-
-    def __init__(self, path: Path, fmt: str, storage: str, messages: _Messages) -> None:
-        self.messages = messages
-        self.conns: dict[str, Any] = {}
-        if fmt == "rosbag1":
-            from rosbags.rosbag1 import Writer as Writer1
-
-            self.writer: Any = Writer1(path)
-        else:
-            from rosbags.rosbag2 import StoragePlugin
-            from rosbags.rosbag2 import Writer as Writer2
-
-            plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
-            self.writer = Writer2(path, version=9, storage_plugin=plugin)
-        self.writer.open()
-
-    def add(self, topic: str, msgtype: str) -> None:
-        self.conns[topic] = self.writer.add_connection(
-            topic, msgtype, typestore=self.messages.store
-        )
-
-    def write(self, topic: str, ns: int, data: bytes) -> None:
-        self.writer.write(self.conns[topic], ns, data)
-
-    def close(self) -> None:
-        self.writer.close()
-
-
 def export_bag(
     src: Any,
     out: str | os.PathLike[str],
@@ -346,138 +165,151 @@ def export_bag(
     if target.exists() and not overwrite:
         raise InputError(f"{str(target)!r} already exists; pass overwrite=True to replace it")
     namespace = "/" + namespace.strip("/") if namespace.strip("/") else ""
+    opts = _Options(to, storage, images, camera_info, cloud, compressed_depth, namespace, frame_id)
     inp = _input(src, intrinsics, depth_scale)
     try:
-        return _write(
-            inp, target, to, storage, images, camera_info, cloud, compressed_depth,
-            namespace, frame_id, max_frames, progress,
-        )  # fmt: skip
+        return _write(inp, target, opts, max_frames, progress)
     finally:
         inp.close()
+
+
+@dataclass(frozen=True)
+class _Options:
+    """What :func:`export_bag` writes, checked."""
+
+    to: str
+    storage: str
+    images: bool
+    camera_info: bool
+    cloud: bool
+    compressed_depth: bool
+    namespace: str
+    frame_id: str | None
+
+
+class _Export:
+    """One bag being written: its topics, its cameras, and the messages of each frame."""
+
+    def __init__(self, inp: _Input, opts: _Options) -> None:
+        self.opts = opts
+        self.intr = intr = inp.intrinsics
+        self.scale = scale = inp.depth_scale
+        if opts.compressed_depth and opts.images and scale != 1000.0:
+            raise InputError(
+                f"compressedDepth holds 16UC1 millimetres; this depth has scale {scale} per "
+                "metre (export without compressed_depth to get 32FC1 metres)"
+            )
+        self.model = inp.metadata.get("distortion_model", "plumb_bob")
+        try:
+            self.dist = [float(v) for v in json.loads(inp.metadata.get("distortion", "[]"))]
+        except (ValueError, TypeError):
+            self.dist = []
+        if not self.dist and self.model == "plumb_bob":
+            self.dist = [0.0] * 5
+        fid = opts.frame_id or inp.metadata.get("frame_id") or "camera_color_optical_frame"
+        self.msgs = MessageBuilder(opts.to == "rosbag2", fid)
+        color_cam = inp.color_intrinsics
+        self.projector = (
+            Projector(
+                intr,
+                depth_scale=scale,
+                color_intrinsics=color_cam,
+                depth_to_color=inp.depth_to_color if color_cam is not None else None,
+            )
+            if opts.cloud
+            else None
+        )
+        if color_cam is not None:
+            # The color image comes from its own camera: its CameraInfo says so.
+            color_info = color_cam.to_camera_info()
+            self.color_cam = color_cam
+            self.color_model = color_info["distortion_model"]
+            self.color_dist = list(color_info["D"])
+        else:
+            self.color_cam, self.color_model, self.color_dist = intr, self.model, self.dist
+        ns = opts.namespace
+        self.t_depth = f"{ns}/depth/image_raw"
+        self.t_cdepth = f"{self.t_depth}/compressedDepth"
+        self.t_color = f"{ns}/color/image_raw"
+        self.t_dinfo = f"{ns}/depth/camera_info"
+        self.t_cinfo = f"{ns}/color/camera_info"
+        self.t_cloud = f"{ns}/depth_registered/points"
+        self.topics: list[str] = []
+
+    def _add(self, bag: BagWriter, topic: str, msgtype: str) -> None:
+        self.topics.append(topic)
+        bag.add(topic, msgtype)
+
+    def add_topics(self, bag: BagWriter, has_color: bool) -> None:
+        """The topics the first frame says the bag has (``/tf`` waits for a pose)."""
+        opts = self.opts
+        if opts.images:
+            if opts.compressed_depth:
+                self._add(bag, self.t_cdepth, "sensor_msgs/msg/CompressedImage")
+            else:
+                self._add(bag, self.t_depth, "sensor_msgs/msg/Image")
+            if has_color:
+                self._add(bag, self.t_color, "sensor_msgs/msg/Image")
+        if opts.camera_info:
+            for t in (self.t_dinfo, self.t_cinfo) if has_color else (self.t_dinfo,):
+                self._add(bag, t, "sensor_msgs/msg/CameraInfo")
+        if opts.cloud:
+            self._add(bag, self.t_cloud, "sensor_msgs/msg/PointCloud2")
+
+    def write_frame(self, bag: BagWriter, color: Any, depth: Any, ts: int, pose: Any) -> None:
+        """Every message of one frame, at its stamp."""
+        opts, msgs, intr, scale = self.opts, self.msgs, self.intr, self.scale
+        if depth.shape != intr.shape:
+            raise InputError(
+                f"frame at {ts} ns is {depth.shape[1]}x{depth.shape[0]}, the camera "
+                f"{intr.width}x{intr.height}"
+            )
+        if opts.images:
+            if opts.compressed_depth:
+                payload = compressed_depth_encode(np.asarray(depth, np.uint16))
+                fmt = "16UC1; compressedDepth png"
+                bag.write(self.t_cdepth, ts, msgs.compressed(ts, payload, fmt))
+            elif depth.dtype == np.uint16 and scale == 1000.0:
+                bag.write(self.t_depth, ts, msgs.image(ts, depth, "16UC1"))
+            else:
+                if depth.dtype == np.float32 and scale == 1.0:
+                    metres = depth
+                else:
+                    metres = (depth / np.float32(scale)).astype(np.float32)
+                    metres[depth == 0] = np.nan  # ROS 32FC1: NaN is no measurement
+                bag.write(self.t_depth, ts, msgs.image(ts, metres, "32FC1"))
+            if color is not None:
+                bag.write(self.t_color, ts, msgs.image(ts, color, "rgb8"))
+        if opts.camera_info:
+            bag.write(self.t_dinfo, ts, msgs.camera_info(ts, intr, self.model, self.dist))
+            if color is not None:
+                info = msgs.camera_info(ts, self.color_cam, self.color_model, self.color_dist)
+                bag.write(self.t_cinfo, ts, info)
+        if self.projector is not None:
+            bag.write(self.t_cloud, ts, msgs.cloud(ts, cloud_array(self.projector, depth, color)))
+        if pose is not None:
+            if "/tf" not in bag.conns:
+                self._add(bag, "/tf", "tf2_msgs/msg/TFMessage")
+            bag.write("/tf", ts, msgs.tf(ts, pose, "world"))
 
 
 def _write(
     inp: _Input,
     target: Path,
-    to: str,
-    storage: str,
-    images: bool,
-    camera_info: bool,
-    cloud: bool,
-    compressed_depth: bool,
-    namespace: str,
-    frame_id: str | None,
+    opts: _Options,
     max_frames: int | None,
     progress: Callable[[int], None] | None,
 ) -> dict[str, Any]:
-    from .._atomic import atomic_output  # not loaded by `import pcdcodec`
-    from ..geometry.projector import Projector
-
-    intr = inp.intrinsics
-    scale = inp.depth_scale
-    if compressed_depth and images and scale != 1000.0:
-        raise InputError(
-            f"compressedDepth holds 16UC1 millimetres; this depth has scale {scale} per metre "
-            "(export without compressed_depth to get 32FC1 metres)"
-        )
-    model = inp.metadata.get("distortion_model", "plumb_bob")
-    try:
-        dist = [float(v) for v in json.loads(inp.metadata.get("distortion", "[]"))]
-    except (ValueError, TypeError):
-        dist = []
-    if not dist and model == "plumb_bob":
-        dist = [0.0] * 5
-    fid = frame_id or inp.metadata.get("frame_id") or "camera_color_optical_frame"
-    msgs = _Messages(to == "rosbag2", fid)
-    color_cam = inp.color_intrinsics
-    projector = (
-        Projector(
-            intr,
-            depth_scale=scale,
-            color_intrinsics=color_cam,
-            depth_to_color=inp.depth_to_color if color_cam is not None else None,
-        )
-        if cloud
-        else None
-    )
-    if color_cam is not None:
-        # The color image comes from its own camera: its CameraInfo says so.
-        color_info = color_cam.to_camera_info()
-        color_model, color_dist = color_info["distortion_model"], list(color_info["D"])
-    else:
-        color_cam, color_model, color_dist = intr, model, dist
-
-    t_depth = f"{namespace}/depth/image_raw"
-    t_cdepth = f"{t_depth}/compressedDepth"
-    t_color = f"{namespace}/color/image_raw"
-    t_dinfo = f"{namespace}/depth/camera_info"
-    t_cinfo = f"{namespace}/color/camera_info"
-    t_cloud = f"{namespace}/depth_registered/points"
-
+    export = _Export(inp, opts)
     count = 0
-    topics: list[str] = []
     with atomic_output(target, place=_swap_in) as staging:
         staging.mkdir(parents=True)
-        tmp_out = staging / target.name
-        bag = _BagWriter(tmp_out, to, storage, msgs)
+        bag = BagWriter(staging / target.name, opts.to, opts.storage, export.msgs)
         try:
             for color, depth, ts, pose in inp.frames:
                 if count == 0:
-                    has_color = color is not None
-                    if images:
-                        if compressed_depth:
-                            topics.append(t_cdepth)
-                            bag.add(t_cdepth, "sensor_msgs/msg/CompressedImage")
-                        else:
-                            topics.append(t_depth)
-                            bag.add(t_depth, "sensor_msgs/msg/Image")
-                        if has_color:
-                            topics.append(t_color)
-                            bag.add(t_color, "sensor_msgs/msg/Image")
-                    if camera_info:
-                        for t in (t_dinfo, t_cinfo) if has_color else (t_dinfo,):
-                            topics.append(t)
-                            bag.add(t, "sensor_msgs/msg/CameraInfo")
-                    if cloud:
-                        topics.append(t_cloud)
-                        bag.add(t_cloud, "sensor_msgs/msg/PointCloud2")
-                if depth.shape != intr.shape:
-                    raise InputError(
-                        f"frame at {ts} ns is {depth.shape[1]}x{depth.shape[0]}, the camera "
-                        f"{intr.width}x{intr.height}"
-                    )
-                if images:
-                    if compressed_depth:
-                        from ..ros.messages import compressed_depth_encode
-
-                        payload = compressed_depth_encode(np.asarray(depth, np.uint16))
-                        fmt = "16UC1; compressedDepth png"
-                        bag.write(t_cdepth, ts, msgs.compressed(ts, payload, fmt))
-                    elif depth.dtype == np.uint16 and scale == 1000.0:
-                        bag.write(t_depth, ts, msgs.image(ts, depth, "16UC1"))
-                    else:
-                        if depth.dtype == np.float32 and scale == 1.0:
-                            metres = depth
-                        else:
-                            metres = (depth / np.float32(scale)).astype(np.float32)
-                            metres[depth == 0] = np.nan  # ROS 32FC1: NaN is no measurement
-                        bag.write(t_depth, ts, msgs.image(ts, metres, "32FC1"))
-                    if color is not None:
-                        bag.write(t_color, ts, msgs.image(ts, color, "rgb8"))
-                if camera_info:
-                    info = msgs.camera_info(ts, intr, model, dist)
-                    bag.write(t_dinfo, ts, info)
-                    if color is not None:
-                        bag.write(
-                            t_cinfo, ts, msgs.camera_info(ts, color_cam, color_model, color_dist)
-                        )
-                if projector is not None:
-                    bag.write(t_cloud, ts, msgs.cloud(ts, cloud_array(projector, depth, color)))
-                if pose is not None:
-                    if "/tf" not in bag.conns:
-                        topics.append("/tf")
-                        bag.add("/tf", "tf2_msgs/msg/TFMessage")
-                    bag.write("/tf", ts, msgs.tf(ts, pose, "world"))
+                    export.add_topics(bag, color is not None)
+                export.write_frame(bag, color, depth, ts, pose)
                 count += 1
                 if progress is not None:
                     progress(count)
@@ -487,7 +319,7 @@ def _write(
                 raise InputError("the input has no frames to write")
         except BaseException:
             with contextlib.suppress(Exception):
-                bag.writer.abort()
+                bag.abort()
             raise
         bag.close()
     size = (
@@ -495,7 +327,13 @@ def _write(
         if target.is_dir()
         else target.stat().st_size
     )
-    return {"frames": count, "path": str(target), "topics": topics, "bytes": size, "format": to}
+    return {
+        "frames": count,
+        "path": str(target),
+        "topics": export.topics,
+        "bytes": size,
+        "format": opts.to,
+    }
 
 
 def _swap_in(staging: Path, target: Path) -> None:

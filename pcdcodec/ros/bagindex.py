@@ -1,5 +1,6 @@
-"""Frame indexes of bags: header stamps read from serialised messages, and a stretch of frames
-read back from the messages its index rows name.
+"""Frame indexes of bags: header stamps read from serialised messages, depth and color paired by
+stamp (:func:`pair_in_order`, the one rule a bag source's iteration and its index share), the
+index rows, and a stretch of frames read back from the messages its rows name.
 
 A bag frame index (:class:`~pcdcodec.sources.FrameIndex`) has one row per frame:
 ``(timestamp, depth log time, depth stamp, color log time, color stamp)``, the color columns -1
@@ -13,15 +14,22 @@ from __future__ import annotations
 
 import heapq
 import io
+import itertools
 import os
 import struct
 from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
+
+import numpy as np
 
 from ..errors import DecodeError, InputError
+from ..sync import Synchronizer
 
 COLUMNS = 5
+T = TypeVar("T")
+_Row = tuple[int, int, int, int, int]  # one frame of a bag frame index
 
 
 class _BoundedReader(io.BufferedReader):
@@ -187,8 +195,6 @@ def cdr_stamp(raw: bytes, where: str = "a ROS 2 message") -> int | None:
 
 
 def check_rows(rows: Any) -> Any:
-    import numpy as np
-
     table = np.asarray(rows)
     if table.ndim != 2 or table.shape[1] != COLUMNS:
         raise InputError(
@@ -196,6 +202,85 @@ def check_rows(rows: Any) -> Any:
             f"{table.shape}"
         )
     return table
+
+
+@dataclass
+class PairStats:
+    """What pairing a bag's depth and color left out: messages whose stamp did not increase
+    on their stream, and images that found no partner."""
+
+    out_of_order: int = 0
+    dropped_color: int = 0
+    dropped_depth: int = 0
+
+
+def pair_in_order(
+    messages: Iterable[tuple[bool, int, T]],
+    max_difference: int,
+    stats: PairStats | None = None,
+) -> Iterator[tuple[int, T, T]]:
+    """``(depth stamp, depth item, color item)`` for each pair of a bag's depth and color
+    messages, from ``(is_depth, stamp, item)`` of each message in bag order: the one pairing
+    rule of a bag source's iteration and of its frame index (:func:`index_rows`), so both
+    list the same frames in the same order.
+
+    A message whose stamp does not increase on its stream is skipped (counted in ``stats``);
+    color and depth are paired by :class:`~pcdcodec.sync.Synchronizer` (``max_difference``
+    ns), whose unmatched images ``stats`` counts as they are dropped.
+    """
+    sync: Synchronizer[T, T] = Synchronizer(max_difference=max_difference)
+    latest = {True: -1, False: -1}
+
+    def count() -> None:
+        if stats is not None:
+            stats.dropped_color = len(sync.dropped_color)
+            stats.dropped_depth = len(sync.dropped_depth)
+
+    for is_depth, ts, item in messages:
+        if ts <= latest[is_depth]:
+            if stats is not None:
+                stats.out_of_order += 1
+            continue
+        latest[is_depth] = ts
+        ready = sync.add_depth(ts, item) if is_depth else sync.add_color(ts, item)
+        count()
+        for _, citem, dts, ditem in ready:
+            yield dts, ditem, citem
+    ready = sync.flush()
+    count()
+    for _, citem, dts, ditem in ready:
+        yield dts, ditem, citem
+
+
+def index_rows(
+    stamps: Iterable[tuple[bool, int, int]],
+    color: bool,
+    max_difference: int,
+    limit: int | None = None,
+) -> Any:
+    """The index rows of a bag's frames, as an ``(n, 5)`` int64 array, from ``(is_depth, log
+    time, stamp)`` of each depth (and color) message in bag order: paired by
+    :func:`pair_in_order` (without color, each depth message whose stamp increases is a
+    frame), so the rows list exactly the frames iteration gives, in its order. At most
+    ``limit`` rows; the messages after the last of them are not read.
+    """
+    rows: Iterable[_Row]
+    if color:
+        pairs = pair_in_order(((d, ts, (t, ts)) for d, t, ts in stamps), max_difference)
+        rows = ((dts, d[0], d[1], c[0], c[1]) for dts, d, c in pairs)
+    else:
+        rows = _depth_rows(stamps)
+    table = list(itertools.islice(rows, limit))
+    return np.array(table, dtype=np.int64).reshape(-1, COLUMNS)
+
+
+def _depth_rows(stamps: Iterable[tuple[bool, int, int]]) -> Iterator[_Row]:
+    """Rows of depth-only frames: each depth message whose stamp increases."""
+    last = -1
+    for _, t, ts in stamps:
+        if ts > last:
+            last = ts
+            yield ts, t, ts, -1, -1
 
 
 def window(rows: Any, color: bool) -> tuple[int, int]:

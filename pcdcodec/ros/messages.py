@@ -1,5 +1,6 @@
-"""ROS message payloads to numpy arrays, and back: images, compressed images, camera info and
-organized point clouds.
+"""ROS message payloads to numpy arrays, and back: header stamps, images, compressed images,
+camera info and encoded video packets. Organized point clouds are read by :mod:`.clouds` (their
+names are served here too).
 
 Messages are the objects ``rosbags`` deserializes (attributes named as in the ``.msg`` files), of
 ROS 1 or ROS 2; both field spellings of ``CameraInfo`` (``K``/``k``, ``D``/``d``) are read.
@@ -15,7 +16,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..depth.rvl import rvl_decode, rvl_encode
 from ..errors import DecodeError, InputError
+from ..geometry.camera import CameraIntrinsics
+from .bagindex import stamp_value
+from .clouds import CloudLayout, cloud_layout, cloud_points, cloud_to_rgbd, fit_intrinsics
 
 __all__ = [
     "COLOR_ENCODINGS",
@@ -23,6 +28,7 @@ __all__ = [
     "CloudLayout",
     "camera_info",
     "cloud_layout",
+    "cloud_points",
     "cloud_to_rgbd",
     "compressed_depth_encode",
     "compressed_kind",
@@ -41,13 +47,6 @@ COLOR_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8", "mono8")
 _CDEPTH_HEADER = 12
 _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
-# sensor_msgs/PointField datatypes
-_FIELD_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
-_FIELD_NAMES = {1: "INT8", 2: "UINT8", 3: "INT16", 4: "UINT16", 5: "INT32", 6: "UINT32"}
-_FIELD_NAMES.update({7: "FLOAT32", 8: "FLOAT64"})
-#: the PointCloud2 fields read: each may appear once, with one value per point
-_CLOUD_FIELDS = ("x", "y", "z", "rgb", "rgba")
-
 
 def stamp_ns(msg: Any, topic: str, *, ros1: bool) -> int:
     """The header stamp of ``msg`` in nanoseconds (``timestamp`` for Foxglove messages).
@@ -57,8 +56,6 @@ def stamp_ns(msg: Any, topic: str, *, ros1: bool) -> int:
     :mod:`~pcdcodec.ros.bagindex` read it. Raises :class:`~pcdcodec.DecodeError` for a
     damaged stamp (see :func:`~pcdcodec.ros.bagindex.stamp_value`).
     """
-    from .bagindex import stamp_value
-
     s = msg.header.stamp if hasattr(msg, "header") else msg.timestamp
     sec, nsec = int(s.sec), int(s.nanosec)
     if ros1 and sec < 0:
@@ -311,8 +308,6 @@ def decode_compressed(
             return np.repeat(img[..., :1], 3, axis=2)
         return np.ascontiguousarray(img[..., :3])
     if c.kind == "cdepth-rvl":
-        from ..depth.rvl import rvl_decode
-
         try:
             image = rvl_decode(memoryview(c.body), c.width * c.height).reshape(c.height, c.width)
         except DecodeError as exc:
@@ -376,8 +371,6 @@ def compressed_depth_encode(depth: npt.NDArray[np.uint16], *, rvl: bool = False)
     nothing for 16-bit depth.
     """
     if rvl:
-        from ..depth.rvl import rvl_encode
-
         h, w = depth.shape
         return (
             struct.pack("<iff", 2, 0.0, 0.0)
@@ -395,8 +388,6 @@ def camera_info(msg: Any, topic: str) -> tuple[Any, str, list[float]]:
 
     Reads ``K``/``k`` and ``D``/``d``; the distortion is returned, not applied.
     """
-    from ..geometry.camera import CameraIntrinsics
-
     k = getattr(msg, "k", None)
     if k is None:
         k = getattr(msg, "K", None)
@@ -415,172 +406,3 @@ def camera_info(msg: Any, topic: str) -> tuple[Any, str, list[float]]:
         ) from None
     dist = [float(v) for v in np.asarray(d if d is not None else [], dtype=np.float64).ravel()]
     return intr, str(msg.distortion_model), dist
-
-
-@dataclass(frozen=True)
-class CloudLayout:
-    """Where x, y, z and the color sit in each point of an organized PointCloud2."""
-
-    width: int
-    height: int
-    point_step: int
-    row_step: int
-    dtype: np.dtype[Any]  # structured: x, y, z and optionally rgb (uint32)
-    color: str | None  # "rgb" or "rgba" (the field name) or None
-
-
-def cloud_layout(msg: Any, topic: str) -> CloudLayout:
-    """Read a PointCloud2's fields by name, offset and datatype (never by position)."""
-    h, w = int(msg.height), int(msg.width)
-    if h <= 1:
-        raise InputError(
-            f"cloud topic {topic!r} is not organized (height {h}, width {w}); pcdcodec needs "
-            "an organized cloud, one point per pixel"
-        )
-    order = ">" if msg.is_bigendian else "<"
-    fields: dict[str, Any] = {}
-    for f in msg.fields:
-        name = str(f.name)
-        if name in _CLOUD_FIELDS and name in fields:
-            # PCL reads the first, other readers the last: neither is safe to guess.
-            raise InputError(
-                f"cloud topic {topic!r} has the field {name!r} twice (byte offsets "
-                f"{int(fields[name].offset)} and {int(f.offset)}); expected each of "
-                f"{', '.join(_CLOUD_FIELDS)} at most once"
-            )
-        fields[name] = f
-    if "rgb" in fields and "rgba" in fields:
-        raise InputError(
-            f"cloud topic {topic!r} has both an 'rgb' and an 'rgba' field; expected one color field"
-        )
-    for name in _CLOUD_FIELDS:
-        if name in fields and int(fields[name].count) != 1:
-            raise InputError(
-                f"cloud topic {topic!r}: field {name!r} has count {int(fields[name].count)}, "
-                "expected 1 (one value per point)"
-            )
-    names: list[str] = []
-    formats: list[str] = []
-    offsets: list[int] = []
-    for axis in ("x", "y", "z"):
-        f = fields.get(axis)
-        if f is None:
-            raise InputError(
-                f"cloud topic {topic!r} has no {axis!r} field (fields: {sorted(fields)})"
-            )
-        if int(f.datatype) != 7:
-            raise InputError(
-                f"cloud topic {topic!r}: field {axis!r} is "
-                f"{_FIELD_NAMES.get(int(f.datatype), int(f.datatype))}, expected FLOAT32"
-            )
-        names.append(axis)
-        formats.append(order + "f4")
-        offsets.append(int(f.offset))
-    color = next((n for n in ("rgb", "rgba") if n in fields), None)
-    if color is not None:
-        f = fields[color]
-        if int(f.datatype) not in (5, 6, 7):
-            raise InputError(
-                f"cloud topic {topic!r}: field {color!r} is "
-                f"{_FIELD_NAMES.get(int(f.datatype), int(f.datatype))}, expected FLOAT32 or "
-                "UINT32 packed color"
-            )
-        names.append("rgb")
-        formats.append(order + "u4")  # the float's bits are the packed color
-        offsets.append(int(f.offset))
-    step, row = int(msg.point_step), int(msg.row_step)
-    size = len(msg.data)
-    # The steps against the data before any dtype is built from them (numpy's item size is a
-    # C int): a damaged point_step or row_step is an error, whatever its size.
-    if row < w * step:
-        raise InputError(
-            f"cloud topic {topic!r}: row_step {row} is shorter than width {w} x point_step {step}"
-        )
-    if row * h > size:
-        raise DecodeError(
-            f"cloud topic {topic!r}: data is {size} bytes, expected row_step {row} x height {h} "
-            f"= {row * h}"
-        )
-    for n, o in zip(names, offsets, strict=True):
-        if o + 4 > step:
-            raise InputError(
-                f"cloud topic {topic!r}: field {n!r} at byte offset {o} runs past point_step {step}"
-            )
-    dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": step})
-    return CloudLayout(w, h, step, row, dtype, color)
-
-
-def cloud_points(msg: Any, layout: CloudLayout, topic: str) -> npt.NDArray[Any]:
-    """The cloud's points as an H×W structured array (a view where possible)."""
-    data = msg.data if isinstance(msg.data, np.ndarray) else np.frombuffer(msg.data, np.uint8)
-    h, w, step, row = layout.height, layout.width, layout.point_step, layout.row_step
-    if row < w * step:
-        raise InputError(
-            f"cloud topic {topic!r}: row_step {row} is shorter than width {w} x point_step {step}"
-        )
-    if data.size < row * h:
-        raise DecodeError(
-            f"cloud topic {topic!r}: data is {data.size} bytes, expected row_step {row} x "
-            f"height {h} = {row * h}"
-        )
-    rows = data[: row * h].reshape(h, row)[:, : w * step]
-    if row != w * step:
-        rows = np.ascontiguousarray(rows)
-    return rows.reshape(-1).view(layout.dtype).reshape(h, w)
-
-
-def cloud_to_rgbd(
-    msg: Any, layout: CloudLayout, topic: str
-) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.uint8] | None, npt.NDArray[Any]]:
-    """An organized cloud as (z in float32 metres, RGB, the structured points).
-
-    z is copied bit for bit; NaN (or non-finite) z stays NaN: a hole.
-    """
-    pts = cloud_points(msg, layout, topic)
-    z = pts["z"].astype(np.float32)  # native byte order, same bits
-    rgb = None
-    if layout.color is not None:
-        packed = pts["rgb"].astype(np.uint32)
-        rgb = np.empty((layout.height, layout.width, 3), np.uint8)
-        rgb[..., 0] = packed >> 16
-        rgb[..., 1] = packed >> 8
-        rgb[..., 2] = packed
-    return z, rgb, pts
-
-
-def fit_intrinsics(pts: npt.NDArray[Any], topic: str) -> tuple[Any, float]:
-    """Fit fx, cx from x/z against u and fy, cy from y/z against v on an organized cloud.
-
-    Returns the intrinsics and the fit residual: the largest distance, in pixels, between a
-    valid point's pixel and where the fitted camera projects it.
-    """
-    from ..geometry.camera import CameraIntrinsics
-
-    h, w = pts.shape
-    x = pts["x"].astype(np.float64)
-    y = pts["y"].astype(np.float64)
-    z = pts["z"].astype(np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        valid = np.isfinite(x) & np.isfinite(y) & np.isfinite(z) & (z > 0)
-    v, u = np.nonzero(valid)
-    if u.size < 2 or np.ptp(u) == 0 or np.ptp(v) == 0:
-        raise InputError(
-            f"cloud topic {topic!r}: too few valid points ({u.size}) to fit intrinsics; pass "
-            "intrinsics or an info topic"
-        )
-    a = x[valid] / z[valid]
-    b = y[valid] / z[valid]
-    # u = fx * a + cx, v = fy * b + cy
-    fx, cx = np.polyfit(a, u.astype(np.float64), 1)
-    fy, cy = np.polyfit(b, v.astype(np.float64), 1)
-    residual = float(
-        max(np.abs(fx * a + cx - u).max(initial=0.0), np.abs(fy * b + cy - v).max(initial=0.0))
-    )
-    try:
-        intr = CameraIntrinsics(w, h, float(fx), float(fy), float(cx), float(cy))
-    except InputError as exc:
-        raise InputError(
-            f"cloud topic {topic!r}: the fitted camera is not valid ({exc}); the cloud may not "
-            "come from a pinhole camera: pass intrinsics or an info topic"
-        ) from None
-    return intr, residual

@@ -32,18 +32,18 @@ import numpy.typing as npt
 
 from ..errors import DecodeError, InputError, PcdcodecError
 from ..geometry.camera import CameraIntrinsics
+from ..ros.bagfile import ROS1_MAGIC
 from ..ros.bagindex import check_ros1_index
 from .base import FrameIndex, Source, given_intrinsics, read_magic, register_source
 
 __all__ = ["RealSenseBagSource", "open_realsense"]
 
-_ROSBAG_MAGIC = b"#ROSBAG V2.0\n"
 _IMAGE = re.compile(r"^/device_(\d+)/sensor_(\d+)/(Depth|Color)_(\d+)/image/data$")
 _NS = 1_000_000_000
 
 
 def _is_realsense(path: Path) -> bool:
-    if not path.is_file() or read_magic(path, len(_ROSBAG_MAGIC)) != _ROSBAG_MAGIC:
+    if not path.is_file() or read_magic(path, len(ROS1_MAGIC)) != ROS1_MAGIC:
         return False
     try:
         from rosbags.rosbag1 import Reader

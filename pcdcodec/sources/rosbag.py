@@ -14,71 +14,55 @@ Two kinds of camera data are read:
   point's z as float32 metres, bit for bit, color the packed ``rgb``/``rgba`` field; the camera
   comes from a CameraInfo topic when the bag has one, else it is fitted to the cloud.
 
-Topics are chosen automatically (see :meth:`RosbagSource.candidates` and ``docs/ingest.md``);
-``depth_topic``, ``color_topic``, ``info_topic`` and ``cloud_topic`` override the choice.
+Topics are chosen automatically by the rules of :mod:`pcdcodec.ros.topics` (see
+:meth:`RosbagSource.candidates` and ``docs/ingest.md``); ``depth_topic``, ``color_topic``,
+``info_topic`` and ``cloud_topic`` override the choice. The source reads the frames (one pass,
+or a stretch of them through :meth:`~RosbagSource.frame_index`) and passes encoded video
+through (:meth:`~RosbagSource.encoded_frames`); message payloads are read by
+:mod:`pcdcodec.ros.messages`.
 """
 
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import os
-import struct
 import tempfile
-from collections.abc import Iterator
-from dataclasses import dataclass, field
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..errors import DecodeError, InputError, PcdcodecError
+from ..color.base import Packet
+from ..errors import InputError, PcdcodecError
+from ..frame import Frame
+from ..ros import bagfile, bagindex, clouds, tf, topics
 from ..ros import messages as rm
+from ..ros.bagfile import MCAP_MAGIC as MCAP_MAGIC
+from ..ros.bagfile import ROS1_MAGIC as ROS1_MAGIC
+from ..ros.bagfile import SQLITE_MAGIC as SQLITE_MAGIC
+from ..ros.topics import (
+    CAMERA_INFO,
+    COMPRESSED,
+    IMAGE,
+    POINT_CLOUD,
+    VIDEO_TYPES,
+    TopicCandidate,
+)
+from ..sync import Synchronizer
 from .base import FrameIndex, Source, given_intrinsics, read_magic, register_source
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
 
-ROS1_MAGIC = b"#ROSBAG V2.0\n"
-SQLITE_MAGIC = b"SQLite format 3\x00"
-MCAP_MAGIC = b"\x89MCAP0\r\n"
-
-IMAGE = "sensor_msgs/msg/Image"
-COMPRESSED = "sensor_msgs/msg/CompressedImage"
-CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
-POINT_CLOUD = "sensor_msgs/msg/PointCloud2"
-VIDEO_TYPES = ("foxglove_msgs/msg/CompressedVideo", "ffmpeg_image_transport_msgs/msg/FFMPEGPacket")
-
-_GENERIC = frozenset(
-    {"image", "image_raw", "image_rect", "image_rect_raw", "data", "compressed", "compresseddepth",
-     "camera_info", "info", "points", "raw", ""}
-)  # fmt: skip
-
-
-# -- probing --------------------------------------------------------------------------------
-
-
-def _mcap_profile(path: Path) -> str | None:
-    head = read_magic(path, 64)
-    if not head.startswith(MCAP_MAGIC) or len(head) < 21 or head[8] != 0x01:
-        return None
-    (n,) = struct.unpack_from("<I", head, 17)
-    if 21 + n > len(head):
-        return None
-    return head[21 : 21 + n].decode(errors="replace")
-
 
 def _is_bag(path: Path) -> bool:
     if path.is_dir():
-        meta = path / "metadata.yaml"
-        try:
-            return meta.is_file() and "rosbag2_bagfile_information" in meta.read_text()[:4096]
-        except OSError:
-            return False
-    head = read_magic(path, 16)
-    if head.startswith(ROS1_MAGIC) or head.startswith(SQLITE_MAGIC):
-        return True
-    # .pcdc recordings are MCAP too, with pcdcodec's own profile: only ROS 2 bags are ours.
-    return _mcap_profile(path) == "ros2"
+        return bagfile.is_bag_folder(path)
+    return bagfile.is_bag_head(read_magic(path, 64))
 
 
 def _open(path: Path, **options: Any) -> Source:
@@ -98,50 +82,6 @@ def open_bag(path: str | os.PathLike[str], **options: Any) -> RosbagSource:
     return RosbagSource(path, **options)
 
 
-# -- topics ---------------------------------------------------------------------------------
-
-
-@dataclass
-class TopicCandidate:
-    """A topic that could feed a recording, with what its first message says."""
-
-    topic: str
-    msgtype: str
-    count: int
-    role: str | None  # "depth", "color", "info", "cloud", "video" or None (unusable)
-    encoding: str = ""
-    width: int = 0
-    height: int = 0
-    note: str = ""
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "topic": self.topic,
-            "type": self.msgtype,
-            "messages": self.count,
-            "role": self.role,
-            "encoding": self.encoding,
-            "size": f"{self.width}x{self.height}" if self.width else "",
-            "note": self.note,
-        }
-
-
-def _parts(topic: str) -> list[str]:
-    return [p for p in topic.lower().split("/") if p]
-
-
-def _affinity(a: str, b: str) -> tuple[int, int]:
-    """How much two topics look like one camera: shared leading parts, then shared parts."""
-    pa, pb = _parts(a), _parts(b)
-    lead = 0
-    for x, y in zip(pa, pb, strict=False):
-        if x != y:
-            break
-        lead += 1
-    common = len({p for p in pa if p not in _GENERIC} & {p for p in pb if p not in _GENERIC})
-    return common, lead
-
-
 def _encoding(msg: Any) -> str:
     return str(getattr(msg, "encoding", getattr(msg, "format", "")))
 
@@ -152,18 +92,9 @@ def _add_time(exc: PcdcodecError, what: str) -> None:
         exc.args = (f"{exc.args[0]} ({what})", *exc.args[1:])
 
 
-def _wrap(exc: Exception, path: Path) -> PcdcodecError:
-    text = str(exc) or type(exc).__name__
-    return DecodeError(f"cannot read bag {str(path)!r}: {text} (is the file complete?)")
-
-
 @dataclass
-class _Stats:
-    dropped_color: int = 0
-    dropped_depth: int = 0
-    out_of_order: int = 0
+class _Stats(bagindex.PairStats):
     frames: int = 0
-    extra: dict[str, Any] = field(default_factory=dict)
 
 
 class RosbagSource(Source):
@@ -203,65 +134,25 @@ class RosbagSource(Source):
         if cloud_depth not in ("auto", "float32"):
             raise InputError(f"cloud_depth must be 'auto' or 'float32', got {cloud_depth!r}")
         self.cloud_depth = cloud_depth
-        self._cloud_units: Any = None  # Projector that maps uint16 units back to the cloud's z
+        self._cloud_units: clouds.DepthUnits | None = None  # the cloud's z as uint16 units
         if max_frames is not None and max_frames < 1:
             raise InputError(f"max_frames must be at least 1, got {max_frames}")
         self.max_frames = max_frames
         self.max_difference = int(max_difference)
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
-        self._layouts: dict[Any, rm.CloudLayout] = {}
+        self._layouts = clouds.LayoutCache()
         self._shape: tuple[int, int] | None = None
         self._depth_dtype: np.dtype[Any] = np.dtype(np.uint16)
         self._index: FrameIndex | None = None
         self._tf: Any = None  # the camera's poses from /tf (False: none); read on first use
-        self._reader = self._open_reader()
+        self._reader, self._tmp = bagfile.open_reader(self.path)
         try:
             self._setup(depth_topic, color_topic, info_topic, cloud_topic, intrinsics, depth_scale)
         except BaseException:
             self.close()
             raise
 
-    # -- opening ----------------------------------------------------------------------------
-
-    def _open_reader(self) -> Any:
-        from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
-
-        from ..ros import bagindex as _bagindex
-
-        p = self.path
-        if not p.exists():
-            raise InputError(f"bag {str(p)!r} does not exist")
-        target = p
-        if p.is_file():
-            # rosbags picks ROS 1 or the ROS 2 storage by the file's suffix.
-            head = read_magic(p)
-            suffix = (
-                ".bag"
-                if head.startswith(ROS1_MAGIC)
-                else ".db3"
-                if head.startswith(SQLITE_MAGIC)
-                else ".mcap"
-            )
-            if p.suffix != suffix:
-                self._tmp = tempfile.TemporaryDirectory(prefix="pcdcodec-bag-")
-                target = Path(self._tmp.name) / f"bag{suffix}"
-                target.symlink_to(p.resolve())
-        try:
-            reader = AnyReader(
-                [_bagindex.bounded_path(target)],
-                default_typestore=get_typestore(Stores.ROS2_HUMBLE),
-            )
-            reader.open()
-        except Exception as exc:
-            raise _wrap(exc, p) from exc
-        try:
-            for bag in reader.readers:
-                _bagindex.check_ros1_index(bag, repr(str(p)))
-        except BaseException:
-            reader.close()
-            raise
-        return reader
+    # -- opening: the topics and the camera --------------------------------------------------
 
     def _first(self, conn: Any) -> Any:
         try:
@@ -270,59 +161,23 @@ class RosbagSource(Source):
         except PcdcodecError:
             raise
         except Exception as exc:
-            raise _wrap(exc, self.path) from exc
+            raise bagfile.bag_error(exc, self.path) from exc
         return None
 
     def candidates(self) -> list[TopicCandidate]:
-        """Every topic with its role (depth, color, info, cloud, video) from its first message."""
-        out = []
-        for conn in self._reader.connections:
-            t, mt, n = conn.topic, conn.msgtype, conn.msgcount
-            cand = TopicCandidate(t, mt, n, None)
-            if mt == IMAGE:
-                msg = self._first(conn)
-                if msg is not None:
-                    cand.encoding = str(msg.encoding)
-                    cand.width, cand.height = int(msg.width), int(msg.height)
-                    cand.role = rm.image_kind(cand.encoding)
-                    if cand.role is None:
-                        cand.note = "unsupported encoding"
-            elif mt == COMPRESSED:
-                msg = self._first(conn)
-                if msg is not None:
-                    cand.encoding = str(msg.format)
-                    cand.role = rm.compressed_kind(cand.encoding)
-                    if cand.role is not None:
-                        # The size from the image's header: nothing is decoded here.
-                        try:
-                            cand.width, cand.height = rm.compressed_size(msg, cand.role, t)
-                        except PcdcodecError as exc:
-                            cand.role, cand.note = None, str(exc)
-            elif mt == CAMERA_INFO:
-                msg = self._first(conn)
-                cand.role = "info"
-                if msg is not None:
-                    cand.width, cand.height = int(msg.width), int(msg.height)
-                    cand.encoding = str(msg.distortion_model)
-            elif mt == POINT_CLOUD:
-                msg = self._first(conn)
-                if msg is not None:
-                    cand.width, cand.height = int(msg.width), int(msg.height)
-                    cand.encoding = ",".join(str(f.name) for f in msg.fields)
-                    cand.role = "cloud" if cand.height > 1 else None
-                    if cand.height <= 1:
-                        cand.note = "unorganized (height 1)"
-            elif mt in VIDEO_TYPES:
-                cand.role = "video"
-            out.append(cand)
-        return out
+        """Every topic with its role (depth, color, info, cloud, video) from its first message
+        (:func:`pcdcodec.ros.topics.classify`)."""
+        return [
+            topics.classify(c.topic, c.msgtype, c.msgcount, partial(self._first, c))
+            for c in self._reader.connections
+        ]
 
     def _conn(self, topic: str, what: str) -> Any:
         conns = [c for c in self._reader.connections if c.topic == topic]
         if not conns:
-            topics = sorted({c.topic for c in self._reader.connections})
+            names = sorted({c.topic for c in self._reader.connections})
             raise InputError(
-                f"bag {str(self.path)!r} has no {what} topic {topic!r}; it has {topics}"
+                f"bag {str(self.path)!r} has no {what} topic {topic!r}; it has {names}"
             )
         return conns[0]
 
@@ -335,11 +190,7 @@ class RosbagSource(Source):
         intrinsics: Any,
         depth_scale: float | None,
     ) -> None:
-        no_color = color_topic is not None and color_topic.strip().lower() in ("", "none")
-        if no_color:
-            color_topic = ""
-        cands = self.candidates()
-        by_topic = {c.topic: c for c in cands}
+        """Choose the topics (each given one checked), then the camera, then the metadata."""
         self.stats = _Stats()
         self.notes: list[str] = []
         self.distortion_model = ""
@@ -350,161 +201,113 @@ class RosbagSource(Source):
         self.depth_topic: str | None = None
         self.cloud_topic: str | None = None
 
-        depth_cands = [c for c in cands if c.role == "depth"]
-        mode = "images"
-        if cloud_topic is not None:
-            mode = "cloud"
-        elif depth_topic is None and not depth_cands:
-            if any(c.role == "cloud" for c in cands):
-                mode = "cloud"
-            else:
-                found = ", ".join(f"{c.topic} ({c.msgtype})" for c in cands) or "no topics"
-                raise InputError(
-                    f"bag {str(self.path)!r} has no depth topic (an Image in "
-                    f"{'/'.join(rm.DEPTH_ENCODINGS)}, a compressedDepth CompressedImage or an "
-                    f"organized PointCloud2); it has {found}"
-                )
-        self.mode = mode
-
-        if mode == "cloud":
+        cands = self.candidates()
+        self.mode = topics.choose_mode(cands, depth_topic, cloud_topic, str(self.path))
+        first_pts = None
+        if self.mode == "cloud":
             if cloud_topic is None:
-                cloud_topic = next(c.topic for c in cands if c.role == "cloud")
-            cand = by_topic.get(cloud_topic)
-            conn = self._conn(cloud_topic, "cloud")
-            if conn.msgtype != POINT_CLOUD:
-                raise InputError(
-                    f"cloud topic {cloud_topic!r} is a {conn.msgtype}, not PointCloud2"
-                )
-            first = self._first(conn)
-            if first is None:
-                raise InputError(f"cloud topic {cloud_topic!r} has no messages")
-            self._layout = self._cloud_layout(first, cloud_topic)
-            self.cloud_topic = cloud_topic
-            self._depth_conn = conn
-            self._color_conn = None
-            self.has_color = self._layout.color is not None
-            width, height = self._layout.width, self._layout.height
-            anchor = cloud_topic
-            self.depth_scale = 1.0 if depth_scale is None else float(depth_scale)
-            first_pts = rm.cloud_points(first, self._layout, cloud_topic)
-            if self.cloud_depth == "auto" and depth_scale is None:
-                self._pick_units(first_pts["z"].astype(np.float32))
-            self._depth_dtype = np.dtype(np.uint16 if self._cloud_units is not None else np.float32)
+                cloud_topic = topics.choose_cloud(cands)
+            first_pts = self._setup_cloud(cloud_topic, depth_scale)
+            anchor, size = cloud_topic, (self._layout.width, self._layout.height)
         else:
             if depth_topic is None:
-                # Raw images before compressed ones, then the busiest topic.
-                depth_topic = sorted(
-                    depth_cands, key=lambda c: (c.msgtype != IMAGE, -c.count, c.topic)
-                )[0].topic
-            conn = self._conn(depth_topic, "depth")
-            cand = by_topic[depth_topic]
-            if conn.msgtype not in (IMAGE, COMPRESSED):
-                raise InputError(
-                    f"depth topic {depth_topic!r} is a {conn.msgtype}, expected Image or "
-                    "CompressedImage"
-                )
-            if cand.role != "depth":
-                if cand.note and rm.compressed_kind(cand.encoding) == "depth":
-                    raise DecodeError(cand.note)
-                enc = cand.encoding
-                raise InputError(
-                    f"depth topic {depth_topic!r} has encoding {enc!r}; expected one of "
-                    f"{', '.join(rm.DEPTH_ENCODINGS)} or a compressedDepth format"
-                )
-            self.depth_topic = depth_topic
-            self._depth_conn = conn
-            width, height = cand.width, cand.height
+                depth_topic = topics.choose_depth(cands)
+            size = self._setup_depth(cands, depth_topic, depth_scale)
+            self._setup_color(cands, color_topic, size)
             anchor = depth_topic
-            float_depth = cand.encoding.startswith("32FC1")
-            self._depth_dtype = np.dtype(np.float32 if float_depth else np.uint16)
-            self.depth_scale = (
-                float(depth_scale) if depth_scale is not None else (1.0 if float_depth else 1000.0)
-            )
-            if color_topic is None and not no_color:
-                colors = [
-                    c for c in cands if c.role == "color" and (c.width, c.height) == (width, height)
-                ]
-                colors.sort(
-                    key=lambda c: (
-                        _affinity(c.topic, depth_topic),
-                        c.encoding != "mono8" and not c.encoding.startswith("mono8"),
-                        c.msgtype == IMAGE,
-                    ),
-                    reverse=True,
-                )
-                if colors:
-                    color_topic = colors[0].topic
-                else:
-                    # A color topic whose first image is damaged or oversized is not a camera
-                    # of another size: recording depth only would lose its color unseen.
-                    damaged = [
-                        c
-                        for c in cands
-                        if c.msgtype == COMPRESSED
-                        and c.note
-                        and rm.compressed_kind(c.encoding) == "color"
-                    ]
-                    if damaged:
-                        raise DecodeError(
-                            f"{damaged[0].note}; its first image cannot be read, so its color "
-                            "cannot be recorded (pass color_topic='' to record depth only)"
-                        )
-                    self.notes.append(
-                        f"no color topic of the depth's size {width}x{height}: depth only"
-                    )
-            if color_topic:
-                cconn = self._conn(color_topic, "color")
-                ccand = by_topic[color_topic]
-                if ccand.role != "color":
-                    if ccand.note and rm.compressed_kind(ccand.encoding) == "color":
-                        raise DecodeError(ccand.note)
-                    raise InputError(
-                        f"color topic {color_topic!r} has encoding {ccand.encoding!r}; expected "
-                        f"one of {', '.join(rm.COLOR_ENCODINGS)} or a JPEG/PNG CompressedImage"
-                    )
-                if (ccand.width, ccand.height) != (width, height):
-                    raise InputError(
-                        f"color topic {color_topic!r} is {ccand.width}x{ccand.height} but depth "
-                        f"topic {depth_topic!r} is {width}x{height}; pcdcodec needs registered "
-                        "depth and color of one size (pass color_topic='' for depth only)"
-                    )
-                self._color_conn = cconn
-                self.color_topic = color_topic
-            else:
-                self._color_conn = None
-            self.has_color = self._color_conn is not None
-
-        # The camera: given, or from CameraInfo, or fitted to the cloud.
         if info_topic is None:
-            infos = [c for c in cands if c.role == "info"]
-            infos.sort(key=lambda c: _affinity(c.topic, anchor), reverse=True)
-            if infos and (len(infos) == 1 or _affinity(infos[0].topic, anchor) > (0, 0)):
-                info_topic = infos[0].topic
+            info_topic = topics.choose_info(cands, anchor)
+        self._setup_camera(info_topic, intrinsics, anchor, size, first_pts)
+        self.metadata = self._metadata()
+
+    def _setup_cloud(self, cloud_topic: str, depth_scale: float | None) -> Any:
+        """Read the cloud topic's first cloud: its layout, whether its z values are whole
+        depth units (:func:`~pcdcodec.ros.clouds.find_units`); returns its points."""
+        conn = self._conn(cloud_topic, "cloud")
+        if conn.msgtype != POINT_CLOUD:
+            raise InputError(f"cloud topic {cloud_topic!r} is a {conn.msgtype}, not PointCloud2")
+        first = self._first(conn)
+        if first is None:
+            raise InputError(f"cloud topic {cloud_topic!r} has no messages")
+        self._layout = self._layouts.get(first, cloud_topic)
+        self.cloud_topic = cloud_topic
+        self._depth_conn = conn
+        self._color_conn = None
+        self.has_color = self._layout.color is not None
+        self.depth_scale = 1.0 if depth_scale is None else float(depth_scale)
+        first_pts = clouds.cloud_points(first, self._layout, cloud_topic)
+        if self.cloud_depth == "auto" and depth_scale is None:
+            self._cloud_units = clouds.find_units(first_pts["z"].astype(np.float32))
+            if self._cloud_units is not None:
+                self.depth_scale = scale = self._cloud_units.scale
+                self.notes.append(
+                    f"cloud z values are whole 1/{scale:g} m steps: stored as uint16 units at "
+                    f"depth scale {scale:g} (every z rebuilds bit for bit)"
+                )
+        self._depth_dtype = np.dtype(np.uint16 if self._cloud_units is not None else np.float32)
+        return first_pts
+
+    def _setup_depth(
+        self, cands: Sequence[TopicCandidate], depth_topic: str, depth_scale: float | None
+    ) -> tuple[int, int]:
+        """Check the depth topic; its depth type and scale. Returns its images' size."""
+        conn = self._conn(depth_topic, "depth")
+        cand = {c.topic: c for c in cands}[depth_topic]
+        if conn.msgtype not in (IMAGE, COMPRESSED):
+            raise InputError(
+                f"depth topic {depth_topic!r} is a {conn.msgtype}, expected Image or "
+                "CompressedImage"
+            )
+        topics.check_depth(cand)
+        self.depth_topic = depth_topic
+        self._depth_conn = conn
+        float_depth = cand.encoding.startswith("32FC1")
+        self._depth_dtype = np.dtype(np.float32 if float_depth else np.uint16)
+        self.depth_scale = (
+            float(depth_scale) if depth_scale is not None else (1.0 if float_depth else 1000.0)
+        )
+        return cand.width, cand.height
+
+    def _setup_color(
+        self, cands: Sequence[TopicCandidate], color_topic: str | None, size: tuple[int, int]
+    ) -> None:
+        """The color topic: none when ``color_topic`` is ``""`` or ``"none"``, else the given
+        one, checked, or the one :func:`~pcdcodec.ros.topics.choose_color` picks."""
+        assert self.depth_topic is not None
+        width, height = size
+        if color_topic is not None and color_topic.strip().lower() in ("", "none"):
+            color_topic = ""
+        elif color_topic is None:
+            color_topic = topics.choose_color(cands, self.depth_topic, width, height)
+            if color_topic is None:
+                self.notes.append(
+                    f"no color topic of the depth's size {width}x{height}: depth only"
+                )
+        self._color_conn = None
+        if color_topic:
+            cconn = self._conn(color_topic, "color")
+            cand = {c.topic: c for c in cands}[color_topic]
+            topics.check_color(cand, self.depth_topic, width, height)
+            self._color_conn = cconn
+            self.color_topic = color_topic
+        self.has_color = self._color_conn is not None
+
+    def _setup_camera(
+        self,
+        info_topic: str | None,
+        intrinsics: Any,
+        anchor: str,
+        size: tuple[int, int],
+        first_pts: Any,
+    ) -> None:
+        """The camera: given, or from the CameraInfo topic, or fitted to the first cloud."""
+        width, height = size
         if intrinsics is not None:
             self.intrinsics = given_intrinsics(intrinsics, width, height)
         elif info_topic:
-            iconn = self._conn(info_topic, "camera info")
-            if iconn.msgtype != CAMERA_INFO:
-                raise InputError(f"info topic {info_topic!r} is a {iconn.msgtype}, not CameraInfo")
-            msg = self._first(iconn)
-            if msg is None:
-                raise InputError(f"camera info topic {info_topic!r} has no messages")
-            if (int(msg.width), int(msg.height)) != (width, height):
-                raise InputError(
-                    f"camera info topic {info_topic!r} is for {msg.width}x{msg.height} images, "
-                    f"but {anchor!r} is {width}x{height}"
-                )
-            self.intrinsics, self.distortion_model, self.distortion = rm.camera_info(
-                msg, info_topic
-            )
-            self.info_topic = info_topic
-            if any(self.distortion):
-                self.notes.append(
-                    f"camera info has {self.distortion_model} distortion {self.distortion}: kept "
-                    "in the recording's metadata, not applied to the points"
-                )
-        elif mode == "cloud":
-            self.intrinsics, self.fit_residual = rm.fit_intrinsics(first_pts, anchor)
+            self._read_camera_info(info_topic, anchor, size)
+        elif self.mode == "cloud":
+            self.intrinsics, self.fit_residual = clouds.fit_intrinsics(first_pts, anchor)
             self.notes.append(
                 f"no camera info: intrinsics fitted to the cloud, residual "
                 f"{self.fit_residual:.3g} px"
@@ -517,7 +320,33 @@ class RosbagSource(Source):
                 f"intrinsics are for {self.intrinsics.width}x{self.intrinsics.height} but "
                 f"{anchor!r} is {width}x{height}"
             )
-        self.metadata = {
+
+    def _read_camera_info(self, info_topic: str, anchor: str, size: tuple[int, int]) -> None:
+        """The camera and its distortion from the first message of ``info_topic``, which must
+        be for images of ``size`` (those of ``anchor``)."""
+        width, height = size
+        iconn = self._conn(info_topic, "camera info")
+        if iconn.msgtype != CAMERA_INFO:
+            raise InputError(f"info topic {info_topic!r} is a {iconn.msgtype}, not CameraInfo")
+        msg = self._first(iconn)
+        if msg is None:
+            raise InputError(f"camera info topic {info_topic!r} has no messages")
+        if (int(msg.width), int(msg.height)) != (width, height):
+            raise InputError(
+                f"camera info topic {info_topic!r} is for {msg.width}x{msg.height} images, "
+                f"but {anchor!r} is {width}x{height}"
+            )
+        self.intrinsics, self.distortion_model, self.distortion = rm.camera_info(msg, info_topic)
+        self.info_topic = info_topic
+        if any(self.distortion):
+            self.notes.append(
+                f"camera info has {self.distortion_model} distortion {self.distortion}: kept "
+                "in the recording's metadata, not applied to the points"
+            )
+
+    def _metadata(self) -> dict[str, str]:
+        """The recording metadata: the bag, the topics read, and how the camera was found."""
+        metadata = {
             "source": "rosbag",
             "bag": self.path.name,
             **{
@@ -532,10 +361,11 @@ class RosbagSource(Source):
             },
         }
         if self.distortion_model:
-            self.metadata["distortion_model"] = self.distortion_model
-            self.metadata["distortion"] = json.dumps(self.distortion)
+            metadata["distortion_model"] = self.distortion_model
+            metadata["distortion"] = json.dumps(self.distortion)
         if self.fit_residual is not None:
-            self.metadata["intrinsics_fit_residual_px"] = repr(self.fit_residual)
+            metadata["intrinsics_fit_residual_px"] = repr(self.fit_residual)
+        return metadata
 
     # -- the Source protocol ------------------------------------------------------------------
 
@@ -598,25 +428,6 @@ class RosbagSource(Source):
             )
         return out
 
-    def _cloud_layout(self, msg: Any, topic: str) -> rm.CloudLayout:
-        """The layout of a cloud, read from the message itself; kept by its whole description
-        (fields, steps, byte order, size), so a cloud that changes any of them gets its own."""
-        key = (
-            tuple((str(f.name), int(f.offset), int(f.datatype), int(f.count)) for f in msg.fields),
-            int(msg.point_step),
-            int(msg.row_step),
-            bool(msg.is_bigendian),
-            int(msg.width),
-            int(msg.height),
-        )
-        layout = self._layouts.get(key)
-        if layout is None:
-            layout = rm.cloud_layout(msg, topic)
-            if len(self._layouts) >= 8:
-                self._layouts.clear()
-            self._layouts[key] = layout
-        return layout
-
     def __iter__(self) -> Iterator[Any]:
         self.stats = _Stats()
         if self.mode == "cloud":
@@ -628,8 +439,6 @@ class RosbagSource(Source):
         return self._emit(frames, self.max_frames)
 
     def _emit(self, frames: Iterator[tuple[Any, Any, int]], limit: int | None) -> Iterator[Any]:
-        from ..frame import Frame as RGBDFrame
-
         shape = self._shape
         assert shape is not None  # set when the source opens
         for color, depth, ts in frames:
@@ -640,7 +449,7 @@ class RosbagSource(Source):
                     f"the first frame {shape[1]}x{shape[0]}"
                 )
             self.stats.frames += 1
-            yield RGBDFrame(color, depth, ts, pose=self._pose(ts))
+            yield Frame(color, depth, ts, pose=self._pose(ts))
             if limit is not None and self.stats.frames >= limit:
                 return
 
@@ -648,13 +457,11 @@ class RosbagSource(Source):
         """The camera-to-world pose at stamp ``ts`` from the bag's /tf and /tf_static (see
         ``_tf``), or ``None``."""
         if self._tf is None:
-            from ..ros import tf as _tf
-
             frame = ""
-            if any(_tf.is_tf(c) for c in self._reader.connections):
+            if any(tf.is_tf(c) for c in self._reader.connections):
                 first = self._first(self._depth_conn)
                 frame = str(first.header.frame_id) if first is not None else ""
-            found = _tf.read_tf_poses(self._messages, self._reader.connections, frame, self.notes)
+            found = tf.read_tf_poses(self._messages, self._reader.connections, frame, self.notes)
             self._tf = found if found is not None else False
         return self._tf.at(ts) if self._tf else None
 
@@ -665,45 +472,32 @@ class RosbagSource(Source):
         except PcdcodecError:
             raise
         except Exception as exc:
-            raise _wrap(exc, self.path) from exc
+            raise bagfile.bag_error(exc, self.path) from exc
 
-    def _depth_frames(self) -> Iterator[tuple[Any, Any, int]]:
+    def _in_order(self, conn: Any) -> Iterator[tuple[Any, int]]:
+        """The messages of ``conn`` with their stamps, skipping (and counting) those whose
+        stamp does not increase."""
         last = -1
-        for conn, t, msg in self._messages([self._depth_conn]):
-            ts = self._stamp(msg, t, conn.topic)
+        for c, t, msg in self._messages([conn]):
+            ts = self._stamp(msg, t, c.topic)
             if ts <= last:
                 self.stats.out_of_order += 1
                 continue
             last = ts
-            yield None, self._decode(msg, conn, "depth", ts), ts
+            yield msg, ts
+
+    def _depth_frames(self) -> Iterator[tuple[Any, Any, int]]:
+        for msg, ts in self._in_order(self._depth_conn):
+            yield None, self._decode(msg, self._depth_conn, "depth", ts), ts
 
     def _paired_frames(self) -> Iterator[tuple[Any, Any, int]]:
-        from ..sync import Synchronizer
-
-        sync: Synchronizer[Any, Any] = Synchronizer(max_difference=self.max_difference)
-        last = {"depth": -1, "color": -1}
-        dconn, cconn = self._depth_conn, self._color_conn
-        assert cconn is not None
-
-        def pairs(ready: list[Any]) -> Iterator[tuple[Any, Any, int]]:
-            for _, cmsg, dts, dmsg in ready:
-                yield self._pair(cmsg, dmsg, dts)
-
-        for conn, t, msg in self._messages([dconn, cconn]):
-            role = "depth" if conn.topic == dconn.topic else "color"
-            ts = self._stamp(msg, t, conn.topic)
-            if ts <= last[role]:
-                self.stats.out_of_order += 1
-                continue
-            last[role] = ts
-            ready = sync.add_depth(ts, msg) if role == "depth" else sync.add_color(ts, msg)
-            self.stats.dropped_color = len(sync.dropped_color)
-            self.stats.dropped_depth = len(sync.dropped_depth)
-            yield from pairs(ready)
-        ready = sync.flush()
-        self.stats.dropped_color = len(sync.dropped_color)
-        self.stats.dropped_depth = len(sync.dropped_depth)
-        yield from pairs(ready)
+        dtopic = self._depth_conn.topic
+        messages = (
+            (conn.topic == dtopic, self._stamp(msg, t, conn.topic), msg)
+            for conn, t, msg in self._messages([self._depth_conn, self._color_conn])
+        )
+        for dts, dmsg, cmsg in bagindex.pair_in_order(messages, self.max_difference, self.stats):
+            yield self._pair(cmsg, dmsg, dts)
 
     def _pair(self, cmsg: Any, dmsg: Any, dts: int) -> tuple[Any, Any, int]:
         cconn, dconn = self._color_conn, self._depth_conn
@@ -719,13 +513,7 @@ class RosbagSource(Source):
         return color, depth, dts
 
     def _cloud_frames(self) -> Iterator[tuple[Any, Any, int]]:
-        last = -1
-        for conn, t, msg in self._messages([self._depth_conn]):
-            ts = self._stamp(msg, t, conn.topic)
-            if ts <= last:
-                self.stats.out_of_order += 1
-                continue
-            last = ts
+        for msg, ts in self._in_order(self._depth_conn):
             yield self._cloud_frame(msg, ts)
 
     def _cloud_frame(self, msg: Any, ts: int) -> tuple[Any, Any, int]:
@@ -737,18 +525,18 @@ class RosbagSource(Source):
                 f"clouds {first.width}x{first.height}"
             )
         try:
-            layout = self._cloud_layout(msg, topic)
+            layout = self._layouts.get(msg, topic)
             if (layout.color is None) != (first.color is None):
                 raise InputError(
                     f"cloud topic {topic!r}: the cloud {'has' if layout.color else 'lacks'} a "
                     f"color field, the first cloud {'has' if first.color else 'lacks'} one"
                 )
-            z, rgb, _ = rm.cloud_to_rgbd(msg, layout, topic)
+            z, rgb, _ = clouds.cloud_to_rgbd(msg, layout, topic)
         except PcdcodecError as exc:
             _add_time(exc, f"cloud at {ts} ns")
             raise
         if self._cloud_units is not None:
-            units = self._as_units(z)
+            units = self._cloud_units.of(z)
             if units is None:
                 raise InputError(
                     f"cloud topic {topic!r}: the cloud at {ts} ns has z values that are not "
@@ -771,24 +559,18 @@ class RosbagSource(Source):
         except PcdcodecError:
             raise
         except Exception as exc:
-            raise _wrap(exc, self.path) from exc
+            raise bagfile.bag_error(exc, self.path) from exc
 
     def _raw_stamp(self, raw: bytes, conn: Any, log_time: int) -> int:
         """The header stamp of a serialised message, read from its first bytes (every message
         read here starts with a std_msgs/Header), or the log time where the stamp is 0."""
-        from ..ros import bagindex as _bagindex
-
         where = f"topic {conn.topic!r}"
-        ns = (
-            _bagindex.cdr_stamp(raw, where)
-            if self._reader.is2
-            else _bagindex.ros1_stamp(raw, where)
-        )
+        ns = bagindex.cdr_stamp(raw, where) if self._reader.is2 else bagindex.ros1_stamp(raw, where)
         if ns is None:
             try:
                 msg = self._reader.deserialize(raw, conn.msgtype)
             except Exception as exc:
-                raise _wrap(exc, self.path) from exc
+                raise bagfile.bag_error(exc, self.path) from exc
             return self._stamp(msg, log_time, conn.topic)
         return ns if ns > 0 else int(log_time)
 
@@ -811,11 +593,9 @@ class RosbagSource(Source):
         """``(connection, log time, stamp)`` of each message of ``conns``, in bag order: from
         the first bytes of each message (uncompressed ROS 1 bags: read through the bag's index,
         a few kilobytes per message), else from the messages read whole."""
-        from ..ros import bagindex as _bagindex
-
         readers = getattr(self._reader, "readers", [])
         if not self._reader.is2 and len(readers) == 1:
-            fast = _bagindex.ros1_index_stamps(readers[0], conns)
+            fast = bagindex.ros1_index_stamps(readers[0], conns)
             if fast is not None:
                 for conn, t, ns in fast:
                     yield conn, t, ns if ns > 0 else t
@@ -824,45 +604,16 @@ class RosbagSource(Source):
             yield conn, t, self._raw_stamp(raw, conn, t)
 
     def _build_index(self) -> FrameIndex:
-        from ..sync import Synchronizer
-
-        rows: list[tuple[int, int, int, int, int]] = []
-        limit = self.max_frames
         dconn, cconn = self._depth_conn, self._color_conn
-        if cconn is None:
-            last = -1
-            for _, t, ts in self._stamps([dconn]):
-                if ts <= last:
-                    continue
-                last = ts
-                rows.append((ts, t, ts, -1, -1))
-                if limit is not None and len(rows) >= limit:
-                    break
-        else:
-            sync: Synchronizer[int, int] = Synchronizer(max_difference=self.max_difference)
-            latest = {"depth": -1, "color": -1}
-            for conn, t, ts in self._stamps([dconn, cconn]):
-                role = "depth" if conn.topic == dconn.topic else "color"
-                if ts <= latest[role]:
-                    continue
-                latest[role] = ts
-                ready = sync.add_depth(ts, t) if role == "depth" else sync.add_color(ts, t)
-                rows.extend((dts, dlog, dts, clog, cts) for cts, clog, dts, dlog in ready)
-                if limit is not None and len(rows) >= limit:
-                    break
-            else:
-                rows.extend((dts, dlog, dts, clog, cts) for cts, clog, dts, dlog in sync.flush())
-            if limit is not None:
-                del rows[limit:]
-        table = np.array(rows, dtype=np.int64).reshape(-1, 5)
-        return FrameIndex(table, 0)
+        conns = [dconn] if cconn is None else [dconn, cconn]
+        stamps = ((c.topic == dconn.topic, t, ts) for c, t, ts in self._stamps(conns))
+        rows = bagindex.index_rows(stamps, cconn is not None, self.max_difference, self.max_frames)
+        return FrameIndex(rows, 0)
 
     def frames(self, start: int = 0, stop: int | None = None) -> Iterator[Any]:
         """Frames ``start`` to ``stop`` (exclusive). From the top this is plain iteration;
         from a later frame the bag is indexed first (:meth:`frame_index`) and only the
         messages of those frames are read (:meth:`frames_at`)."""
-        import itertools
-
         if start < 0 or (stop is not None and stop < 0):
             raise InputError(f"frames start and stop must be at least 0, got {start}, {stop}")
         if start == 0:
@@ -878,20 +629,16 @@ class RosbagSource(Source):
         whatever k is. Raises :class:`~pcdcodec.DecodeError` when a listed message is not in
         the bag (the index was made from another bag, or the bag changed).
         """
-        from ..ros import bagindex as _bagindex
-
-        rows = _bagindex.check_rows(index.rows)
+        rows = bagindex.check_rows(index.rows)
         self.stats = _Stats()
         return self._emit(self._indexed(rows, index.first), None)
 
     def _indexed(self, rows: Any, first: int) -> Iterator[tuple[Any, Any, int]]:
-        from ..ros import bagindex as _bagindex
-
         if rows.shape[0] == 0:
             return
         dconn, cconn = self._depth_conn, self._color_conn
         paired = cconn is not None
-        lo, hi = _bagindex.window(rows, paired)
+        lo, hi = bagindex.window(rows, paired)
         conns = [dconn, cconn] if paired else [dconn]
         messages = (
             (conn.topic == dconn.topic, t, self._raw_stamp(raw, conn, t), (raw, conn))
@@ -902,50 +649,16 @@ class RosbagSource(Source):
             try:
                 return self._reader.deserialize(item[0], item[1].msgtype)
             except Exception as exc:
-                raise _wrap(exc, self.path) from exc
+                raise bagfile.bag_error(exc, self.path) from exc
 
         where = f"bag {str(self.path)!r}"
-        for ts, dmsg, cmsg in _bagindex.read_rows(rows, first, paired, messages, decode, where):
+        for ts, dmsg, cmsg in bagindex.read_rows(rows, first, paired, messages, decode, where):
             if paired:
                 yield self._pair(cmsg, dmsg, ts)
             elif self.mode == "cloud":
                 yield self._cloud_frame(dmsg, ts)
             else:
                 yield None, self._decode(dmsg, dconn, "depth", ts), ts
-
-    def _as_units(self, z: Any) -> Any:
-        """``z`` as uint16 units when they give back every z bit for bit, else ``None``."""
-        scale = self.depth_scale
-        with np.errstate(invalid="ignore", over="ignore"):
-            scaled = np.rint(z.astype(np.float64) * scale)
-            finite = np.isfinite(z)
-            if not ((scaled[finite] >= 1) & (scaled[finite] <= 65535)).all():
-                return None
-        units = np.where(finite, scaled, 0).astype(np.uint16)
-        back = self._cloud_units.to_organized(units)[..., 2]
-        same = (back.view(np.uint32) == z.view(np.uint32)) | (~finite & np.isnan(back))
-        return units if bool(same.all()) else None
-
-    def _pick_units(self, z: Any) -> None:
-        """Drivers compute z from integer depth (millimetres): such clouds are stored as uint16
-        units, which rebuild every z bit for bit and encode several times faster than float32."""
-        from ..geometry.camera import CameraIntrinsics
-        from ..geometry.projector import Projector
-
-        h, w = z.shape
-        for scale in (1000.0, 5000.0, 4000.0, 10000.0):
-            self._cloud_units = Projector(
-                CameraIntrinsics(w, h, 1.0, 1.0, w / 2, h / 2), depth_scale=scale
-            )
-            self.depth_scale = scale
-            if self._as_units(z) is not None:
-                self.notes.append(
-                    f"cloud z values are whole 1/{scale:g} m steps: stored as uint16 units at "
-                    f"depth scale {scale:g} (every z rebuilds bit for bit)"
-                )
-                return
-        self._cloud_units = None
-        self.depth_scale = 1.0
 
     # -- pass-through of encoded video -------------------------------------------------------
 
@@ -963,9 +676,6 @@ class RosbagSource(Source):
         stamps. Raises :class:`~pcdcodec.InputError` without a video topic or for a format
         other than h264/h265.
         """
-        from ..color.base import Packet
-        from ..sync import Synchronizer
-
         topics = self.video_topics()
         if video_topic is None:
             if not topics:
