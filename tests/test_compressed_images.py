@@ -1,4 +1,4 @@
-"""Structure checks of JPEG and PNG images (pcdcodec.sources._images)."""
+"""Structure checks of JPEG and PNG images (pcdcodec.color.images)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import pcdcodec
+from pcdcodec.color.images import check_compressed, image_header
 from pcdcodec.errors import DecodeError
-from pcdcodec.sources._images import check_compressed, image_header
 
 
 @pytest.fixture(scope="module")

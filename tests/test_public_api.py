@@ -134,3 +134,11 @@ def test_old_paths_work_in_from_imports() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "3"
+
+
+def test_export_bag_from_recording_still_works_with_a_warning() -> None:
+    import pcdcodec.recording
+
+    with pytest.warns(DeprecationWarning, match="pcdcodec.convert.rosbag"):
+        old = pcdcodec.recording.export_bag
+    assert old is pcdcodec.export_bag

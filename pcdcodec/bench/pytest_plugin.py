@@ -288,9 +288,8 @@ def _specs(config: pytest.Config) -> list[DataSpec]:
 
 
 def _codec_params(metafunc: pytest.Metafunc, kind: str) -> list[Any]:
-    from .. import list_codecs
     from ..color.base import StreamCodec
-    from ..registry import codec_class
+    from ..registry import codec_class, list_codecs
 
     marker = metafunc.definition.get_closest_marker(_MARKER)
     if marker is not None:

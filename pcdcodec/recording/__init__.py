@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import warnings
 from typing import TYPE_CHECKING, Any, Literal, overload
 
 from ..errors import InputError
@@ -16,19 +17,16 @@ from .encode import EncodeSummary, encode
 from .recover import recover
 
 if TYPE_CHECKING:
-    from ..convert.rosbag import export_bag
     from .reader import Recording
     from .verify import VerifyReport
     from .writer import RecordingWriter
 
 #: Names whose modules load on first use, so that ``import pcdcodec`` stays light (the
-#: reader and the writer bring their codecs' machinery); export_bag lives in
-#: pcdcodec.convert.rosbag and is named here too.
+#: reader and the writer bring their codecs' machinery).
 _LAZY = {
     "Recording": "pcdcodec.recording.reader",
     "RecordingWriter": "pcdcodec.recording.writer",
     "VerifyReport": "pcdcodec.recording.verify",
-    "export_bag": "pcdcodec.convert.rosbag",
 }
 
 
@@ -37,6 +35,14 @@ def __getattr__(name: str) -> Any:
         value = getattr(importlib.import_module(_LAZY[name]), name)
         globals()[name] = value
         return value
+    if name == "export_bag":  # the bag export is a conversion; it used to be named here
+        warnings.warn(
+            "pcdcodec.recording.export_bag has moved to pcdcodec.convert.rosbag.export_bag (also "
+            "pcdcodec.export_bag); pcdcodec.recording.export_bag goes in a later release",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return importlib.import_module("pcdcodec.convert.rosbag").export_bag
     raise AttributeError(f"module 'pcdcodec.recording' has no attribute {name!r}")
 
 
@@ -48,7 +54,6 @@ __all__ = [
     "RecordingWriter",
     "VerifyReport",
     "encode",
-    "export_bag",
     "open",
     "recover",
 ]

@@ -202,7 +202,7 @@ class _Compressed:
 def _take_apart(msg: Any, role: str, topic: str) -> _Compressed:
     """Check a CompressedImage's format and structure and read its declared size, decoding
     nothing (see :func:`decode_compressed`)."""
-    from ..sources._images import image_header
+    from ..color.images import image_header
 
     fmt = str(msg.format)
     data = bytes(msg.data) if not isinstance(msg.data, bytes) else msg.data
@@ -287,7 +287,7 @@ def decode_compressed(
     are only used for 32FC1, which compressedDepth stores as quantized inverse depth).
 
     Before decoding, the image's whole structure is checked (a JPEG or PNG cut short or
-    damaged, see :mod:`pcdcodec.sources._images`) and its declared size compared with
+    damaged, see :mod:`pcdcodec.color.images`) and its declared size compared with
     ``shape`` (height, width: the camera's), or without one bounded by
     :data:`MAX_IMAGE_SIDE` and :data:`MAX_IMAGE_PIXELS`, so a few bytes declaring a huge
     image allocate nothing. Raises :class:`~pcdcodec.DecodeError` (damaged, cut, wrong size)

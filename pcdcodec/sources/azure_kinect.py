@@ -28,9 +28,9 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import DecodeError, InputError
-from ..geometry.camera import CameraIntrinsics
+from ..geometry.camera import CameraIntrinsics, as_intrinsics
 from ._mkv import EBML_MAGIC, declared_tag, has_cluster, walk_blocks
-from .base import Source, given_intrinsics, read_magic, register_source
+from .base import Source, read_magic, register_source
 
 __all__ = ["DEPTH_MODES", "AzureKinectSource", "open_azure_kinect"]
 
@@ -228,7 +228,7 @@ class AzureKinectSource(Source):
         if intrinsics is not None:
             own = self.intrinsics  # a bare matrix takes the recorded depth camera's size
             size = (own.width, own.height) if own is not None else (None, None)
-            self.intrinsics = given_intrinsics(intrinsics, *size)
+            self.intrinsics = as_intrinsics(intrinsics, "intrinsics", *size)
 
     def _read_header(self, container: Any, name: str) -> None:
         where = repr(name)
@@ -400,7 +400,7 @@ class AzureKinectSource(Source):
         whole and of the camera's size before it is decoded, a raw one by its length."""
         import av
 
-        from ._images import check_compressed
+        from ..color.images import check_compressed
 
         assert self.color_intrinsics is not None
         h, w = self.color_intrinsics.shape

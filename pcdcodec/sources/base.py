@@ -348,15 +348,6 @@ class CameraDefaults:
             object.__setattr__(self, "depth_scale", check_depth_scale(self.depth_scale))
 
 
-def given_intrinsics(value: Any, width: int | None, height: int | None) -> CameraIntrinsics:
-    """A reader's ``intrinsics`` option as a camera (see
-    :func:`~pcdcodec.geometry.camera.as_intrinsics`); an intrinsics file's bare 3 x 3 matrix takes
-    the depth images' ``width`` x ``height`` (pixels), as a folder's does."""
-    from ..geometry.camera import as_intrinsics
-
-    return as_intrinsics(value, "intrinsics", width, height)
-
-
 def _camera_text(camera: CameraIntrinsics) -> str:
     return (
         f"{camera.width}x{camera.height} fx={camera.fx:g} fy={camera.fy:g} "

@@ -31,10 +31,10 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import DecodeError, InputError, PcdcodecError
-from ..geometry.camera import CameraIntrinsics
+from ..geometry.camera import CameraIntrinsics, as_intrinsics
 from ..ros.bagfile import ROS1_MAGIC
 from ..ros.bagindex import check_ros1_index
-from .base import FrameIndex, Source, given_intrinsics, read_magic, register_source
+from .base import FrameIndex, Source, read_magic, register_source
 
 __all__ = ["RealSenseBagSource", "open_realsense"]
 
@@ -121,7 +121,7 @@ def _jpeg(data: bytes, where: str, shape: tuple[int, int]) -> npt.NDArray[np.uin
     """An MJPEG color image, checked whole and of the camera's size before it is decoded."""
     import cv2
 
-    from ._images import check_compressed
+    from ..color.images import check_compressed
 
     header = check_compressed(data, where, shape)
     if header.format != "jpeg" or header.channels != 3:
@@ -208,7 +208,7 @@ class RealSenseBagSource(Source):
         if intrinsics is not None:
             own = self.intrinsics  # a bare matrix takes the recorded depth camera's size
             size = (own.width, own.height) if own is not None else (None, None)
-            self.intrinsics = given_intrinsics(intrinsics, *size)
+            self.intrinsics = as_intrinsics(intrinsics, "intrinsics", *size)
 
     def _deserialize(self, raw: bytes, conn: Any) -> Any:
         """A message of ``conn``, or a :class:`~pcdcodec.DecodeError` naming the file and topic."""

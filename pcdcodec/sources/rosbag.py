@@ -40,6 +40,7 @@ import numpy as np
 from ..color.base import Packet
 from ..errors import InputError, PcdcodecError
 from ..frame import Frame
+from ..geometry.camera import as_intrinsics
 from ..ros import bagfile, bagindex, clouds, tf, topics
 from ..ros import messages as rm
 from ..ros.bagfile import MCAP_MAGIC as MCAP_MAGIC
@@ -54,7 +55,7 @@ from ..ros.topics import (
     TopicCandidate,
 )
 from ..sync import Synchronizer
-from .base import FrameIndex, Source, given_intrinsics, read_magic, register_source
+from .base import FrameIndex, Source, read_magic, register_source
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
 
@@ -303,7 +304,7 @@ class RosbagSource(Source):
         """The camera: given, or from the CameraInfo topic, or fitted to the first cloud."""
         width, height = size
         if intrinsics is not None:
-            self.intrinsics = given_intrinsics(intrinsics, width, height)
+            self.intrinsics = as_intrinsics(intrinsics, "intrinsics", width, height)
         elif info_topic:
             self._read_camera_info(info_topic, anchor, size)
         elif self.mode == "cloud":

@@ -1,4 +1,5 @@
-"""Structure checks of compressed images (JPEG, PNG) before and instead of trusting a decoder.
+"""Structure checks of compressed images (JPEG, PNG: color, or 16-bit depth) before and instead
+of trusting a decoder. Every reader of camera files and bags shares them.
 
 JPEG and PNG decoders fill what they cannot read: a JPEG cut in half decodes to an image whose
 lower part is grey, without an error. These checks walk the container structure, which costs
