@@ -154,6 +154,15 @@ class VideoEncoder(ABC):
                 f"timestamp {timestamp} ns does not increase (previous frame: "
                 f"{self._last_timestamp} ns)"
             )
+        return self.encode_checked(frame, timestamp)
+
+    def encode_checked(self, frame: npt.NDArray[np.uint8], timestamp: int) -> list[Packet]:
+        """:meth:`encode` past its checks, for a caller that checked the frame already: ``frame``
+        is a C-contiguous H×W×3 uint8 image of this stream's size, ``timestamp`` an int later
+        than the last frame's. A recording's writer checks each frame once, where it is handed
+        in, and encodes it with this."""
+        if self._flushed:
+            raise InputError("encoder was flushed; start a new encoder for a new stream")
         self._last_timestamp = timestamp
         packets = self._encode(frame, timestamp)
         self.frames_in += 1

@@ -297,6 +297,13 @@ class FrameCodec(Codec):
         """
         self._require_available()
         image = check_depth(depth, allowed=self.dtypes, name=f"depth for codec {self.name!r}")
+        return self.encode_checked(image)
+
+    def encode_checked(self, image: npt.NDArray[Any]) -> bytes:
+        """:meth:`encode` past its checks, for a caller that checked the image already: ``image``
+        is what :func:`pcdcodec._validate.check_depth` returned for this codec's :attr:`dtypes`
+        (2-D, non-empty, C-contiguous) and the codec is available. A recording's writer checks
+        each frame once, where it is handed in, and encodes it with this."""
         bound = self._bound()
         if bound is not None:
             bounded = self._encode_bounded(image, bound)

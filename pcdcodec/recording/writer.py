@@ -127,6 +127,13 @@ class RecordingWriter(FrameInputs):
         if not isinstance(depth_codec, FrameCodec):
             raise InputTypeError(f"depth codec {depth_codec.name!r} is not a frame codec")
         self.depth_codec = depth_codec
+        # Each frame is checked once, where it is handed in; the built-in codecs then take the
+        # checked image. A codec that overrides encode() gets every frame through it.
+        self._encode_depth = (
+            depth_codec.encode_checked
+            if type(depth_codec).encode is FrameCodec.encode
+            else depth_codec.encode
+        )
         self.color_codec: StreamCodec | None = None
         if color is not None:
             color_codec = as_codec(color, "color")
@@ -393,7 +400,7 @@ class RecordingWriter(FrameInputs):
         self, timestamp: int, fut_color: Future[list[Packet]] | None, d: npt.NDArray[Any]
     ) -> None:
         # A copy: the caller may reuse its buffer while the thread encodes.
-        self._pipeline.submit(timestamp, fut_color, self.depth_codec.encode, d.copy())
+        self._pipeline.submit(timestamp, fut_color, self._encode_depth, d.copy())
 
     def _raise_background_error(self) -> None:
         """Raise the first error met writing earlier frames; each is raised once."""
@@ -413,7 +420,9 @@ class RecordingWriter(FrameInputs):
 
     def _encode_color(self, rgb: npt.NDArray[np.uint8], timestamp: int) -> list[Packet]:
         assert self._encoder is not None
-        return self._encoder.encode(rgb, timestamp)
+        if type(self._encoder).encode is not VideoEncoder.encode:
+            return self._encoder.encode(rgb, timestamp)  # an encoder of its own way in
+        return self._encoder.encode_checked(rgb, timestamp)  # checked where it was handed in
 
     def _drain_one(self) -> None:
         """Write the next frame handed in (on the writing thread, once it is encoded)."""

@@ -1,0 +1,81 @@
+"""The data path runs one way and checks each frame once: where the writer takes it in."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import pcdcodec
+import pcdcodec.color.base
+import pcdcodec.depth.base
+from pcdcodec.datasets import load_sample
+
+
+def _counting(module: Any, name: str, monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    calls: list[int] = []
+    real = getattr(module, name)
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(module, name, counted)
+    return calls
+
+
+@pytest.mark.parametrize("color", ["h264", "ffv1"])
+def test_the_codecs_do_not_check_frames_the_writer_checked(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, color: str
+) -> None:
+    sample = load_sample(max_frames=4)
+    depth_checks = _counting(pcdcodec.depth.base, "check_depth", monkeypatch)
+    color_checks = _counting(pcdcodec.color.base, "check_color", monkeypatch)
+    path = tmp_path / "once.pcdc"
+    with pcdcodec.open(
+        path, "w", intrinsics=sample.intrinsics, depth_scale=sample.depth_scale, color=color
+    ) as rec:
+        rec.write_frames(sample)
+    assert depth_checks == []  # the writer's own check is the only one
+    assert color_checks == []
+    with pcdcodec.open(path) as rec:  # and the frames are all there, bit-exact
+        assert len(rec) == len(sample)
+        for got, want in zip(rec, sample, strict=True):
+            assert np.array_equal(got.depth, want.depth)
+
+
+def test_a_codec_used_on_its_own_still_checks_its_input() -> None:
+    codec = pcdcodec.get_codec("depthac")
+    with pytest.raises(pcdcodec.InputTypeError, match="uint16"):
+        codec.encode(np.zeros((4, 4), np.int32))
+    encoder = pcdcodec.get_codec("ffv1").encoder(8, 8, 30.0)  # type: ignore[attr-defined]
+    with pytest.raises(pcdcodec.InputError, match="8x8"):
+        encoder.encode(np.zeros((4, 4, 3), np.uint8), 0)
+
+
+def test_a_codec_that_overrides_encode_gets_every_frame(tmp_path: Path) -> None:
+    from pcdcodec.depth import Zstd
+
+    class Counting(Zstd):
+        seen = 0
+
+        @classmethod
+        def param_names(cls) -> tuple[str, ...]:
+            return ("level",)
+
+        def encode(self, depth: Any) -> bytes:
+            Counting.seen += 1
+            return super().encode(depth)
+
+    sample = load_sample(max_frames=3)
+    with pcdcodec.open(
+        tmp_path / "own.pcdc",
+        "w",
+        intrinsics=sample.intrinsics,
+        depth_scale=sample.depth_scale,
+        depth=Counting(),
+    ) as rec:
+        rec.write_frames(sample)
+    assert Counting.seen == len(sample)
