@@ -67,3 +67,45 @@ def test_repeated_code_and_local_imports(tmp_path: Path) -> None:
     assert figures["repeated_code"] == ["pkg.a:3 ~ pkg.b:8 (7 lines)"]
     # `from .a import f` inside g counts; `import json` (another package) and `import os` do not
     assert figures["function_local_imports"] == 1
+
+
+#: The rooms in the order docs/architecture.md gives: each imports only rooms on lines above.
+ROOM_ORDER = [
+    ["errors", "_atomic", "_progress", "_version"],
+    ["_validate", "codec", "sync"],
+    ["registry", "geometry", "metrics"],
+    ["frame", "depth", "color"],
+    ["ros"],
+    ["sources"],
+    ["datasets", "recording"],
+    ["convert", "viewer", "archive", "bench"],
+    ["cli", "testing"],
+    ["__main__"],
+]
+
+
+def test_rooms_import_only_the_rooms_above_them() -> None:
+    hf = _script()
+    mods = hf.modules(REPO / "pcdcodec")
+    level = {room: i for i, rooms in enumerate(ROOM_ORDER) for room in rooms}
+    wrong = []
+    for module, targets in hf.imports(mods).items():
+        room = hf._room(module).removeprefix("pcdcodec").lstrip(".")
+        if not room:
+            continue  # pcdcodec/__init__.py gathers the public API from every room
+        assert room in level, f"{room} is not placed in ROOM_ORDER (and docs/architecture.md)"
+        for target, _ in targets:
+            other = hf._room(target).removeprefix("pcdcodec").lstrip(".")
+            if other and other != room and level[other] >= level[room]:
+                wrong.append(f"{module} imports {target}")
+    assert wrong == []
+
+
+def test_the_layout_keeps_its_figures() -> None:
+    figures = _script().figures(REPO / "pcdcodec")
+    assert len(figures["top_level_modules"]) <= 12
+    assert figures["over_800"] == []
+    assert figures["over_600"] <= 4
+    assert figures["circles"] == []
+    assert figures["private_cross_imports"] == []
+    assert len(figures["files_naming_partial"]) <= 2
