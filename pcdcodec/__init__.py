@@ -123,6 +123,10 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'pcdcodec' has no attribute {name!r}")
 
 
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
 __all__ = [
     "DEFAULT_COLOR_CODEC",
     "DEFAULT_DEPTH_CODEC",

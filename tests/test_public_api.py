@@ -62,6 +62,7 @@ def test_the_public_names_are_these() -> None:
 def test_every_public_name_imports_from_the_package() -> None:
     for name in PUBLIC:
         assert getattr(pcdcodec, name) is not None, name
+    assert set(PUBLIC) <= set(dir(pcdcodec))  # lazily loaded names too
 
 
 def _run(code: str) -> str:
