@@ -79,3 +79,36 @@ def test_a_codec_that_overrides_encode_gets_every_frame(tmp_path: Path) -> None:
     ) as rec:
         rec.write_frames(sample)
     assert Counting.seen == len(sample)
+
+
+class _OwnCameraSource(pcdcodec.Source):
+    """A reader of another package: it ignores the options it is given."""
+
+    def __init__(self, path: Path, **options: Any) -> None:
+        self.path = path
+        self.intrinsics = pcdcodec.CameraIntrinsics(64, 48, 10.0, 10.0, 32.0, 24.0)
+        self.depth_scale = 1000.0
+        self.has_color = False
+        self.metadata: dict[str, Any] = {}
+
+    def __iter__(self) -> Any:
+        for i in range(3):
+            yield pcdcodec.Frame(None, np.full((48, 64), 500 + i, np.uint16), i * 33_000_000)
+
+
+def test_encode_gives_a_path_the_camera_it_was_given_whatever_the_reader(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from pcdcodec.sources import base
+
+    base.source_kinds()  # the built-in readers first, then a private copy of the registry
+    monkeypatch.setattr(base, "_KINDS", dict(base._KINDS))
+    base.register_source("own", lambda p: p.suffix == ".own", _OwnCameraSource, "a test reader")
+    src = tmp_path / "x.own"
+    src.write_bytes(b"")
+    given = pcdcodec.CameraIntrinsics(64, 48, 50.0, 50.0, 32.0, 24.0)
+    for camera in (given, given.to_dict()):
+        out = tmp_path / "out.pcdc"
+        pcdcodec.encode(src, out, color=None, intrinsics=camera, overwrite=True)
+        with pcdcodec.open(out) as rec:
+            assert rec.intrinsics == given

@@ -143,3 +143,20 @@ def test_export_bag_from_recording_still_works_with_a_warning() -> None:
     with pytest.warns(DeprecationWarning, match="pcdcodec.convert.rosbag"):
         old = pcdcodec.recording.export_bag
     assert old is pcdcodec.export_bag
+
+
+def test_attributes_import_pcdcodec_used_to_provide() -> None:
+    out = _run(
+        "import pcdcodec\n"
+        "print(pcdcodec.recording.reader.Recording is pcdcodec.Recording,"
+        " pcdcodec.recording.writer.RecordingWriter is pcdcodec.RecordingWriter)"
+    )
+    assert out == "True True"
+
+
+def test_given_intrinsics_still_works_with_a_warning() -> None:
+    from pcdcodec.sources import base
+
+    with pytest.warns(DeprecationWarning, match="as_intrinsics"):
+        camera = base.given_intrinsics({"fx": 5, "fy": 5, "cx": 2, "cy": 2}, 4, 4)
+    assert camera == pcdcodec.CameraIntrinsics(4, 4, 5.0, 5.0, 2.0, 2.0)

@@ -494,3 +494,15 @@ def test_a_file_cut_at_any_byte_reads_every_frame_written_before_the_cut(
                 assert np.array_equal(f.depth, full[i][1])
                 assert np.array_equal(f.color, full[i][0])
         assert pcdcodec.recording.recover(cut, tmp_path / "r.pcdc", overwrite=True) == n
+
+
+def test_in_flight_can_be_changed_on_an_open_writer(tmp_path: Path, sample: RGBDSequence) -> None:
+    rec = _writer(tmp_path / "w.pcdc", sample, in_flight=4)
+    try:
+        rec.in_flight = 1
+        assert rec._pipeline.in_flight == 1  # the bound the queue waits on
+        with pytest.raises(pcdcodec.InputError, match="in_flight"):
+            rec.in_flight = 0
+        rec.write(sample[0].color, sample[0].depth, sample[0].timestamp_ns)
+    finally:
+        rec.close()

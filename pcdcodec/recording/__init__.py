@@ -35,6 +35,10 @@ def __getattr__(name: str) -> Any:
         value = getattr(importlib.import_module(_LAZY[name]), name)
         globals()[name] = value
         return value
+    if name in ("reader", "writer", "verify"):  # attributes once `import pcdcodec` loaded them
+        return importlib.import_module(f"pcdcodec.recording.{name}")
+    if name in ("paper", "rosbag_export"):  # moved to pcdcodec.convert; the import warns
+        return importlib.import_module(f"pcdcodec.recording.{name}")
     if name == "export_bag":  # the bag export is a conversion; it used to be named here
         warnings.warn(
             "pcdcodec.recording.export_bag has moved to pcdcodec.convert.rosbag.export_bag (also "

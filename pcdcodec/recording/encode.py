@@ -89,6 +89,12 @@ def encode(
     from ..sources.base import Source, open_source
     from .writer import RecordingWriter
 
+    # A camera given as a value is checked once, here, and replaces the source's own whatever
+    # the reader does with its intrinsics= option; an intrinsics file is read by the reader,
+    # which knows the depth images' size for a bare 3 x 3 matrix.
+    camera = None
+    if intrinsics is not None and not isinstance(intrinsics, (str, os.PathLike)):
+        camera = intrinsics = writer_camera(intrinsics)
     if isinstance(src, Source):
         if source_options:
             raise InputError(
@@ -105,7 +111,9 @@ def encode(
             opts.setdefault("depth_scale", depth_scale)
         source, owned = open_source(src, **opts), True
     try:
-        if intrinsics is not None and not owned:
+        if camera is not None:
+            source.intrinsics = camera
+        elif intrinsics is not None and not owned:
             source.intrinsics = writer_camera(intrinsics)
         if depth_scale is not None:
             source.depth_scale = float(depth_scale)

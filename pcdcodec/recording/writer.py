@@ -119,7 +119,6 @@ class RecordingWriter(FrameInputs):
         self.fps = float(fps)
         if not isinstance(in_flight, int) or in_flight < 1:
             raise InputError(f"in_flight must be a positive int, got {in_flight!r}")
-        self.in_flight = in_flight
         if not isinstance(frame_id, str):
             raise InputTypeError(f"frame_id must be a str, got {frame_id!r}")
         self.frame_id = frame_id
@@ -405,6 +404,17 @@ class RecordingWriter(FrameInputs):
     def _raise_background_error(self) -> None:
         """Raise the first error met writing earlier frames; each is raised once."""
         self._pipeline.raise_error()
+
+    @property
+    def in_flight(self) -> int:
+        """How many frames may wait to be written before :meth:`write` blocks."""
+        return self._pipeline.in_flight
+
+    @in_flight.setter
+    def in_flight(self, value: int) -> None:
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise InputError(f"in_flight must be a positive int, got {value!r}")
+        self._pipeline.in_flight = value
 
     def flush(self) -> None:
         """Wait until every frame handed in is encoded, written and flushed to the file.

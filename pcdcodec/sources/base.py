@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import abc
 import os
+import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -348,6 +349,22 @@ class CameraDefaults:
             object.__setattr__(self, "depth_scale", check_depth_scale(self.depth_scale))
 
 
+def given_intrinsics(value: Any, width: int | None, height: int | None) -> CameraIntrinsics:
+    """Deprecated: :func:`pcdcodec.geometry.camera.as_intrinsics` (``value, "intrinsics",
+    width, height``) takes every form of camera; this goes in a later release."""
+    import warnings
+
+    from ..geometry.camera import as_intrinsics
+
+    warnings.warn(
+        "pcdcodec.sources.base.given_intrinsics is deprecated; use "
+        "pcdcodec.geometry.camera.as_intrinsics",
+        DeprecationWarning,
+        stacklevel=2,
+    )
+    return as_intrinsics(value, "intrinsics", width, height)
+
+
 def _camera_text(camera: CameraIntrinsics) -> str:
     return (
         f"{camera.width}x{camera.height} fx={camera.fx:g} fy={camera.fy:g} "
@@ -450,6 +467,11 @@ def open_source(
 _LOADERS: list[Callable[[], None]] = []
 
 
+_LOADING = threading.RLock()  # re-entrant: a reader's import may consult the registry
+
+
 def _load_builtin() -> None:
-    while _LOADERS:
-        _LOADERS.pop(0)()  # taken off first: a reader's probe may consult the registry
+    # One thread runs the loaders; another using the registry meanwhile waits for them to end.
+    with _LOADING:
+        while _LOADERS:
+            _LOADERS.pop(0)()  # taken off first: a reader's probe may consult the registry
