@@ -6,8 +6,9 @@ run, side by side: ``depthac`` (numba, one thread), pcdcodec's ``jpegxl`` codec 
 ``threads=1``: the same container as ``depthac``, header and CRC included) and bare libjxl
 (``imagecodecs.jpegxl_encode(lossless=True, effort=2, numthreads=1)`` and its decode, no
 container). For each set the three coders of one operation run one after the other, so they see
-the same machine load. After the run ``benchmarks/conftest.py`` prints ms per frame, each
-``depthac`` time over libjxl's and over the ``jpegxl`` codec's, and the range over every set.
+the same machine load. After the run ``benchmarks/conftest.py`` prints ms per frame (the best
+round of each: the median moves with a shared machine's load), each ``depthac`` time over
+libjxl's and over the ``jpegxl`` codec's, and the range over every set.
 
 The sets (:data:`pcdcodec.bench.sequences.ALL_DEPTH_SETS`, those present): the bundled sample
 and the real 640×480 sequences in ``../shared/data`` (TUM fr1_rpy, RealSense D435 office,
