@@ -6,9 +6,12 @@ the same run (``benchmarks/conftest.py``).
 The ratio is over the set's sampled frames and is kept in ``extra_info``.
 
 The test sets are the real sequences (640×480), their sparse variants (``-sparse``: large
-regions removed the way sensors lose depth, ``pcdcodec.bench.sparse.sparsify_depth``) and the Spot
-depth frame (424×240, ``spot``). Every registered codec runs with its defaults; ``zstd-19``
-adds Zstandard at level 19, the strongest general-purpose baseline.
+regions removed the way sensors lose depth, ``pcdcodec.bench.sparse.sparsify_depth``), the Spot
+depth frame (424×240, ``spot``), the Azure Kinect ToF frame (640×576, ``azure_kinect``) and D435
+frames upsampled to 1280×720 with nearest neighbour (``realsense_d435-1280x720``: no real
+1280×720 depth is at hand; :func:`pcdcodec.bench.sequences.upsample_720p`). Every registered
+codec runs with its defaults; ``zstd-19`` adds Zstandard at level 19, the strongest
+general-purpose baseline.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ import numpy as np
 import pytest
 
 import pcdcodec
-from pcdcodec.bench.sequences import DEPTH_SETS, SEQUENCES, SPOT_BAG, load_frames
+from pcdcodec.bench.sequences import ALL_DEPTH_SETS, load_frames, set_present
 from pcdcodec.depth import FrameCodec
 
 CONFIGS: dict[str, dict[str, Any]] = {
@@ -29,13 +32,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
 CONFIGS["zstd-19"] = {"id": "zstd", "level": 19}
 
 
-def _present(name: str) -> bool:
-    if name == "spot":
-        return SPOT_BAG.is_file()
-    return SEQUENCES[name.removesuffix("-sparse")].present
-
-
-PRESENT = [name for name in DEPTH_SETS if _present(name)]
+PRESENT = [name for name in ALL_DEPTH_SETS if set_present(name)]
 FRAMES = 6
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import pcdcodec
-from pcdcodec.bench.sequences import DEPTH_SETS, load_frames
+from pcdcodec.bench.sequences import ALL_DEPTH_SETS, load_frames, upsample_720p
 from pcdcodec.depth import DepthAC, read_header
 
 from .fuzzing import fuzz_frames, fuzz_images
@@ -28,10 +28,22 @@ def body_flags(data: bytes) -> int:
     return data[read_header(data).header_size]
 
 
-@pytest.mark.parametrize("name", DEPTH_SETS)
+@pytest.mark.parametrize("name", ALL_DEPTH_SETS)
 def test_bit_exact_on_every_test_set(name: str) -> None:
     for depth in load_frames(name, 3):
         round_trip(depth)
+
+
+def test_the_720p_set_repeats_each_pixel_of_the_centre_crop() -> None:
+    depth = load_frames("sample", 1)[0]
+    big = upsample_720p(depth)
+    assert big.shape == (720, 1280)
+    assert big.dtype == depth.dtype
+    for dy in (0, 1):
+        for dx in (0, 1):
+            np.testing.assert_array_equal(big[dy::2, dx::2], depth[60:420])
+    with pytest.raises(ValueError, match="640x480"):
+        upsample_720p(big)
 
 
 def test_sparse_frames_are_sparse_and_compress_better() -> None:

@@ -19,6 +19,8 @@ from ..geometry.camera import CameraIntrinsics
 from .sparse import sparsify_depth
 
 __all__ = [
+    "ALL_DEPTH_SETS",
+    "AZURE_KINECT_MKV",
     "DEPTH_SETS",
     "PRESENT",
     "REPO",
@@ -28,11 +30,14 @@ __all__ = [
     "SPOT_BAG",
     "SPOT_TOPIC",
     "Sequence",
+    "load_azure_kinect_depth",
     "load_colors",
     "load_depths",
     "load_frames",
     "load_spot_depth",
     "read_image",
+    "set_present",
+    "upsample_720p",
 ]
 
 #: The checkout pcdcodec is imported from; the shared data sits beside it.
@@ -161,10 +166,51 @@ def load_spot_depth() -> np.ndarray[Any, Any]:
     return _spot[0]
 
 
+AZURE_KINECT_MKV = SHARED_DATA / "bags" / "pyk4a_recording.mkv"
+_azure: list[np.ndarray[Any, Any]] = []
+
+
+def load_azure_kinect_depth() -> np.ndarray[Any, Any]:
+    """The one Azure Kinect depth frame (640×576 NFOV unbinned ToF, mm, 23.5 % holes), read by
+    pcdcodec's own ``.mkv`` reader; skips when absent."""
+    if not AZURE_KINECT_MKV.is_file():
+        _skip(AZURE_KINECT_MKV)
+    if not _azure:
+        from ..sources import open_source
+
+        with open_source(AZURE_KINECT_MKV) as source:
+            frame = next(iter(source))
+        _azure.append(np.ascontiguousarray(frame.depth, dtype=np.uint16))
+    return _azure[0]
+
+
+def upsample_720p(depth: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+    """A 1280×720 frame from a 640×480 one: its centre 640×360 rows, each pixel repeated as a
+    2×2 block (nearest neighbour, so every value and hole is the sensor's own).
+
+    No real 1280×720 depth is at hand; a real one has more detail per pixel than this, so it
+    stands in for the pixel count (the per-pixel cost of a coder), not for the ratio.
+    """
+    h, w = depth.shape
+    if (h, w) != (480, 640):
+        raise ValueError(f"upsample_720p takes a 640x480 frame, got {w}x{h}")
+    crop = depth[60:420]
+    return np.ascontiguousarray(np.repeat(np.repeat(crop, 2, axis=0), 2, axis=1))
+
+
+#: The 1280×720 set: the RealSense D435 frames, upsampled (:func:`upsample_720p`).
+_UPSAMPLED = {"realsense_d435-1280x720": "realsense_d435"}
+
+
 def load_frames(name: str, count: int) -> list[np.ndarray[Any, Any]]:
-    """Depth frames of a sequence, of its ``-sparse`` variant, or the Spot frame (``spot``)."""
+    """Depth frames of a sequence, of its ``-sparse`` variant, the Spot frame (``spot``), the
+    Azure Kinect frame (``azure_kinect``) or the 1280×720 set (``realsense_d435-1280x720``)."""
     if name == "spot":
         return [load_spot_depth()]
+    if name == "azure_kinect":
+        return [load_azure_kinect_depth()]
+    if name in _UPSAMPLED:
+        return [upsample_720p(d) for d in load_depths(_UPSAMPLED[name], count)]
     if name.endswith("-sparse"):
         return [
             sparsify_depth(d, seed=i)
@@ -175,3 +221,17 @@ def load_frames(name: str, count: int) -> list[np.ndarray[Any, Any]]:
 
 #: Every depth test set: the sequences, their sparse variants and the Spot frame.
 DEPTH_SETS = [*SEQUENCES, *(f"{n}-sparse" for n in SEQUENCES), "spot"]
+
+#: :data:`DEPTH_SETS` and two more sensors' frame sizes: the Azure Kinect ToF frame
+#: (640×576) and D435 frames upsampled to 1280×720.
+ALL_DEPTH_SETS = [*DEPTH_SETS, "azure_kinect", *_UPSAMPLED]
+
+
+def set_present(name: str) -> bool:
+    """Whether the data of depth set ``name`` (one of :data:`ALL_DEPTH_SETS`) is present."""
+    if name == "spot":
+        return SPOT_BAG.is_file()
+    if name == "azure_kinect":
+        return AZURE_KINECT_MKV.is_file()
+    base = _UPSAMPLED.get(name, name.removesuffix("-sparse"))
+    return SEQUENCES[base].present
