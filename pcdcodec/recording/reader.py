@@ -489,7 +489,7 @@ class Recording(PacketAccess):
     def _in_order(self, start: int) -> Iterator[Frame]:
         """Frames ``start`` … in order: read ahead on threads when ``threads`` is 2 or more."""
         workers = self.threads or 1
-        if workers < 2 or len(self) - start < 2:
+        if workers < 2 or start < 0 or len(self) - start < 2:
             for i in range(start, len(self)):
                 yield self.frame(i)
             return
