@@ -19,7 +19,7 @@ from .recording_rewrite import Message, positions, rewrite, with_data
 
 W, H = 64, 48
 CAMERA = pcdcodec.CameraIntrinsics(W, H, 52.5, 52.5, 31.5, 23.5)
-N = 14
+N = 40
 
 
 def record(path: Path, color: Any, depth: Any, poses: bool = False) -> Path:

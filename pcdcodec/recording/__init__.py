@@ -106,7 +106,7 @@ def open(path: str | os.PathLike[str], mode: str = "r", **options: Any) -> Any:
 
     Option for ``"r"``: ``threads``, the cores reading may use (``None``, the default: one
     frame at a time, each codec with its own default). With 2 or more, iterating and ``play()``
-    decode the next ``2 × threads`` frames on worker threads while the caller uses the current
+    decode the next ``6 × threads`` frames on worker threads while the caller uses the current
     one: the same frames in the same order, checked as ever (see :class:`Recording`).
     """
     from .reader import Recording

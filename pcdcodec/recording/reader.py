@@ -28,8 +28,10 @@ from .verify import VerifyReport, index_problems, structure_problems
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
 
-#: Frames decoded ahead of the one in use, per thread, when reading in order on threads.
-READ_AHEAD = 2
+#: Frames decoded ahead of the one in use, per thread, when reading in order on threads: a
+#: deeper window lets the color and depth threads drift apart without waiting (measured with
+#: ``benchmarks/read_threads.py``: 2 per thread left the second core idle more often).
+READ_AHEAD = 6
 
 
 class Recording(PacketAccess):
@@ -41,7 +43,7 @@ class Recording(PacketAccess):
 
     ``threads`` (``None``: each codec's default, one frame at a time; ``0``: the codecs choose)
     is how many cores reading may use. With 2 or more, iteration and :meth:`play` read ahead:
-    while the caller holds frame ``i``, the next ``2 × threads`` frames decode on worker
+    while the caller holds frame ``i``, the next ``6 × threads`` frames decode on worker
     threads (the color stream on one, depth frames on ``threads`` others, several at once).
     Frames come out in order and identical, each checked as without threads, and an error is
     raised at the frame it belongs to. Leaving the loop or :meth:`close` stops the workers.
