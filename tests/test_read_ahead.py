@@ -13,6 +13,7 @@ import pytest
 
 import pcdcodec
 from pcdcodec.recording import _index as fmt
+from pcdcodec.recording._readahead import ReadAhead
 from pcdcodec.recording.reader import READ_AHEAD
 
 from .recording_rewrite import Message, positions, rewrite, with_data
@@ -206,3 +207,24 @@ def test_one_frame_at_a_time_starts_no_thread(recordings: dict[str, Path], threa
 def test_invalid_threads_are_refused(recordings: dict[str, Path], threads: Any) -> None:
     with pytest.raises(pcdcodec.InputError, match="threads"):
         pcdcodec.open(recordings["default"], threads=threads)
+
+
+def test_closed_from_another_thread_the_rest_comes_in_order_on_the_callers_thread() -> None:
+    ahead = ReadAhead(
+        0,
+        20,
+        color=lambda i: -i,
+        rest=lambda i: i * 10,
+        build=lambda i, color, rest: (i, color(), rest()),
+        workers=2,
+        ahead=4,
+    )
+    it = iter(ahead)
+    got = [next(it), next(it)]
+    closer = threading.Thread(target=ahead.close)
+    closer.start()
+    closer.join()
+    assert not reader_threads()
+    got.extend(it)
+    assert got == [(i, -i, i * 10) for i in range(20)]
+    assert not reader_threads()

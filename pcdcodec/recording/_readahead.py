@@ -14,7 +14,7 @@ import bisect
 import threading
 from collections import deque
 from collections.abc import Callable, Iterator
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from typing import Any, Generic, TypeVar
 
 import numpy as np
@@ -142,10 +142,14 @@ class ReadAhead(Generic[T]):
         try:
             while True:
                 self._fill()
-                if self._pending:
-                    i, color, rest = self._pending.popleft()
+                with self._close_lock:
+                    item = self._pending.popleft() if self._pending else None
+                if item is not None:
+                    i, color, rest = item
                     self._fill()  # frames i+1 … i+ahead decode while frame i is in use
-                    yield self._build(i, color.result, rest.result)
+                    yield self._build(
+                        i, _result(color, self._color, i), _result(rest, self._rest, i)
+                    )
                 elif self._closed and self._next < self._stop:
                     i = self._next
                     self._next += 1
@@ -173,3 +177,16 @@ class ReadAhead(Generic[T]):
 
 def _call(fn: Callable[[int], T], i: int) -> Callable[[], T]:
     return lambda: fn(i)
+
+
+def _result(future: Future[T], fn: Callable[[int], T], i: int) -> Callable[[], T]:
+    """What ``future`` returns or raises; ``fn(i)`` on this thread if :meth:`ReadAhead.close`
+    (from another thread) cancelled it before it started."""
+
+    def get() -> T:
+        try:
+            return future.result()
+        except CancelledError:
+            return fn(i)
+
+    return get
