@@ -10,6 +10,7 @@ processes kept the machine meanwhile (in cores, from ``/proc/stat``: a quiet mac
 a round in which they kept more than ``--max-load`` cores busy is left out and run again.
 
     python benchmarks/read_threads.py --rounds 9
+    python benchmarks/read_threads.py --rounds 5 --frames 120 --sets tum_fr1_rpy realsense_d435
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pcdcodec
+from benchmarks import test_bench_recording as bench
 from benchmarks.test_bench_recording import PRESENT, cached, one_core, play, write
 
 WAYS: dict[str, tuple[int | None, bool]] = {
@@ -63,7 +65,14 @@ def main() -> None:
         default=0.1,
         help="leave out rounds in which other processes kept more cores busy than this",
     )
+    parser.add_argument(
+        "--frames",
+        type=int,
+        default=bench.FRAMES,
+        help="frames of each real set (the benchmarks' 30; the sample has 15)",
+    )
     args = parser.parse_args()
+    bench.FRAMES = args.frames
     work = Path(tempfile.mkdtemp(prefix="read-threads-"))
     print(f"| set | playback | {' | '.join(WAYS)} | threads=2 / one core | other load |")
     print("|---|---|" + "---|" * (len(WAYS) + 2))

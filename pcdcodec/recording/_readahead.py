@@ -20,10 +20,12 @@ from typing import Any, Generic, TypeVar
 import numpy as np
 import numpy.typing as npt
 
+from ..color.base import StreamCodec
 from ..errors import DecodeError
+from ..registry import codec_for_reading
 from ._packets import PacketAccess
 
-__all__ = ["ColorStream", "ReadAhead"]
+__all__ = ["ColorStream", "ReadAhead", "with_threads"]
 
 T = TypeVar("T")
 Image = npt.NDArray[np.uint8]
@@ -33,8 +35,11 @@ class ColorStream:
     """The color images of a recording, decoded from its packets by one decoder kept between
     calls. Not thread-safe: each thread that decodes keeps its own stream (or holds a lock)."""
 
-    def __init__(self, rec: PacketAccess, shape: tuple[int, int]) -> None:
+    def __init__(
+        self, rec: PacketAccess, shape: tuple[int, int], codec: StreamCodec | None = None
+    ) -> None:
         self._rec = rec
+        self._codec = codec or rec.color_codec
         self._shape = shape
         self._decoder: Any = None
         self._next_packet = 0
@@ -51,7 +56,7 @@ class ColorStream:
         :class:`DecodeError` naming the file, the frame and the packet that failed.
         """
         rec = self._rec
-        codec = rec.color_codec
+        codec = self._codec
         if codec is None:
             return None
         name = str(rec.path)
@@ -95,6 +100,15 @@ class ColorStream:
         for old in [t for t in self._decoded if t < ts]:
             del self._decoded[old]
         return result
+
+
+def with_threads(codec: StreamCodec | None, threads: int) -> StreamCodec | None:
+    """``codec`` with ``threads`` decoder threads, where it takes them. Reading ahead already
+    keeps the cores busy with whole frames: slice threads on top add mostly waiting."""
+    if codec is None or "threads" not in codec.runtime_params:
+        return codec
+    made = codec_for_reading(codec.stored_config(), kind="color", threads=threads)
+    return made if isinstance(made, StreamCodec) else codec
 
 
 class ReadAhead(Generic[T]):

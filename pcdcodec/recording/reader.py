@@ -23,7 +23,7 @@ from ..registry import codec_for_reading
 from . import _header as header
 from . import _index as fmt
 from ._packets import PacketAccess
-from ._readahead import ColorStream, ReadAhead
+from ._readahead import ColorStream, ReadAhead, with_threads
 from .verify import VerifyReport, index_problems, structure_problems
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
@@ -48,7 +48,8 @@ class Recording(PacketAccess):
     Frames come out in order and identical, each checked as without threads, and an error is
     raised at the frame it belongs to. Leaving the loop or :meth:`close` stops the workers.
     Random access (``rec[i]``) decodes on the caller's thread either way. The codecs that take
-    ``threads`` (``jpegxl``, the video codecs) are given it too.
+    ``threads`` (``jpegxl``, the video codecs) are given it too, except the color decoder that
+    reads ahead, which gets half (slice threads add little when whole frames run in parallel).
     """
 
     def __init__(self, path: str | os.PathLike[str], *, threads: int | None = None) -> None:
@@ -495,7 +496,7 @@ class Recording(PacketAccess):
             for i in range(start, len(self)):
                 yield self.frame(i)
             return
-        stream = ColorStream(self, self.color_shape)
+        stream = ColorStream(self, self.color_shape, with_threads(self.color_codec, workers // 2))
         ahead = ReadAhead(
             start,
             len(self),
