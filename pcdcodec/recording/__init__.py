@@ -103,6 +103,11 @@ def open(path: str | os.PathLike[str], mode: str = "r", **options: Any) -> Any:
         with pcdcodec.open("run.pcdc") as rec:
             for frame in rec:
                 cloud = frame.to_point_cloud()
+
+    Option for ``"r"``: ``threads``, the cores reading may use (``None``, the default: one
+    frame at a time, each codec with its own default). With 2 or more, iterating and ``play()``
+    decode the next ``6 × threads`` frames on worker threads while the caller uses the current
+    one: the same frames in the same order, checked as ever (see :class:`Recording`).
     """
     from .reader import Recording
     from .writer import RecordingWriter

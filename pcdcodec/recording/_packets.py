@@ -38,6 +38,7 @@ class PacketAccess:
     _keyframes: list[int]
     _keyframe_set: set[int]
     _packet_pts: npt.NDArray[np.int64]
+    _packet_of_pts: dict[int, int]
     _packet_offsets: npt.NDArray[np.int64]
     _packet_group: npt.NDArray[np.int64]
     _packet_cache: dict[int, Any]

@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
-import bisect
 import os
 import threading
 import time
-from collections.abc import Iterator
+import weakref
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ..color.base import StreamCodec, VideoDecoder
+from ..color.base import StreamCodec
 from ..depth.base import FrameCodec, read_header
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
 from ..frame import Frame
@@ -23,9 +23,15 @@ from ..registry import codec_for_reading
 from . import _header as header
 from . import _index as fmt
 from ._packets import PacketAccess
+from ._readahead import ColorStream, ReadAhead, with_threads
 from .verify import VerifyReport, index_problems, structure_problems
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
+
+#: Frames decoded ahead of the one in use, per thread, when reading in order on threads: a
+#: deeper window lets the color and depth threads drift apart without waiting (measured with
+#: ``benchmarks/read_threads.py``: 2 per thread left the second core idle more often).
+READ_AHEAD = 6
 
 
 class Recording(PacketAccess):
@@ -34,6 +40,16 @@ class Recording(PacketAccess):
     ``len(rec)``, ``rec[i]``, ``rec[a:b]`` (a list), iteration, ``rec.nearest(t)`` and
     ``rec.play()`` give :class:`Frame` objects. Random access reads only the frame's own messages,
     plus the color packets from the keyframe before it; iteration decodes each packet once.
+
+    ``threads`` (``None``: each codec's default, one frame at a time; ``0``: the codecs choose)
+    is how many cores reading may use. With 2 or more, iteration and :meth:`play` read ahead:
+    while the caller holds frame ``i``, the next ``6 × threads`` frames decode on worker
+    threads (the color stream on one, depth frames on ``threads`` others, several at once).
+    Frames come out in order and identical, each checked as without threads, and an error is
+    raised at the frame it belongs to. Leaving the loop or :meth:`close` stops the workers.
+    Random access (``rec[i]``) decodes on the caller's thread either way. The codecs that take
+    ``threads`` (``jpegxl``, the video codecs) are given it too, except the color decoder that
+    reads ahead, which gets half (slice threads add little when whole frames run in parallel).
     """
 
     def __init__(self, path: str | os.PathLike[str], *, threads: int | None = None) -> None:
@@ -50,6 +66,7 @@ class Recording(PacketAccess):
             raise InputError(f"{str(self.path)!r} is a folder, not a recording")
         self._file: IO[bytes] = open(self.path, "rb")  # noqa: SIM115 - closed by close()
         self._lock = threading.RLock()
+        self._read_aheads: weakref.WeakSet[ReadAhead[Frame]] = weakref.WeakSet()
         try:
             self._load()
         except PcdcodecError:
@@ -229,9 +246,7 @@ class Recording(PacketAccess):
         self._pose_matrix_at = {
             int(t): int(o) for t, o in zip(m_times.tolist(), m_offsets.tolist(), strict=True)
         }
-        self._decoder: VideoDecoder | None = None
-        self._next_packet = 0
-        self._decoded: dict[int, npt.NDArray[np.uint8]] = {}
+        self._stream = ColorStream(self, self.color_shape)
         self._projector: Projector | None = None
 
     # -- description ---------------------------------------------------------------------
@@ -428,68 +443,35 @@ class Recording(PacketAccess):
     # -- frames ----------------------------------------------------------------------------
 
     def _color(self, i: int) -> npt.NDArray[np.uint8] | None:
-        if self.color_codec is None:
-            return None
-        ts = int(self._times[i])
-        j = self._packet_of_pts.get(ts, -1)
-        if j < 0 or j < self._keyframes[0]:
-            raise DecodeError(
-                f"{str(self.path)!r}: frame {i} (t={ts} ns): no decodable color packet has its time"
-            )
         with self._lock:
-            k = self._keyframes[bisect.bisect_right(self._keyframes, j) - 1]
-            # Every packet this frame's color comes from, checked before it is shown.
-            self._check_packets(k, j, f"{str(self.path)!r}: frame {i} (t={ts} ns)")
-            if ts in self._decoded:
-                return self._decoded.pop(ts)
-            if self._decoder is None or self._next_packet > j or k > self._next_packet:
-                ch, cw = self.color_shape
-                self._decoder = self.color_codec.decoder(cw, ch, self._extradata)
-                self._next_packet = k
-                self._decoded.clear()
-            while ts not in self._decoded:
-                if self._next_packet < len(self._packet_pts):
-                    j_next = self._next_packet
-                    self._next_packet += 1
-                    try:
-                        out = self._decoder.decode(self._packet(j_next))
-                    except DecodeError as exc:
-                        self._decoder = None  # its state is unknown now: start afresh next time
-                        raise DecodeError(
-                            f"frame {i} (t={ts} ns): color packet at byte offset "
-                            f"{int(self._packet_offsets[j_next])}: {exc}"
-                        ) from exc
-                else:
-                    out = self._decoder.flush()
-                    if not out:
-                        raise DecodeError(f"frame {i} (t={ts} ns): its color frame never decoded")
-                for f in out:
-                    self._decoded[f.timestamp] = f.rgb
-            # Frames before this one will not be asked for in order: drop them.
-            for old in [t for t in self._decoded if t <= ts]:
-                rgb = self._decoded.pop(old)
-                if old == ts:
-                    result = rgb
-            return result
+            return self._stream.color(i)
 
     def frame(self, i: int) -> Frame:
         """Frame ``i`` (negative counts from the end)."""
         i = self._index_of(i)
+        return self._build(i, lambda: self._color(i), lambda: self._depth_and_pose(i))
+
+    def _depth_and_pose(self, i: int) -> tuple[npt.NDArray[Any], npt.NDArray[np.float64] | None]:
+        return self._depth(i), self._pose(i)
+
+    def _build(
+        self,
+        i: int,
+        color_of: Callable[[], npt.NDArray[np.uint8] | None],
+        rest_of: Callable[[], tuple[npt.NDArray[Any], npt.NDArray[np.float64] | None]],
+    ) -> Frame:
+        """Frame ``i`` from its color, then its depth and pose (each raising what it raised)."""
         try:
-            color = self._color(i)
+            color = color_of()
             ch, cw = self.color_shape
             if color is not None and color.shape != (ch, cw, 3):
                 raise DecodeError(
                     f"{str(self.path)!r}: frame {i}: color decoded to {color.shape}, expected "
                     f"({ch}, {cw}, 3) for the recording's color camera"
                 )
+            depth, pose = rest_of()
             return Frame(
-                color,
-                self._depth(i),
-                int(self._times[i]),
-                index=i,
-                pose=self._pose(i),
-                projector=self.projector,
+                color, depth, int(self._times[i]), index=i, pose=pose, projector=self.projector
             )
         except PcdcodecError:
             raise
@@ -505,8 +487,31 @@ class Recording(PacketAccess):
         return self.frame(key)
 
     def __iter__(self) -> Iterator[Frame]:
-        for i in range(len(self)):
-            yield self.frame(i)
+        return self._in_order(0)
+
+    def _in_order(self, start: int) -> Iterator[Frame]:
+        """Frames ``start`` … in order: read ahead on threads when ``threads`` is 2 or more."""
+        workers = self.threads or 1
+        if workers < 2 or start < 0 or len(self) - start < 2:
+            for i in range(start, len(self)):
+                yield self.frame(i)
+            return
+        stream = ColorStream(self, self.color_shape, with_threads(self.color_codec, workers // 2))
+        ahead = ReadAhead(
+            start,
+            len(self),
+            color=stream.color,
+            rest=self._depth_and_pose,
+            build=self._build,
+            workers=workers,
+            ahead=READ_AHEAD * workers,
+        )
+        self._read_aheads.add(ahead)
+        try:
+            yield from ahead
+        finally:
+            ahead.close()
+            self._read_aheads.discard(ahead)
 
     def nearest(self, timestamp: int) -> Frame:
         """The frame whose timestamp is nearest ``timestamp`` (ns)."""
@@ -528,12 +533,12 @@ class Recording(PacketAccess):
             return
         t0 = time.perf_counter()
         first = int(self._times[start]) if start < len(self) else 0
-        for i in range(start, len(self)):
+        for i, frame in enumerate(self._in_order(start), start):
             due = t0 + (int(self._times[i]) - first) / 1e9 / rate
             delay = due - time.perf_counter()
             if delay > 0:
                 time.sleep(delay)
-            yield self.frame(i)
+            yield frame
 
     def verify(self) -> VerifyReport:
         """Check the whole file and decode every frame; report problems by frame and offset.
@@ -574,10 +579,13 @@ class Recording(PacketAccess):
             except PcdcodecError as exc:
                 errors.append(str(exc))
                 with self._lock:
-                    self._decoder = None
+                    self._stream.reset()
         return VerifyReport(len(self), errors, index.indexed, index.truncated_at)
 
     def close(self) -> None:
+        """Stop the threads reading ahead (if any), then close the file."""
+        for ahead in list(self._read_aheads):
+            ahead.close()
         self._file.close()
 
     def __enter__(self) -> Recording:
