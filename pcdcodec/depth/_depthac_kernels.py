@@ -288,6 +288,129 @@ def _clamp_index(v: int) -> int:
     return v if v < 65535 else 65535
 
 
+# -- shared pieces of the bitstream (both body versions) ------------------------------------
+
+
+@njit(cache=True, error_model="numpy")
+def write_table(
+    low: int, rng: int, pos: int, out: Any, probs: Any, rank: Any, ntable: int
+) -> tuple[int, int, int]:
+    """Code the value table: its length, then each entry's gap to the previous one."""
+    for j in range(16):
+        low, rng, pos = _enc(low, rng, pos, out, probs, _M_HDR + j, (ntable - 1) >> (15 - j) & 1)
+    prev = 0
+    pgap = 0
+    for v in range(1, 65536):
+        if rank[_U(v)] == 0:
+            continue
+        gap = v - prev - 1
+        g = _gap_ctx(pgap)
+        if gap == 0:
+            low, rng, pos = _enc(low, rng, pos, out, probs, _M_TZERO + g, 0)
+        else:
+            low, rng, pos = _enc(low, rng, pos, out, probs, _M_TZERO + g, 1)
+            k = 0
+            while (gap >> (k + 1)) != 0:
+                k += 1
+            for j in range(k):
+                low, rng, pos = _enc(low, rng, pos, out, probs, _M_TEXP + g * 16 + j, 1)
+            if k < 15:
+                low, rng, pos = _enc(low, rng, pos, out, probs, _M_TEXP + g * 16 + k, 0)
+            for j in range(k - 1, -1, -1):
+                low, rng, pos = _enc(
+                    low, rng, pos, out, probs, _M_TMANT + k * 16 + j, (gap >> j) & 1
+                )
+        pgap = gap
+        prev = v
+    return low, rng, pos
+
+
+@njit(cache=True, error_model="numpy")
+def read_table(
+    code: int, rng: int, pos: int, buf: Any, n: int, probs: Any, table: Any
+) -> tuple[int, int, int, int]:
+    """Decode the value table into ``table``; returns its length, or minus an ``ERR_*`` status."""
+    ntable = 0
+    for j in range(16):
+        bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_HDR + j)
+        ntable = (ntable << 1) | bit
+    ntable += 1
+    prev = 0
+    pgap = 0
+    for i in range(ntable):
+        g = _gap_ctx(pgap)
+        bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TZERO + g)
+        gap = 0
+        if bit:
+            k = 0
+            while k < 15:
+                bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TEXP + g * 16 + k)
+                if bit == 0:
+                    break
+                k += 1
+            gap = 1
+            for j in range(k - 1, -1, -1):
+                bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TMANT + k * 16 + j)
+                gap = (gap << 1) | bit
+        v = prev + gap + 1
+        if v > 65535:
+            return -ERR_TABLE, code, rng, pos
+        table[_U(i)] = v
+        prev = v
+        pgap = gap
+    if pos > n:
+        return -ERR_LENGTH, code, rng, pos
+    return ntable, code, rng, pos
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def write_residual(
+    low: int, rng: int, pos: int, out: Any, probs: Any, zc: int, sc: int, ctx: int, e: int
+) -> tuple[int, int, int]:
+    """Code a residual: zero flag, sign, unary exponent, mantissa bits."""
+    if e == 0:
+        return _enc(low, rng, pos, out, probs, zc, 0)
+    low, rng, pos = _enc(low, rng, pos, out, probs, zc, 1)
+    low, rng, pos = _enc(low, rng, pos, out, probs, sc, 1 if e < 0 else 0)
+    m = -e if e < 0 else e
+    k = 0
+    while (m >> (k + 1)) != 0:
+        k += 1
+    e0 = _M_EXP + ctx * _EXP
+    for j in range(k):
+        low, rng, pos = _enc(low, rng, pos, out, probs, e0 + j, 1)
+    if k < 15:
+        low, rng, pos = _enc(low, rng, pos, out, probs, e0 + k, 0)
+    m0 = _M_MANT + (ctx // _PERCLASS) * 256 + k * 16
+    for j in range(k - 1, -1, -1):
+        low, rng, pos = _enc(low, rng, pos, out, probs, m0 + j, (m >> j) & 1)
+    return low, rng, pos
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def read_residual(
+    code: int, rng: int, pos: int, buf: Any, n: int, probs: Any, zc: int, sc: int, ctx: int
+) -> tuple[int, int, int, int]:
+    """Decode a residual coded by :func:`write_residual`."""
+    nz, code, rng, pos = _dec(code, rng, pos, buf, n, probs, zc)
+    if not nz:
+        return 0, code, rng, pos
+    neg, code, rng, pos = _dec(code, rng, pos, buf, n, probs, sc)
+    e0 = _M_EXP + ctx * _EXP
+    k = 0
+    while k < 15:
+        bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, e0 + k)
+        if bit == 0:
+            break
+        k += 1
+    m0 = _M_MANT + (ctx // _PERCLASS) * 256 + k * 16
+    m = 1
+    for j in range(k - 1, -1, -1):
+        bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, m0 + j)
+        m = (m << 1) | bit
+    return (-m if neg else m), code, rng, pos
+
+
 # -- encoder ------------------------------------------------------------------------------
 
 
@@ -337,34 +460,7 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
     probs = np.full(_NMODELS, _STATE_INIT, dtype=np.int32)
 
     if use_table:
-        for j in range(16):
-            low, rng, pos = _enc(
-                low, rng, pos, out, probs, _M_HDR + j, (ntable - 1) >> (15 - j) & 1
-            )
-        prev = 0
-        pgap = 0
-        for v in range(1, 65536):
-            if rank[_U(v)] == 0:
-                continue
-            gap = v - prev - 1
-            g = _gap_ctx(pgap)
-            if gap == 0:
-                low, rng, pos = _enc(low, rng, pos, out, probs, _M_TZERO + g, 0)
-            else:
-                low, rng, pos = _enc(low, rng, pos, out, probs, _M_TZERO + g, 1)
-                k = 0
-                while (gap >> (k + 1)) != 0:
-                    k += 1
-                for j in range(k):
-                    low, rng, pos = _enc(low, rng, pos, out, probs, _M_TEXP + g * 16 + j, 1)
-                if k < 15:
-                    low, rng, pos = _enc(low, rng, pos, out, probs, _M_TEXP + g * 16 + k, 0)
-                for j in range(k - 1, -1, -1):
-                    low, rng, pos = _enc(
-                        low, rng, pos, out, probs, _M_TMANT + k * 16 + j, (gap >> j) & 1
-                    )
-            pgap = gap
-            prev = v
+        low, rng, pos = write_table(low, rng, pos, out, probs, rank, ntable)
 
     if not use_table:
         for v in range(65536):
@@ -404,23 +500,7 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
             idx[_U(o)] = v
             err[_U(o)] = e
             last = v
-            if e == 0:
-                low, rng, pos = _enc(low, rng, pos, out, probs, zc, 0)
-                continue
-            low, rng, pos = _enc(low, rng, pos, out, probs, zc, 1)
-            low, rng, pos = _enc(low, rng, pos, out, probs, sc, 1 if e < 0 else 0)
-            m = -e if e < 0 else e
-            k = 0
-            while (m >> (k + 1)) != 0:
-                k += 1
-            e0 = _M_EXP + ctx * _EXP
-            for j in range(k):
-                low, rng, pos = _enc(low, rng, pos, out, probs, e0 + j, 1)
-            if k < 15:
-                low, rng, pos = _enc(low, rng, pos, out, probs, e0 + k, 0)
-            m0 = _M_MANT + (ctx // _PERCLASS) * 256 + k * 16
-            for j in range(k - 1, -1, -1):
-                low, rng, pos = _enc(low, rng, pos, out, probs, m0 + j, (m >> j) & 1)
+            low, rng, pos = write_residual(low, rng, pos, out, probs, zc, sc, ctx, e)
     for _ in range(4):
         out[_U(pos)] = low >> 24
         pos += 1
@@ -464,36 +544,9 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
     table = np.zeros(65536, dtype=np.int64)
     maxidx = 65535
     if use_table:
-        ntable = 0
-        for j in range(16):
-            bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_HDR + j)
-            ntable = (ntable << 1) | bit
-        ntable += 1
-        prev = 0
-        pgap = 0
-        for i in range(ntable):
-            g = _gap_ctx(pgap)
-            bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TZERO + g)
-            gap = 0
-            if bit:
-                k = 0
-                while k < 15:
-                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TEXP + g * 16 + k)
-                    if bit == 0:
-                        break
-                    k += 1
-                gap = 1
-                for j in range(k - 1, -1, -1):
-                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TMANT + k * 16 + j)
-                    gap = (gap << 1) | bit
-            v = prev + gap + 1
-            if v > 65535:
-                return ERR_TABLE
-            table[_U(i)] = v
-            prev = v
-            pgap = gap
-        if pos > n:
-            return ERR_LENGTH
+        ntable, code, rng, pos = read_table(code, rng, pos, buf, n, probs, table)
+        if ntable < 0:
+            return -ntable
         maxidx = ntable - 1
     else:
         for i in range(65536):
@@ -525,23 +578,7 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
             valid[_U(o)] = 1
             p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
             zc, sc = _coding_ctx(ctx, q, err, o, st)
-            nz, code, rng, pos = _dec(code, rng, pos, buf, n, probs, zc)
-            e = 0
-            if nz:
-                neg, code, rng, pos = _dec(code, rng, pos, buf, n, probs, sc)
-                e0 = _M_EXP + ctx * _EXP
-                k = 0
-                while k < 15:
-                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, e0 + k)
-                    if bit == 0:
-                        break
-                    k += 1
-                m0 = _M_MANT + (ctx // _PERCLASS) * 256 + k * 16
-                m = 1
-                for j in range(k - 1, -1, -1):
-                    bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, m0 + j)
-                    m = (m << 1) | bit
-                e = -m if neg else m
+            e, code, rng, pos = read_residual(code, rng, pos, buf, n, probs, zc, sc, ctx)
             v = p + e if near == 0 else _clamp_index(p + e * step)
             if v < 0 or v > maxidx or table[_U(v)] == 0:
                 return ERR_INDEX
