@@ -1,15 +1,16 @@
 """What a SIGKILL costs a recording: frames handed to the writer vs frames readable after.
 
 Run: ``python scripts/writer_kill_test.py [--kills 24] [--modes paced,idle] [--seed 0]
-[--writer REV] [--step 1]``.
+[--writer REV] [--step 1] [--color SPEC]``.
 
-A child process records the bundled sample (640×480, looped) with the default codecs and is
-killed with SIGKILL at a random point; the file it leaves is then read as it is (unfinished,
-without an index) and through ``pcdcodec recover``. The child prints each frame's number and
-the time just before handing it to ``write()``, so the parent knows every frame handed in,
-even one whose ``write()`` never returned; it also prints the writer's ``frames_complete``
-then, so the parent knows whether the codecs had caught up (every earlier frame written) when
-the last frame was handed in. On a machine too busy to encode 30 frames a second, frames wait
+A child process records the bundled sample (640×480, looped) with the default codecs
+(``--color`` names another color codec, as a JSON config) and is killed with SIGKILL at a
+random point; the file it leaves is then read as it is (unfinished, without an index) and
+through ``pcdcodec recover``. The child prints each frame's number and the time just before
+handing it to ``write()``, so the parent knows every frame handed in, even one whose
+``write()`` never returned; it also prints the writer's ``frames_complete`` then, so the
+parent knows whether the codecs had caught up (every earlier frame written) when the last
+frame was handed in. On a machine too busy to encode 30 frames a second, frames wait
 in the writer's queue, and a kill loses them too.
 
 * ``paced``: frames handed in at 30 fps, without pause. The kill comes 0.3 to 3 s after the
@@ -45,10 +46,11 @@ import pcdcodec  # noqa: E402
 
 CHILD = textwrap.dedent(
     """
-    import importlib.util, random, sys, time
+    import importlib.util, json, random, sys, time
     import pcdcodec
     path, mode, seed, writer_file = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
     step = int(sys.argv[5])
+    color = json.loads(sys.argv[6]) if sys.argv[6] else pcdcodec.DEFAULT_COLOR_CODEC
     if writer_file:
         spec = importlib.util.spec_from_file_location(
             "pcdcodec.recording._writer_under_test", writer_file
@@ -67,7 +69,7 @@ CHILD = textwrap.dedent(
             cam.fx / step, cam.fy / step, cam.cx / step, cam.cy / step,
         )
     frames = [(f.color[::step, ::step].copy(), f.depth[::step, ::step].copy()) for f in seq]
-    rec = Writer(path, intrinsics=cam, depth_scale=seq.depth_scale)
+    rec = Writer(path, intrinsics=cam, depth_scale=seq.depth_scale, color=color)
     k = 0
     start = time.monotonic()
     while True:
@@ -124,12 +126,13 @@ def kill_once(
     seed: int,
     writer_file: str,
     step: int,
+    color: str,
     rng: random.Random,
     stats: Mode,
 ) -> None:
     path = workdir / f"{mode}-{seed}.pcdc"
     proc = subprocess.Popen(
-        [sys.executable, "-c", CHILD, str(path), mode, str(seed), writer_file, str(step)],
+        [sys.executable, "-c", CHILD, str(path), mode, str(seed), writer_file, str(step), color],
         stdout=subprocess.PIPE,
         text=True,
         env={**os.environ, "PYTHONPATH": str(ROOT)},
@@ -189,6 +192,9 @@ def main() -> None:
     parser.add_argument(
         "--step", type=int, default=1, help="keep every STEP-th pixel (2: 320x240; default 1)"
     )
+    parser.add_argument(
+        "--color", default="", help="color codec config as JSON (default: the default codec)"
+    )
     args = parser.parse_args()
     rng = random.Random(args.seed)
     with tempfile.TemporaryDirectory() as tmp:
@@ -205,7 +211,10 @@ def main() -> None:
             (workdir / "writer.py").write_text(source)
             writer_file = str(workdir / "writer.py")
         size = f"{640 // args.step}x{480 // args.step}"
-        print(f"writer: {args.writer or 'as checked out'}; {size}; {args.kills} kills per mode")
+        print(
+            f"writer: {args.writer or 'as checked out'}; {size}; color "
+            f"{args.color or pcdcodec.DEFAULT_COLOR_CODEC}; {args.kills} kills per mode"
+        )
         print(
             "| mode | kills | handed in | readable | lost per kill | kills with the codecs "
             "caught up | kills ≥ 50 ms after a write() returned |"
@@ -214,7 +223,16 @@ def main() -> None:
         for mode in args.modes.split(","):
             stats = Mode()
             for k in range(args.kills):
-                kill_once(workdir, mode, args.seed * 1000 + k, writer_file, args.step, rng, stats)
+                kill_once(
+                    workdir,
+                    mode,
+                    args.seed * 1000 + k,
+                    writer_file,
+                    args.step,
+                    args.color,
+                    rng,
+                    stats,
+                )
             print(
                 f"| {mode} | {stats.kills} | {stats.handed} | {stats.readable} | "
                 f"{histogram(stats.losses)} | {len(stats.kept_up_losses)}: "
