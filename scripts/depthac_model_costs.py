@@ -1,0 +1,293 @@
+"""What faster ways of coding ``depthac``'s residuals would cost in size, on every depth set.
+
+A faster decoder needs fewer adaptive decisions per pixel. This script measures, without
+writing a decoder, how many bytes the candidate models would take: it runs ``depthac``'s own
+prediction and contexts over real frames, then adds up the ideal code length (−log2 of each
+decision's probability at the moment it is coded) of each candidate, with adaptive models that
+learn as the coder would. The first column checks the method: today's binary decisions,
+counted this way, come within the value table's bytes of the real coded size.
+
+Candidates (each against today's residual bytes):
+
+* ``tokens``: one multi-symbol decision per valid pixel (0, ±1, ±2, ±3 and larger escapes,
+  whose rest keeps today's exponent and mantissa bits), with today's zero-flag contexts;
+* ``nz-token/q``: today's zero flag, then sign and magnitude of a non-zero residual (±1, ±2,
+  ±3+) as one decision, by gradient triple (the pixel context without one);
+* ``nz-token/q+signs``: the same by gradient triple and the neighbours' residual signs;
+* ``nz-token/ctx``: the same by pixel context;
+* ``two halves``: today's binary decisions with separate models for the top and bottom
+  halves of the frame (what independent streams decoded side by side would cost).
+
+Run: ``python scripts/depthac_model_costs.py [--frames 3] [--sets sample,spot]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from pcdcodec.bench.sequences import ALL_DEPTH_SETS, load_frames, set_present
+from pcdcodec.depth import _depthac_kernels as kern  # the model under study
+
+_RATE = kern._RATE_LUT
+_NOBIAS = kern._NOBIAS
+
+
+@njit(cache=True)
+def features(image: Any) -> tuple[Any, Any, int]:
+    """Per valid pixel (context, triple, residual, west and north residuals), per pixel
+    (mask context, mask bit), and the value table's length, as the encoder computes them."""
+    h, w = image.shape
+    pad = kern._PAD
+    st = w + 2 * pad
+    valid = np.zeros((h + pad) * st + pad, dtype=np.uint8)
+    rank = np.zeros(65536, dtype=np.int64)
+    nvalid = 0
+    for y in range(h):
+        for x in range(w):
+            v = image[y, x]
+            rank[v] = 1
+            if v != 0:
+                valid[(y + pad) * st + pad + x] = 1
+                nvalid += 1
+    rank[0] = 0
+    ntable = 0
+    for v in range(1, 65536):
+        if rank[v]:
+            rank[v] = ntable + 1
+            ntable += 1
+    if not (nvalid > 0 and 2 * ntable <= nvalid):
+        for v in range(65536):
+            rank[v] = v + 1
+    idx = np.zeros(valid.size, dtype=np.int32)
+    err = np.zeros(valid.size, dtype=np.int32)
+    pix = np.zeros((nvalid, 5), dtype=np.int64)
+    mask = np.zeros((h * w, 2), dtype=np.int64)
+    last = 0
+    k = 0
+    for y in range(h):
+        o0 = (y + pad) * st + pad
+        r1, r2 = kern._mask_row_start(valid, o0, st)
+        wb = 0
+        for o in range(o0, o0 + w):
+            vo = np.int64(valid[o])
+            mask[(y * w) + o - o0, 0] = kern._MASK_LUT[(r2 << 7) | (r1 << 2) | wb]
+            mask[(y * w) + o - o0, 1] = vo
+            r1 = ((r1 << 1) & 31) | np.int64(valid[o - st + 3])
+            r2 = ((r2 << 1) & 7) | np.int64(valid[o - 2 * st + 2])
+            wb = ((wb << 1) | vo) & 3
+            if vo == 0:
+                continue
+            v = rank[np.int64(image[y, o - o0])] - 1
+            p, ctx, q = kern._predict(idx, err, valid, o, st, last, kern._G_LUT, kern._E_LUT)
+            pix[k, 0] = ctx
+            pix[k, 1] = q
+            pix[k, 2] = v - p
+            pix[k, 3] = err[o - 1]
+            pix[k, 4] = err[o - st]
+            idx[o] = v
+            err[o] = v - p
+            last = v
+            k += 1
+    return pix, mask, ntable
+
+
+@njit(cache=True)
+def _bit(state: Any, i: int, bit: int) -> float:
+    """Cost in bits of one binary decision with today's adaptive model ``i``; adapts it."""
+    s = state[i]
+    p = s & 0xFFFF
+    c = s >> 16
+    r = _RATE[c]
+    c = min(c + 1, 24)
+    if bit == 0:
+        cost = -math.log2(p / 65536.0)
+        p += (65536 - p) >> r
+    else:
+        cost = -math.log2(1.0 - p / 65536.0)
+        p -= p >> r
+    state[i] = (c << 16) | p
+    return cost
+
+
+@njit(cache=True)
+def _symbol(cdf: Any, count: Any, c: int, s: int, n: int) -> float:
+    """Cost in bits of symbol ``s`` of an adaptive ``n``-symbol model ``c`` (15-bit cumulative
+    frequencies, every symbol kept at 1 or more, adapting fast at first); adapts it."""
+    cost = -math.log2((cdf[c, s + 1] - cdf[c, s]) / 32768.0)
+    rate = 4 + (1 if count[c] > 15 else 0) + (1 if count[c] > 31 else 0)
+    rate += 1 if count[c] > 63 else 0
+    count[c] += 1
+    for i in range(1, n):
+        target = i if i <= s else 32768 - (n - i)
+        cur = cdf[c, i]
+        cdf[c, i] = (
+            cur + ((target - cur) >> rate) if target >= cur else cur - ((cur - target) >> rate)
+        )
+    return cost
+
+
+@njit(cache=True)
+def _new_cdf(contexts: int, n: int) -> Any:
+    cdf = np.zeros((contexts, n + 1), dtype=np.int64)
+    for c in range(contexts):
+        for i in range(n + 1):
+            cdf[c, i] = (32768 * i) // n
+    return cdf
+
+
+@njit(cache=True)
+def _sign_class(ew: int, en: int) -> int:
+    return (0 if ew == 0 else (1 if ew > 0 else 2)) * 3 + (0 if en == 0 else (1 if en > 0 else 2))
+
+
+@njit(cache=True)
+def _rest_bits(state: Any, ctx: int, m: int) -> float:
+    """Today's exponent and mantissa bits of ``m`` ≥ 1."""
+    bits = 0.0
+    k = 0
+    while (m >> (k + 1)) != 0:
+        k += 1
+    e0 = kern._M_EXP + ctx * kern._EXP
+    for j in range(k):
+        bits += _bit(state, e0 + j, 1)
+    if k < 15:
+        bits += _bit(state, e0 + k, 0)
+    m0 = kern._M_MANT + (ctx // kern._PERCLASS) * 256 + k * 16
+    for j in range(k - 1, -1, -1):
+        bits += _bit(state, m0 + j, (m >> j) & 1)
+    return bits
+
+
+@njit(cache=True)
+def _zero_model(ctx: int, q: int) -> int:
+    if q == _NOBIAS:
+        return kern._M_ZERO + ctx
+    return kern._M_QZERO + q * kern._NQE + min(ctx % kern._NEBIN, kern._NQE - 1)
+
+
+@njit(cache=True)
+def binary_bytes(pix: Any, mask: Any, lo: int, hi: int, mlo: int, mhi: int) -> float:
+    """Today's decisions for valid pixels ``lo:hi`` and mask bits ``mlo:mhi``, in bytes."""
+    state = np.full(kern._NMODELS, kern._STATE_INIT, dtype=np.int64)
+    bits = 0.0
+    for i in range(mlo, mhi):
+        bits += _bit(state, kern._M_MASK + mask[i, 0], mask[i, 1])
+    for k in range(lo, hi):
+        ctx, q, e, ew, en = pix[k, 0], pix[k, 1], pix[k, 2], pix[k, 3], pix[k, 4]
+        if e == 0:
+            bits += _bit(state, _zero_model(ctx, q), 0)
+            continue
+        bits += _bit(state, _zero_model(ctx, q), 1)
+        sc = kern._M_SIGN + ctx if q == _NOBIAS else kern._M_QSIGN + q * 9 + _sign_class(ew, en)
+        bits += _bit(state, sc, 1 if e < 0 else 0)
+        bits += _rest_bits(state, ctx, -e if e < 0 else e)
+    return bits / 8
+
+
+@njit(cache=True)
+def token_bytes(pix: Any) -> float:
+    """One 9-symbol decision per valid pixel (0, ±1, ±2, ±3, ±4+), in bytes."""
+    state = np.full(kern._NMODELS, kern._STATE_INIT, dtype=np.int64)
+    cdf = _new_cdf(730 * 4 + kern._NCTX, 9)
+    count = np.zeros(cdf.shape[0], dtype=np.int64)
+    bits = 0.0
+    for k in range(pix.shape[0]):
+        ctx, q, e = pix[k, 0], pix[k, 1], pix[k, 2]
+        c = q * 4 + min(ctx % kern._NEBIN, 3) if q != _NOBIAS else 730 * 4 + ctx
+        m = -e if e < 0 else e
+        s = 0 if m == 0 else 2 * min(m, 4) - (1 if e > 0 else 0)
+        bits += _symbol(cdf, count, c, s, 9)
+        if m >= 4:
+            bits += _rest_bits(state, ctx, m - 3)
+    return bits / 8
+
+
+@njit(cache=True)
+def nonzero_token_bytes(pix: Any, variant: int) -> float:
+    """Today's zero flag, then one 6-symbol decision (±1, ±2, ±3+) for a non-zero residual,
+    by gradient triple (0), triple and signs (1) or pixel context (2), in bytes."""
+    state = np.full(kern._NMODELS, kern._STATE_INIT, dtype=np.int64)
+    cdf = _new_cdf(730 * 9 + kern._NCTX * 9, 6)
+    count = np.zeros(cdf.shape[0], dtype=np.int64)
+    bits = 0.0
+    for k in range(pix.shape[0]):
+        ctx, q, e, ew, en = pix[k, 0], pix[k, 1], pix[k, 2], pix[k, 3], pix[k, 4]
+        bits += _bit(state, _zero_model(ctx, q), 0 if e == 0 else 1)
+        if e == 0:
+            continue
+        if variant == 0:
+            c = q if q != _NOBIAS else 730 + ctx
+        elif variant == 1:
+            c = q * 9 + _sign_class(ew, en) if q != _NOBIAS else 730 * 9 + ctx
+        else:
+            c = ctx
+        m = -e if e < 0 else e
+        bits += _symbol(cdf, count, c, 2 * (min(m, 3) - 1) + (1 if e < 0 else 0), 6)
+        if m >= 3:
+            bits += _rest_bits(state, ctx, m - 2)
+    return bits / 8
+
+
+def costs(depth: np.ndarray[Any, Any]) -> dict[str, float]:
+    """Real size and each candidate's residual bytes for one frame."""
+    pix, mask, _ = features(depth)
+    real = len(kern.encode_image(depth, True, 0, np.zeros((0, 0), dtype=np.uint16)))
+    h, w = depth.shape
+    half = (h // 2) * w
+    vhalf = int(mask[:half, 1].sum())
+    nvalid = pix.shape[0]
+    mask_bytes = binary_bytes(pix, mask, 0, 0, 0, mask.shape[0]) if nvalid < h * w else 0.0
+    today = binary_bytes(pix, mask, 0, nvalid, 0, 0)
+    halves = binary_bytes(pix, mask, 0, vhalf, 0, 0) + binary_bytes(pix, mask, vhalf, nvalid, 0, 0)
+    return {
+        "real": real,
+        "counted": today + mask_bytes,
+        "residual": today,
+        "tokens": token_bytes(pix),
+        "nz-token/q": nonzero_token_bytes(pix, 0),
+        "nz-token/q+signs": nonzero_token_bytes(pix, 1),
+        "nz-token/ctx": nonzero_token_bytes(pix, 2),
+        "two halves": halves,
+    }
+
+
+def table(names: list[str], frames: int) -> dict[str, dict[str, float]]:
+    """Each set's totals over ``frames`` frames (spot and the Azure Kinect have one)."""
+    out: dict[str, dict[str, float]] = {}
+    for name in names:
+        total: dict[str, float] = {"frames": 0.0}
+        for depth in load_frames(name, frames):
+            total["frames"] += 1
+            for key, value in costs(depth).items():
+                total[key] = total.get(key, 0.0) + value
+        out[name] = total
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--frames", type=int, default=3, help="frames per set (default 3)")
+    parser.add_argument("--sets", help="comma-separated depth sets (default: every one present)")
+    args = parser.parse_args(argv)
+    names = args.sets.split(",") if args.sets else [s for s in ALL_DEPTH_SETS if set_present(s)]
+    columns = ["tokens", "nz-token/q", "nz-token/q+signs", "nz-token/ctx", "two halves"]
+    print("Residual bytes of each candidate over today's (1.000 = today's size; lower is smaller)")
+    print("| set | real bytes | counted / real | " + " | ".join(columns) + " |")
+    print("|---" * (len(columns) + 3) + "|")
+    for name, total in table(names, args.frames).items():
+        row = [f"{total[c] / total['residual']:.3f}" for c in columns]
+        print(
+            f"| {name} | {total['real'] / total['frames']:.0f} | "
+            f"{total['counted'] / total['real']:.3f} | " + " | ".join(row) + " |"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
