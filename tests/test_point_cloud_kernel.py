@@ -118,3 +118,34 @@ def test_shades_are_the_division() -> None:
     values = np.arange(256, dtype=np.uint8)
     assert SHADES.dtype == np.float32
     assert SHADES.tobytes() == (values / np.float32(255.0)).astype(np.float32).tobytes()
+
+
+def _address(cloud: Any) -> int:
+    """Where the cloud's positions are in memory."""
+    return int(cloud.point.positions.numpy().__array_interface__["data"][0])
+
+
+def test_arrays_are_reused_only_when_nothing_holds_them() -> None:
+    projector = Projector(CAMERA, depth_scale=SAMPLE.depth_scale)
+    a, b = SAMPLE.frames[0], SAMPLE.frames[1]
+    first = projector.to_point_cloud(a.depth, a.color, tensor=True)
+    address = _address(first)
+    del first
+    again = projector.to_point_cloud(b.depth, b.color, tensor=True)
+    assert _address(again) == address  # no cloud held it: reused
+    assert_same_cloud(projector, b.depth, b.color)
+    # A cloud, or only a numpy view of its arrays, keeps them from reuse.
+    view = again.point.positions.numpy()
+    colors = again.point.colors.numpy()
+    kept_view, kept_colors = view.copy(), colors.copy()
+    del again
+    other = projector.to_point_cloud(a.depth, a.color, tensor=True)
+    assert _address(other) != address
+    assert np.array_equal(view, kept_view)
+    assert np.array_equal(colors, kept_colors)
+    held = [projector.to_point_cloud(f.depth, f.color, tensor=True) for f in SAMPLE.frames[:4]]
+    for f, cloud in zip(SAMPLE.frames[:4], held, strict=True):
+        points, shades = numpy_cloud(projector, f.depth, f.color)
+        assert cloud.point.positions.numpy().tobytes() == points.tobytes()
+        assert shades is not None
+        assert cloud.point.colors.numpy().tobytes() == shades.tobytes()

@@ -7,10 +7,17 @@ is the one the numpy path computes: depth units to metres by the projector's tab
 ``y`` as the float32 products of the ray factors and ``z``, colors as ``uint8 / 255`` in
 float32. Only uint16 depth at the projector's own scale, with color registered to depth (or
 none), takes this path.
+
+The arrays a cloud holds are fresh memory, and on a machine where page faults are dear, faulting
+in a few megabytes per frame costs as much as filling them. :func:`cloud_arrays` therefore
+reuses, per thread, the arrays of a cloud made earlier once nothing holds them any more (no
+cloud, no view: only the pool's reference is left), and otherwise makes new ones, with a
+little headroom so that the next frames fit.
 """
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import numpy as np
@@ -73,6 +80,21 @@ def _fill(
         j += 1
 
 
+#: References to a pooled array when nothing else holds it: the pool's, the caller's local name
+#: and ``sys.getrefcount``'s argument.
+_FREE = 3
+
+
+def _array(pool: dict[str, Any], key: str, n: int) -> npt.NDArray[np.float32]:
+    """An N × 3 float32 array: the start of the pool's ``key`` array when nothing else holds it
+    and it is at most 1/8 larger, else a new one (1/16 larger), kept in the pool."""
+    buf: npt.NDArray[np.float32] | None = pool.get(key)
+    if buf is not None and sys.getrefcount(buf) <= _FREE and n <= len(buf) <= n + n // 8 + 256:
+        return buf[:n]
+    buf = pool[key] = np.empty((n + n // 16 + 64, 3), dtype=np.float32)
+    return buf[:n]
+
+
 def cloud_arrays(
     depth: npt.NDArray[np.uint16],
     top: int,
@@ -81,20 +103,23 @@ def cloud_arrays(
     ray_x: npt.NDArray[np.float32],
     ray_y: npt.NDArray[np.float32],
     color: npt.NDArray[np.uint8] | None,
+    pool: dict[str, Any] | None = None,
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32] | None]:
     """N × 3 float32 positions and colors (in [0, 1], or ``None`` without ``color``) of the
     pixels of ``depth`` (native uint16, any layout) with depth in 1 … ``top`` and, where ``ok``
     is given, a valid ray; ``metres[d]`` is the depth of ``d`` units, ``ray_x`` and ``ray_y``
-    the flat per-pixel ray factors, ``color`` an H × W × 3 uint8 image of the depth's size."""
+    the flat per-pixel ray factors, ``color`` an H × W × 3 uint8 image of the depth's size.
+    ``pool`` (one per thread) holds arrays to reuse once their clouds are gone."""
     flat = np.ascontiguousarray(depth).reshape(-1)
     mask = _NO_MASK if ok is None else ok
     n = _count(flat, top, mask)
-    positions = np.empty((n, 3), dtype=np.float32)
+    pool = {} if pool is None else pool
+    positions = _array(pool, "cloud positions", n)
     if color is None:
         _fill(flat, top, mask, metres, ray_x, ray_y, _NO_COLOR, SHADES, positions, positions)
         return positions, None
     rgb = np.ascontiguousarray(color).reshape(-1, 3)
-    colors = np.empty((n, 3), dtype=np.float32)
+    colors = _array(pool, "cloud colors", n)
     _fill(flat, top, mask, metres, ray_x, ray_y, rgb, SHADES, positions, colors)
     return positions, colors
 

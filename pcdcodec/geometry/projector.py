@@ -99,8 +99,8 @@ class Projector:
     (Open3D's ``depth_trunc`` and ``depth_max`` drop that too); ``None`` keeps all.
 
     A projector is safe to share between threads. It keeps per-pixel ray factors (8 bytes per
-    pixel) and, per thread that uses it, scratch buffers of up to 54 bytes per pixel (16 MB at
-    640 × 480), so that repeated calls do not allocate and page-fault fresh temporaries.
+    pixel) and, per thread that uses it, scratch buffers of up to 80 bytes per pixel (25 MB at
+    640 × 480: tensor clouds reuse arrays no cloud holds any more), not to page-fault anew.
 
     ``color_intrinsics`` and ``depth_to_color`` (keyword-only) describe a color camera apart
     from the depth camera: its intrinsics (with its own size and distortion) and the rigid 4 × 4
@@ -610,7 +610,7 @@ class Projector:
             if self._metres_u16 is None:
                 self._metres_u16 = metres_table(self._u16_lut, scale)
             args = (self._u16_max, self._ray_ok, self._metres_u16, self._ray_x, self._ray_y)
-            return cloud_arrays(depth2d, *args, color3)
+            return cloud_arrays(depth2d, *args, color3, self._local.__dict__)
         positions, rgb = self._points(depth2d, scale, color3)
         colors = None if rgb is None else np.divide(rgb, np.float32(255), dtype=np.float32)
         return positions, colors
