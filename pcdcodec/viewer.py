@@ -17,7 +17,9 @@ and without Rerun. rerun and open3d are imported only here, when called.
 
 from __future__ import annotations
 
+import itertools
 import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -83,13 +85,16 @@ def view(
     max_frames: int | None = None,
     stride: int = 2,
     jpeg_quality: int | None = 90,
+    threads: int | None = None,
 ) -> Path | None:
     """Show the recording at ``path`` in the Rerun viewer, or write it to the ``.rrd`` file
     ``save`` (written beside its target and moved into place when complete; returned).
 
     ``every`` logs every n-th frame, ``max_frames`` stops after that many logged frames,
     ``stride`` thins the point cloud (every ``stride``-th pixel in each direction; 1 keeps all)
-    and ``jpeg_quality`` compresses the color images (``None``: raw). Raises
+    and ``jpeg_quality`` compresses the color images (``None``: raw). ``threads`` is how many
+    cores reading may use (:func:`pcdcodec.open`): with ``every`` 1 the frames are read in
+    order, ahead on that many threads. Raises
     :class:`~pcdcodec.InputError` for bad options and :class:`~pcdcodec.PcdcodecError` when
     rerun-sdk is not installed.
     """
@@ -104,7 +109,7 @@ def view(
     target = Path(save) if save is not None else None
     if target is not None and target.is_dir():
         raise InputError(f"{str(target)!r} is a folder; --save takes an .rrd file name")
-    with open_recording(path) as recording:
+    with open_recording(path, threads=threads) as recording:
         stream = rr.RecordingStream("pcdcodec", recording_id=str(recording.path.resolve()))
         partial = None
         if target is not None:
@@ -126,8 +131,7 @@ def view(
                 static=True,
             )
             trajectory: list[np.ndarray[Any, Any]] = []
-            for i in range(0, len(recording), every)[:max_frames]:
-                frame = recording[i]
+            for i, frame in _frames(recording, every, max_frames):
                 stream.set_time("frame", sequence=i)
                 stream.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
                 _log_frame(rr, stream, frame, stride, jpeg_quality)
@@ -142,8 +146,23 @@ def view(
     return target
 
 
-def view_open3d(path: str | os.PathLike[str], *, every: int = 1, fps: float | None = None) -> None:
-    """Play the recording's point clouds in Open3D's window (needs a display)."""
+def _frames(recording: Any, every: int, max_frames: int | None) -> Iterator[tuple[int, Any]]:
+    """``(i, frame)`` of every ``every``-th frame, at most ``max_frames``: all of them read in
+    order (ahead on the recording's threads), others one by one."""
+    if every == 1:
+        return enumerate(itertools.islice(recording, max_frames))
+    return ((i, recording[i]) for i in range(0, len(recording), every)[:max_frames])
+
+
+def view_open3d(
+    path: str | os.PathLike[str],
+    *,
+    every: int = 1,
+    fps: float | None = None,
+    threads: int | None = None,
+) -> None:
+    """Play the recording's point clouds in Open3D's window (needs a display); ``threads`` as
+    for :func:`view`."""
     import time
 
     import open3d as o3d
@@ -154,11 +173,11 @@ def view_open3d(path: str | os.PathLike[str], *, every: int = 1, fps: float | No
     if not vis.create_window(window_name=f"pcdcodec {Path(path).name}"):
         raise PcdcodecError("Open3D could not open a window (no display?); use --save out.rrd")
     try:
-        with open_recording(path) as recording:
+        with open_recording(path, threads=threads) as recording:
             delay = 1.0 / (fps or recording.fps)
             cloud = None
-            for i in range(0, len(recording), every):
-                new = recording[i].to_point_cloud()
+            for _, frame in _frames(recording, every, None):
+                new = frame.to_point_cloud()
                 if cloud is None:
                     cloud = new
                     vis.add_geometry(cloud)

@@ -189,6 +189,25 @@ def test_decode_writes_a_tum_folder_that_encodes_again(encoded: Path, tmp_path: 
     assert "not empty" in refused.stderr
 
 
+def test_decode_threads_reads_ahead_and_writes_the_same_folder(
+    encoded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from pcdcodec.cli import main
+
+    folders = {}
+    for threads in (None, 2):
+        out = tmp_path / f"threads-{threads}"
+        extra = [] if threads is None else ["--threads", str(threads)]
+        assert main(["decode", str(encoded), "-o", str(out), "-q", *extra]) == 0
+        folders[threads] = {
+            p.relative_to(out): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()
+        }
+    assert len(folders[2]) >= 12
+    assert folders[2] == folders[None]
+    assert main(["decode", str(encoded), "-o", str(tmp_path / "bad"), "--threads", "-1"]) == 1
+    assert "threads must be a non-negative int" in capsys.readouterr().err
+
+
 def test_decode_quiet_prints_nothing_but_errors(encoded: Path, tmp_path: Path) -> None:
     out = tmp_path / "quiet"
     result = run("decode", str(encoded), "-o", str(out), "-q")
@@ -389,7 +408,10 @@ def test_options_go_anywhere_among_a_commands_arguments() -> None:
             ["--fps", "15", "in/", "-o", "x.pcdc", "--camera", "tum-ros"],
             {"src": "in/", "fps": 15.0, "output": "x.pcdc", "camera": "tum-ros"},
         ),
-        "decode": (["-q", "x.pcdc", "--ply", "-o", "out/"], {"input": "x.pcdc", "ply": True}),
+        "decode": (
+            ["-q", "x.pcdc", "--ply", "-o", "out/", "--threads", "2"],
+            {"input": "x.pcdc", "ply": True, "threads": 2},
+        ),
         "info": (
             ["--json", "a.bag", "--depth-topic", "/d"],
             {"input": "a.bag", "json": True, "depth_topic": "/d"},
@@ -416,8 +438,8 @@ def test_options_go_anywhere_among_a_commands_arguments() -> None:
             {"src": ["a/", "b.bag", "c.mkv"], "workers": 2, "output": "out", "json": True},
         ),
         "view": (
-            ["--every", "2", "x.pcdc", "--max-frames", "5"],
-            {"input": "x.pcdc", "every": 2, "max_frames": 5},
+            ["--every", "2", "x.pcdc", "--max-frames", "5", "--threads", "3"],
+            {"input": "x.pcdc", "every": 2, "max_frames": 5, "threads": 3},
         ),
         "codecs": (["--kind", "depth"], {"kind": "depth"}),
     }

@@ -86,6 +86,33 @@ def test_view_logs_the_trajectory_where_poses_exist(
     assert "Transform3D:translation" in got["/world/camera"]["columns"]
 
 
+def test_view_threads_reads_ahead_and_logs_the_same(
+    recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from pcdcodec.recording.reader import Recording
+
+    read_ahead = []
+    in_order = Recording._in_order
+
+    def spy(self: Recording, start: int) -> Any:
+        read_ahead.append(self.threads)
+        return in_order(self, start)
+
+    monkeypatch.setattr(Recording, "_in_order", spy)
+    logged = {}
+    for threads in ("1", "2"):
+        out = tmp_path / f"t{threads}.rrd"
+        args = ["view", str(recording), "--save", str(out), "--threads", threads]
+        assert main([*args, "--max-frames", "3"]) == 0
+        got = _contents(out)
+        points = got["/world/camera/points"]
+        assert sorted(points["frames"]) == [0, 1, 2]
+        logged[threads] = [b.column("Points3D:positions").to_pylist() for b in points["batches"]]
+    assert read_ahead == [1, 2]  # every frame in order, on the threads asked for
+    assert logged["2"] == logged["1"]
+    assert main(["view", str(recording), "--save", str(tmp_path / "x.rrd"), "--threads", "-2"]) == 1
+
+
 def test_view_rejects_bad_options(recording: Path, tmp_path: Path) -> None:
     from pcdcodec.viewer import view
 

@@ -161,6 +161,17 @@ def _encode_options(p: argparse.ArgumentParser) -> None:
     _add_topic_options(p)
 
 
+def _add_threads_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        metavar="N",
+        help="cores that reading may use: with 2 or more, frames decode ahead on N threads "
+        "(default: one frame at a time)",
+    )
+
+
 def _decode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("input", help="the .pcdc file")
     p.add_argument("-o", "--output", required=True, help="output folder (TUM layout)")
@@ -170,6 +181,7 @@ def _decode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "-q", "--quiet", action="store_true", help="only errors: no progress, no summary"
     )
+    _add_threads_option(p)
 
 
 def _info_options(p: argparse.ArgumentParser) -> None:
@@ -315,6 +327,7 @@ def _view_options(p: argparse.ArgumentParser) -> None:
         "--stride", type=int, default=2, help="point cloud of every n-th pixel (default: 2)"
     )
     p.add_argument("--open3d", action="store_true", help="play in Open3D's window instead")
+    _add_threads_option(p)
 
 
 def _codecs_options(p: argparse.ArgumentParser) -> None:

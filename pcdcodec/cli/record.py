@@ -87,7 +87,7 @@ def cmd_decode(args: argparse.Namespace) -> int:
 
     clouds = tuple(ext for ext, on in (("ply", args.ply), ("pcd", args.pcd)) if on)
     with (
-        open_recording(args.input) as rec,
+        open_recording(args.input, threads=args.threads) as rec,
         Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar,
     ):
         count = write_folder(

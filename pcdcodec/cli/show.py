@@ -225,7 +225,7 @@ def cmd_view(args: argparse.Namespace) -> int:
     from ..viewer import view, view_open3d
 
     if args.open3d:
-        view_open3d(args.input, every=args.every)
+        view_open3d(args.input, every=args.every, threads=args.threads)
         return 0
     saved = view(
         args.input,
@@ -233,6 +233,7 @@ def cmd_view(args: argparse.Namespace) -> int:
         every=args.every,
         max_frames=args.max_frames,
         stride=args.stride,
+        threads=args.threads,
     )
     if saved is not None:
         print(f"wrote {saved} (open it with: rerun {saved})")

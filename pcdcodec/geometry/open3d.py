@@ -29,6 +29,7 @@ __all__ = [
     "open3d_rgbd",
     "open3d_rgbd_kind",
     "split_rgbd",
+    "tensor_point_cloud",
 ]
 
 
@@ -70,6 +71,19 @@ def open3d_rgbd(
         depth_trunc=float(np.finfo(np.float32).max),
         convert_rgb_to_intensity=False,
     )
+
+
+def tensor_point_cloud(
+    positions: npt.NDArray[np.float32], colors: npt.NDArray[np.float32] | None = None
+) -> Any:
+    """An ``open3d.t.geometry.PointCloud`` on the CPU holding ``positions`` (and ``colors``)
+    without a copy: ``Tensor.from_numpy`` shares their memory and keeps them alive."""
+    import open3d as o3d
+
+    pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor.from_numpy(positions))
+    if colors is not None:
+        pcd.point.colors = o3d.core.Tensor.from_numpy(colors)
+    return pcd
 
 
 def open3d_rgbd_kind(obj: Any) -> str | None:

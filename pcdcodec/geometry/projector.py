@@ -99,8 +99,8 @@ class Projector:
     (Open3D's ``depth_trunc`` and ``depth_max`` drop that too); ``None`` keeps all.
 
     A projector is safe to share between threads. It keeps per-pixel ray factors (8 bytes per
-    pixel) and, per thread that uses it, scratch buffers of up to 54 bytes per pixel (16 MB at
-    640 × 480), so that repeated calls do not allocate and page-fault fresh temporaries.
+    pixel) and, per thread that uses it, scratch buffers of up to 80 bytes per pixel (25 MB at
+    640 × 480: tensor clouds reuse arrays no cloud holds any more), not to page-fault anew.
 
     ``color_intrinsics`` and ``depth_to_color`` (keyword-only) describe a color camera apart
     from the depth camera: its intrinsics (with its own size and distortion) and the rigid 4 × 4
@@ -124,6 +124,7 @@ class Projector:
         "_f32_max",
         "_intrinsics",
         "_local",
+        "_metres_u16",
         "_ray_ok",
         "_ray_x",
         "_ray_y",
@@ -187,6 +188,7 @@ class Projector:
         lut[0] = np.nan
         lut[self._u16_max + 1 :] = np.nan
         self._u16_lut: npt.NDArray[np.float32] = lut
+        self._metres_u16: npt.NDArray[np.float32] | None = None  # made on first use
         self._local = threading.local()
 
     # -- attributes --------------------------------------------------------------------
@@ -260,14 +262,15 @@ class Projector:
         or a color that is not uint8, and :class:`~pcdcodec.InputError` for a depth that is not
         2-D, is empty or differs in size from the intrinsics, or a color of another size.
         """
-        depth2d, scale, color3 = self._inputs(depth, color)
+        return self._points(*self._inputs(depth, color))
+
+    def _points(self, depth2d: Any, scale: float, color3: Any) -> tuple[Any, Any]:
         idx, z = self._valid(depth2d, scale)
         points = np.empty((idx.size, 3), dtype=np.float32)
         self._fill_xyz(points, idx, z)
-        colors = None
-        if color3 is not None:
-            colors = self._point_colors(points, idx, color3, np.empty((idx.size, 3), np.uint8))
-        return points, colors
+        if color3 is None:
+            return points, None
+        return points, self._point_colors(points, idx, color3, np.empty_like(points, np.uint8))
 
     def to_organized(self, depth: Any) -> npt.NDArray[np.float32]:
         """Back-project every pixel: an H × W × 3 float32 organized cloud in metres.
@@ -322,20 +325,14 @@ class Projector:
         Raises as :meth:`to_points`.
         """
         depth2d, scale, color3 = self._inputs(depth, color)
-        idx, z = self._valid(depth2d, scale)
-        n = idx.size
+        if tensor:
+            from .open3d import tensor_point_cloud
+
+            return tensor_point_cloud(*self._tensor_arrays(depth2d, scale, color3))
         import open3d as o3d
 
-        if tensor:
-            # Tensor.from_numpy shares memory and keeps the arrays alive: no copy.
-            positions = np.empty((n, 3), dtype=np.float32)
-            self._fill_xyz(positions, idx, z)
-            pcd = o3d.t.geometry.PointCloud(o3d.core.Tensor.from_numpy(positions))
-            if color3 is not None:
-                rgb = self._point_colors(positions, idx, color3, self._rgb_buf()[:n])
-                colors = np.divide(rgb, np.float32(255.0), dtype=np.float32)
-                pcd.point.colors = o3d.core.Tensor.from_numpy(colors)
-            return pcd
+        idx, z = self._valid(depth2d, scale)
+        n = idx.size
 
         # The float32 points of to_points, widened: computing in float32 and casting once is
         # faster than float64 arithmetic, and Vector3dVector copies fastest from C-contiguous
@@ -604,6 +601,19 @@ class Projector:
         what = "the depth size" if self._color is None else "the color camera's size"
         color3 = None if color is None else check_color(color, self.color_shape, expected=what)
         return depth, scale, color3
+
+    def _tensor_arrays(self, depth2d: Any, scale: float, color3: Any) -> tuple[Any, Any]:
+        """The tensor cloud's float32 positions and colors (``uint8 / 255``, or ``None``)."""
+        if depth2d.dtype == np.uint16 and scale == self._depth_scale and self._color is None:
+            from ._cloud_kernels import cloud_arrays, metres_table  # one compiled pass
+
+            if self._metres_u16 is None:
+                self._metres_u16 = metres_table(self._u16_lut, scale)
+            args = (self._u16_max, self._ray_ok, self._metres_u16, self._ray_x, self._ray_y)
+            return cloud_arrays(depth2d, *args, color3, self._local.__dict__)
+        positions, rgb = self._points(depth2d, scale, color3)
+        colors = None if rgb is None else np.divide(rgb, np.float32(255), dtype=np.float32)
+        return positions, colors
 
     def _metres(self, flat: npt.NDArray[Any], scale: float, out: npt.NDArray[np.float32]) -> None:
         """Write ``flat / scale`` into the float32 ``out``."""

@@ -293,13 +293,10 @@ class Recording(PacketAccess):
         """Whether frames were written with a pose."""
         return bool(self._pose_at)
 
-    def _check_pose(self, i: int, ts: int) -> None:
-        """The frame's pose messages (or their absence) must match its digest message."""
+    def _pose_messages(self, i: int, ts: int) -> dict[str, bytes]:
+        """The frame's pose messages by topic, each read once, checked against its digest."""
         what = f"{str(self.path)!r}: frame {i} (t={ts} ns) pose"
-        record = self._frame_record(i, what)
-        if record is None:
-            return
-        parts = []
+        found: dict[str, bytes] = {}
         for topic, at in (
             (fmt.TOPIC_POSE, self._pose_at),
             (fmt.TOPIC_POSE_MATRIX, self._pose_matrix_at),
@@ -308,7 +305,9 @@ class Recording(PacketAccess):
             if offset is None:
                 continue
             with self._lock:
-                messages = fmt.read_chunk_messages(self._file, offset, what=what)
+                messages = fmt.read_chunk_messages(
+                    self._file, offset, what=what, size=self.index.size or None
+                )
             channel = self.index.channel(topic)
             data = next(
                 (
@@ -320,34 +319,25 @@ class Recording(PacketAccess):
             )
             if data is None:
                 raise DecodeError(f"{what}: no {topic} message at byte offset {offset}")
-            parts.append(data)
-        if (fmt.data_digest(*parts) if parts else fmt.NO_POSE) != record[3]:
+            found[topic] = data
+        record = self._frame_record(i, what)
+        digest = fmt.data_digest(*found.values()) if found else fmt.NO_POSE
+        if record is not None and digest != record[3]:
             raise DecodeError(
                 f"{what} does not match the frame's digest: its pose messages were changed, "
                 "added or removed"
             )
+        return found
 
     def _pose(self, i: int) -> npt.NDArray[np.float64] | None:
         ts = int(self._times[i])
-        self._check_pose(i, ts)
-        exact = self._pose_matrix_at.get(ts)
-        if exact is not None:
-            with self._lock:
-                messages = fmt.read_chunk_messages(self._file, exact, what=f"frame {i} pose")
-            channel = self.index.channel(fmt.TOPIC_POSE_MATRIX)
-            for m in messages:
-                if channel is not None and m.channel_id == channel.id and m.log_time == ts:
-                    return header.parse_pose_matrix(m.data, i, exact)
-        offset = self._pose_at.get(ts)
-        if offset is None:
-            return None
-        with self._lock:
-            messages = fmt.read_chunk_messages(self._file, offset, what=f"frame {i} pose")
-        channel = self.index.channel(fmt.TOPIC_POSE)
-        for m in messages:
-            if channel is not None and m.channel_id == channel.id and m.log_time == ts:
-                return header.transform_matrix(m.data)
-        raise DecodeError(f"frame {i}: no pose message at byte offset {offset}")
+        found = self._pose_messages(i, ts)
+        if fmt.TOPIC_POSE_MATRIX in found:
+            offset = self._pose_matrix_at[ts]
+            return header.parse_pose_matrix(found[fmt.TOPIC_POSE_MATRIX], i, offset)
+        if fmt.TOPIC_POSE in found:
+            return header.transform_matrix(found[fmt.TOPIC_POSE])
+        return None
 
     def poses(self) -> list[npt.NDArray[np.float64] | None]:
         """The pose of every frame (``None`` for frames written without one)."""
