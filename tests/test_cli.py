@@ -75,6 +75,10 @@ def test_demo(tmp_path: Path) -> None:
     assert out.returncode == 0, out.stderr
     assert "depth bit-exact:                yes" in out.stdout
     assert "ratio against PointCloud2" in out.stdout
+    # The ratio against a cloud of the valid points only is smaller than against every pixel.
+    every = float(out.stdout.split("ratio against PointCloud2:")[1].split("x")[0])
+    valid = float(out.stdout.split("of the pixels with depth only:")[1].split("x")[0])
+    assert 0 < valid < every
     ply = tmp_path / "demo" / "frame0000.ply"
     assert ply.exists()
     assert ply.stat().st_size > 100_000
