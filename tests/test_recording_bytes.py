@@ -1,0 +1,66 @@
+"""scripts/recording_bytes.py: every byte of a recording in exactly one category, the payloads
+as the writer counted them, and the overhead of a frame's records as the format lays them out."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+import pcdcodec
+from pcdcodec.datasets import load_sample
+
+from .golden.make_layout_golden import FRAMES, SEALED
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def script() -> ModuleType:
+    path = REPO / "scripts" / "recording_bytes.py"
+    spec = importlib.util.spec_from_file_location("recording_bytes", path)
+    assert spec is not None
+    assert spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["recording_bytes"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_payloads_are_what_the_writer_wrote(script: ModuleType, tmp_path: Path) -> None:
+    seq = load_sample(max_frames=4)
+    path = tmp_path / "rec.pcdc"
+    with pcdcodec.open(path, "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale) as w:
+        for k, frame in enumerate(seq):
+            w.write(frame.color, frame.depth, pose=frame.pose if k % 2 else None)
+    result = script.breakdown(path)
+    parts = result["bytes"]
+    assert sum(parts.values()) == result["size"] == path.stat().st_size
+    assert result["frames"] == 4
+    assert parts["color packets"] == w.bytes_color
+    assert parts["depth frame bodies"] + parts["depth frame headers"] == w.bytes_depth
+    assert parts["depth frame headers"] == 4 * (28 + len("depthac"))
+    assert parts["frame digest payloads"] == 4 * 100
+    assert parts["pose payloads"] > 2 * 128  # two frames with a pose: matrix and transform
+    assert "compressed chunk contents" not in parts
+
+
+def test_frames_in_two_chunks_cost_less_than_a_chunk_per_message(script: ModuleType) -> None:
+    """The same four frames, written before and after version 3 (the FRAMES golden adds
+    poses): two chunks per frame instead of four to six."""
+    before, now = script.breakdown(SEALED)["bytes"], script.breakdown(FRAMES)["bytes"]
+    # One chunk for the cameras, then one per message: 4 frames x (color, depth, digest) + 1
+    # keyframe marker; now two per frame.
+    assert before["chunk headers"] == (1 + 13) * now["chunk headers"] // (1 + 8)
+    assert now["summary: chunk indexes"] < before["summary: chunk indexes"]
+    assert now["message indexes"] > 0
+
+
+def test_main_prints_a_table(script: ModuleType, capsys: pytest.CaptureFixture[str]) -> None:
+    results = script.main([str(FRAMES)])
+    out = capsys.readouterr().out
+    assert "| **overhead** |" in out
+    assert results[str(FRAMES)]["overhead_per_frame"] > 0
