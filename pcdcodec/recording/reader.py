@@ -23,7 +23,7 @@ from ..registry import codec_for_reading
 from . import _header as header
 from . import _index as fmt
 from ._packets import PacketAccess
-from ._readahead import ColorStream, ReadAhead, with_threads
+from ._readahead import KEEP_PICTURES, ColorStream, ReadAhead, with_threads
 from .verify import VerifyReport, index_problems, structure_problems
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
@@ -246,7 +246,7 @@ class Recording(PacketAccess):
         self._pose_matrix_at = {
             int(t): int(o) for t, o in zip(m_times.tolist(), m_offsets.tolist(), strict=True)
         }
-        self._stream = ColorStream(self, self.color_shape)
+        self._stream = ColorStream(self, self.color_shape, keep=KEEP_PICTURES)
         self._projector: Projector | None = None
 
     # -- description ---------------------------------------------------------------------
