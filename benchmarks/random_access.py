@@ -7,7 +7,8 @@ keeps the motion smooth, so the color stream codes as a real one would). Then, r
 it reads the recording in order and in a random order (a new permutation each round), one after
 the other, each from a fresh :func:`pcdcodec.open`, and prints the milliseconds per frame of both
 (median over rounds) and their ratio, random over in order (median, and its range over rounds):
-the "random access" row of the targets asks for at most 2.
+the "random access" row of the targets asks for at most 2. Both in wall-clock time and in the
+process's CPU time, which the other processes of a shared machine disturb far less.
 
 ``--breakdown`` adds where a random frame's time goes, measured in one more pass of each kind:
 depth (read, check, decode), color packets (read, check), color decoding (the frames from the
@@ -119,31 +120,37 @@ def at_random(path: Path, order: list[int], threads: int | None = None) -> int:
 
 def interleaved(
     path: Path, rounds: int, seed: int = 0, threads: int | None = None
-) -> tuple[list[float], list[float]]:
-    """Seconds per frame in order and at random, one of each per round (after one warm-up)."""
+) -> dict[str, list[float]]:
+    """Seconds per frame in order and at random, one pass of each per round (after one to warm
+    up): wall-clock time, and this process's CPU time (all its threads), which other processes
+    on a shared machine disturb far less."""
     with pcdcodec.open(path) as rec:
         n = len(rec)
     rng = random.Random(seed)
-    ordered: list[float] = []
-    shuffled: list[float] = []
+    times: dict[str, list[float]] = {
+        "in order": [],
+        "random": [],
+        "in order cpu": [],
+        "random cpu": [],
+    }
     for round_ in range(rounds + 1):
         order = list(range(n))
         rng.shuffle(order)
-        # Alternate which goes first, so a slow spell on the machine lands on both.
-        passes: list[tuple[list[float], Callable[[], int]]] = [
-            (ordered, lambda: in_order(path, threads)),
-            (shuffled, lambda order=order: at_random(path, order, threads)),  # type: ignore[misc]
+        passes: list[tuple[str, Callable[[], int]]] = [
+            ("in order", lambda: in_order(path, threads)),
+            ("random", lambda order=order: at_random(path, order, threads)),  # type: ignore[misc]
         ]
-        if round_ % 2:
+        if round_ % 2:  # alternate which goes first, so a slow spell lands on both
             passes.reverse()
         got = []
-        for times, run in passes:
-            t0 = time.perf_counter()
+        for key, run in passes:
+            c0, t0 = time.process_time(), time.perf_counter()
             got.append(run())
             if round_:
-                times.append((time.perf_counter() - t0) / n)
+                times[key].append((time.perf_counter() - t0) / n)
+                times[key + " cpu"].append((time.process_time() - c0) / n)
         assert got[0] == got[1], "random access read other frames than reading in order"
-    return ordered, shuffled
+    return times
 
 
 @contextmanager
@@ -255,10 +262,10 @@ def main() -> None:
         f"{args.rounds} rounds; ms per frame (median), random / in order (median, range)"
     )
     print(
-        "| set | gop | in order ms | random ms | random / in order | color B/frame "
-        "| file B/frame | x PointCloud2 |"
+        "| set | gop | in order ms | random ms | random / in order | CPU: in order ms "
+        "| random ms | random / in order | color B/frame | file B/frame | x PointCloud2 |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     details = []
     for name in args.sets:
         seq = sequence(name)
@@ -271,12 +278,18 @@ def main() -> None:
                 gop=gop,
                 depth=depth,
             )
-            ordered, shuffled = interleaved(path, args.rounds, args.seed, args.threads)
-            ratios = [b / a for a, b in zip(ordered, shuffled, strict=True)]
+            t = interleaved(path, args.rounds, args.seed, args.threads)
+            cells = []
+            for clock in ("", " cpu"):
+                ordered, shuffled = t["in order" + clock], t["random" + clock]
+                ratios = [b / a for a, b in zip(ordered, shuffled, strict=True)]
+                cells.append(
+                    f"{1000 * statistics.median(ordered):.2f} "
+                    f"| {1000 * statistics.median(shuffled):.2f} | {spread(ratios)}"
+                )
             size = sizes(path)
             print(
-                f"| {name} | {gop or 'default'} | {1000 * statistics.median(ordered):.2f} "
-                f"| {1000 * statistics.median(shuffled):.2f} | {spread(ratios)} "
+                f"| {name} | {gop or 'default'} | {cells[0]} | {cells[1]} "
                 f"| {size['color B/frame']:.0f} | {size['file B/frame']:.0f} "
                 f"| {size['x PointCloud2']:.0f} |",
                 flush=True,
