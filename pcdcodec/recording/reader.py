@@ -39,7 +39,9 @@ class Recording(PacketAccess):
 
     ``len(rec)``, ``rec[i]``, ``rec[a:b]`` (a list), iteration, ``rec.nearest(t)`` and
     ``rec.play()`` give :class:`Frame` objects. Random access reads only the frame's own messages,
-    plus the color packets from the keyframe before it; iteration decodes each packet once.
+    plus the color packets from the keyframe before it, and converts only its own color to RGB;
+    the group of pictures decoded last is kept, so frames read again or backwards within it are
+    not decoded again (``docs/recording.md``). Iteration decodes each packet once.
 
     ``threads`` (``None``: each codec's default, one frame at a time; ``0``: the codecs choose)
     is how many cores reading may use. With 2 or more, iteration and :meth:`play` read ahead:
