@@ -73,6 +73,24 @@ def _depthac_jxl_table(session: Any, write: Any) -> None:
         )
 
 
+def _random_access_table(session: Any, write: Any) -> None:
+    """``test_bench_random_access.py``: rec[i] at random over reading in order, per set (the
+    "random access" row: at most 2)."""
+    rows = [b.extra_info for b in session.benchmarks if b.extra_info.get("kind") == "random-access"]
+    if not rows:
+        return
+    write("")
+    write("random access: ms per frame in order and at random (median of rounds, interleaved)")
+    write(f"| {'set':20} | {'frames':>6} | {'in order':>8} | {'random':>8} | random / in order |")
+    write(f"|{'-' * 22}|{'-' * 8}|{'-' * 10}|{'-' * 10}|{'-' * 19}|")
+    for info in rows:
+        write(
+            f"| {info['sequence']:20} | {info['frames']:6} | {info['in_order_ms']:8.2f} "
+            f"| {info['random_ms']:8.2f} | {info['ratio']:.2f} "
+            f"({info['ratio_min']:.2f}-{info['ratio_max']:.2f}) |"
+        )
+
+
 @pytest.hookimpl(trylast=True)
 def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pytest.Config) -> None:
     session = getattr(config, "_benchmarksession", None)
@@ -108,6 +126,7 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
             )
 
     _depthac_jxl_table(session, write)
+    _random_access_table(session, write)
 
     projector: dict[str, dict[str, float]] = defaultdict(dict)
     for b in session.benchmarks:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import os
 import zlib
 from abc import ABC, abstractmethod
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -36,6 +36,7 @@ from ..errors import DecodeError, InputError, InputTypeError
 
 __all__ = [
     "DecodedFrame",
+    "DecodedPicture",
     "FileVideoCodec",
     "Packet",
     "PathArg",
@@ -99,6 +100,35 @@ class DecodedFrame:
 
     def __iter__(self) -> Any:
         return iter((self.rgb, self.timestamp))
+
+
+class DecodedPicture:
+    """One picture out of a video decoder, not yet converted to RGB: its pts in nanoseconds,
+    and :meth:`rgb`, which converts it on each call (a new array each time).
+
+    Seeking decodes every frame from the keyframe before the one asked for, but shows only that
+    one: the others are needed as references, never as RGB, so they are not converted.
+    ``nbytes`` is about the memory the picture holds while it is kept.
+    """
+
+    __slots__ = ("_convert", "nbytes", "timestamp")
+
+    def __init__(
+        self, timestamp: int, convert: Callable[[], npt.NDArray[np.uint8]], nbytes: int
+    ) -> None:
+        self.timestamp = timestamp
+        self.nbytes = nbytes
+        self._convert = convert
+
+    @classmethod
+    def of(cls, frame: DecodedFrame) -> DecodedPicture:
+        """A picture of a frame already in RGB (a decoder that cannot put off converting)."""
+        rgb = frame.rgb
+        return cls(frame.timestamp, rgb.copy, rgb.nbytes)
+
+    def rgb(self) -> npt.NDArray[np.uint8]:
+        """The picture as a new H×W×3 uint8 RGB image."""
+        return self._convert()
 
 
 def _check_size(width: Any, height: Any) -> tuple[int, int]:
@@ -207,11 +237,30 @@ class VideoDecoder(ABC):
         """Return the frames still held by the decoder at the end of the stream."""
         return self._flush()
 
+    def decode_pictures(self, packet: Packet) -> list[DecodedPicture]:
+        """:meth:`decode`, but each frame is converted to RGB only when asked
+        (:meth:`DecodedPicture.rgb`): for a reader that decodes frames it will not show."""
+        if not isinstance(packet, Packet):
+            raise InputTypeError(f"decode expects a Packet, got {type(packet).__name__}")
+        packet.verify()
+        return self._decode_pictures(packet)
+
+    def flush_pictures(self) -> list[DecodedPicture]:
+        """:meth:`flush`, with the frames as in :meth:`decode_pictures`."""
+        return self._flush_pictures()
+
     @abstractmethod
     def _decode(self, packet: Packet) -> list[DecodedFrame]: ...
 
     @abstractmethod
     def _flush(self) -> list[DecodedFrame]: ...
+
+    # A decoder that can put off the conversion to RGB replaces these two.
+    def _decode_pictures(self, packet: Packet) -> list[DecodedPicture]:
+        return [DecodedPicture.of(f) for f in self._decode(packet)]
+
+    def _flush_pictures(self) -> list[DecodedPicture]:
+        return [DecodedPicture.of(f) for f in self._flush()]
 
 
 class StreamCodec(ColorCodec):

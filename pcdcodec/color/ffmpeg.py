@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import CodecUnavailableError, DecodeError
-from .base import DecodedFrame, Packet, StreamCodec, VideoDecoder, VideoEncoder
+from .base import DecodedFrame, DecodedPicture, Packet, StreamCodec, VideoDecoder, VideoEncoder
 
 __all__ = ["FFmpegDecoder", "FFmpegEncoder", "FFmpegSetup", "ffmpeg_packet", "probe"]
 
@@ -195,7 +195,21 @@ class FFmpegDecoder(VideoDecoder):
         ctx.options = setup.decoder_options
         self._ctx = ctx
 
-    def _frames(self, av_frames: list[Any]) -> list[DecodedFrame]:
+    def _rgb(self, frame: Any) -> npt.NDArray[np.uint8]:
+        """One decoded picture as a new C-contiguous RGB image of the stream's size."""
+        try:
+            # PyAV returns a view of the frame's rows where they are padded (424 x 3 = 1272
+            # bytes in lines of 1296): copy it into a C-contiguous image, cropped to the
+            # camera's size where the codec needed a padded one. A no-op copy otherwise.
+            rgb = frame.to_ndarray(format="rgb24")[: self.height, : self.width]
+            return np.ascontiguousarray(rgb)
+        except Exception as exc:
+            raise DecodeError(
+                f"{self.codec.name} could not convert the frame at pts {frame.pts} ns to RGB: "
+                f"{type(exc).__name__}: {exc}"
+            ) from exc
+
+    def _pictures(self, av_frames: list[Any]) -> list[DecodedPicture]:
         out = []
         for f in av_frames:
             if (f.width, f.height) != (self._pw, self._ph):
@@ -205,16 +219,15 @@ class FFmpegDecoder(VideoDecoder):
                 )
             if f.pts is None:
                 raise DecodeError(f"{self.codec.name} decoded a frame without a timestamp")
-            # PyAV returns a view of the frame's rows where they are padded (424 x 3 = 1272
-            # bytes in lines of 1296): copy it into a C-contiguous image, cropped to the
-            # camera's size where the codec needed a padded one. A no-op copy otherwise.
-            rgb = np.ascontiguousarray(f.to_ndarray(format="rgb24")[: self.height, : self.width])
-            out.append(DecodedFrame(rgb, int(f.pts)))
+            # The picture keeps FFmpeg's reference-counted frame, which the decoder never
+            # writes to again: converting it later gives what converting it now would.
+            nbytes = sum(p.buffer_size for p in f.planes)
+            out.append(DecodedPicture(int(f.pts), functools.partial(self._rgb, f), nbytes))
         return out
 
-    def _run(self, packet: Any, pts: int | None) -> list[DecodedFrame]:
+    def _run(self, packet: Any, pts: int | None) -> list[DecodedPicture]:
         try:
-            return self._frames(self._ctx.decode(packet))
+            return self._pictures(self._ctx.decode(packet))
         except DecodeError:
             raise
         except Exception as exc:
@@ -223,10 +236,16 @@ class FFmpegDecoder(VideoDecoder):
                 f"{self.codec.name} could not decode the {where}: {type(exc).__name__}: {exc}"
             ) from exc
 
-    def _decode(self, packet: Packet) -> list[DecodedFrame]:
+    def _decode_pictures(self, packet: Packet) -> list[DecodedPicture]:
         avp = ffmpeg_packet(packet.data)
         avp.pts, avp.dts = packet.pts, packet.dts
         return self._run(avp, packet.pts)
 
-    def _flush(self) -> list[DecodedFrame]:
+    def _flush_pictures(self) -> list[DecodedPicture]:
         return self._run(None, None)
+
+    def _decode(self, packet: Packet) -> list[DecodedFrame]:
+        return [DecodedFrame(p.rgb(), p.timestamp) for p in self._decode_pictures(packet)]
+
+    def _flush(self) -> list[DecodedFrame]:
+        return [DecodedFrame(p.rgb(), p.timestamp) for p in self._flush_pictures()]

@@ -20,34 +20,57 @@ from typing import Any, Generic, TypeVar
 import numpy as np
 import numpy.typing as npt
 
-from ..color.base import StreamCodec
+from ..color.base import DecodedPicture, StreamCodec
 from ..errors import DecodeError
 from ..registry import codec_for_reading
 from ._packets import PacketAccess
 
-__all__ = ["ColorStream", "ReadAhead", "with_threads"]
+__all__ = ["KEEP_PICTURES", "ColorStream", "ReadAhead", "with_threads"]
 
 T = TypeVar("T")
 Image = npt.NDArray[np.uint8]
 
+#: Bytes of decoded pictures a recording keeps for ``rec[i]``: the current group of pictures,
+#: so that reading backwards or again within it converts a kept picture instead of decoding
+#: from the keyframe (a 640×480 4:2:0 picture is 450 KiB: 72 of them; 1280×720: 23).
+KEEP_PICTURES = 32 << 20
+
 
 class ColorStream:
     """The color images of a recording, decoded from its packets by one decoder kept between
-    calls. Not thread-safe: each thread that decodes keeps its own stream (or holds a lock)."""
+    calls. Not thread-safe: each thread that decodes keeps its own stream (or holds a lock).
+
+    A frame asked for after the decoder's position in the same group of pictures continues
+    from there; any other starts again at the keyframe before it. Of the frames decoded on the
+    way, only the one asked for is converted to RGB. ``keep`` (bytes) keeps the decoded pictures
+    of the current group of pictures, unconverted, so that frames asked for again or backwards
+    within it are converted, not decoded again; 0 (reading in order) drops each once shown.
+    """
 
     def __init__(
-        self, rec: PacketAccess, shape: tuple[int, int], codec: StreamCodec | None = None
+        self,
+        rec: PacketAccess,
+        shape: tuple[int, int],
+        codec: StreamCodec | None = None,
+        *,
+        keep: int = 0,
     ) -> None:
         self._rec = rec
         self._codec = codec or rec.color_codec
         self._shape = shape
+        self._keep = keep
         self._decoder: Any = None
         self._next_packet = 0
-        self._decoded: dict[int, Image] = {}
+        #: The packet the decoder started at, and the pts of the last picture it put out (in
+        #: display order, so a later one fed but not yet out will still come).
+        self._start = 0
+        self._last_out = -1 << 63
+        self._pictures: dict[int, DecodedPicture] = {}
 
     def reset(self) -> None:
         """Start afresh from a keyframe at the next call (the decoder's state is unknown)."""
         self._decoder = None
+        self._pictures.clear()
 
     def color(self, i: int) -> Image | None:
         """The color image of frame ``i`` (an index from 0), or ``None`` without color.
@@ -56,8 +79,7 @@ class ColorStream:
         :class:`DecodeError` naming the file, the frame and the packet that failed.
         """
         rec = self._rec
-        codec = self._codec
-        if codec is None:
+        if self._codec is None:
             return None
         name = str(rec.path)
         ts = int(rec._times[i])
@@ -70,36 +92,62 @@ class ColorStream:
         with rec._lock:
             # Every packet this frame's color comes from, checked before it is shown.
             rec._check_packets(k, j, f"{name!r}: frame {i} (t={ts} ns)")
-        if ts in self._decoded:
-            return self._decoded.pop(ts)
-        if self._decoder is None or self._next_packet > j or k > self._next_packet:
+        picture = self._pictures.get(ts)
+        if picture is None:
+            picture = self._decode_to(i, ts, j, k)
+        rgb = picture.rgb()
+        self._forget(ts, int(rec._packet_pts[k]))
+        return rgb
+
+    def _decode_to(self, i: int, ts: int, j: int, k: int) -> DecodedPicture:
+        """Decode up to the picture shown at ``ts`` (packet ``j``, keyframe ``k`` before it)."""
+        rec = self._rec
+        ahead = j >= self._next_packet and k <= self._next_packet  # no keyframe in between
+        held = self._start <= j < self._next_packet and ts > self._last_out  # reordered
+        if self._decoder is None or not (ahead or held):
+            assert self._codec is not None
             ch, cw = self._shape
-            self._decoder = codec.decoder(cw, ch, rec._extradata)
-            self._next_packet = k
-            self._decoded.clear()
-        while ts not in self._decoded:
+            self._decoder = self._codec.decoder(cw, ch, rec._extradata)
+            self._next_packet = self._start = k
+            self._last_out = -1 << 63
+            self._pictures.clear()
+        while ts not in self._pictures:
             if self._next_packet < len(rec._packet_pts):
                 j_next = self._next_packet
                 self._next_packet += 1
                 try:
-                    out = self._decoder.decode(rec._packet(j_next))
+                    out = self._decoder.decode_pictures(rec._packet(j_next))
                 except DecodeError as exc:
-                    self._decoder = None  # its state is unknown now: start afresh next time
+                    self.reset()  # the decoder's state is unknown now: start afresh next time
                     raise DecodeError(
                         f"frame {i} (t={ts} ns): color packet at byte offset "
                         f"{int(rec._packet_offsets[j_next])}: {exc}"
                     ) from exc
             else:
-                out = self._decoder.flush()
+                out = self._decoder.flush_pictures()
                 if not out:
                     raise DecodeError(f"frame {i} (t={ts} ns): its color frame never decoded")
-            for f in out:
-                self._decoded[f.timestamp] = f.rgb
-        # Frames before this one will not be asked for in order: drop them.
-        result = self._decoded.pop(ts)
-        for old in [t for t in self._decoded if t < ts]:
-            del self._decoded[old]
-        return result
+            for picture in out:
+                self._pictures[picture.timestamp] = picture
+                self._last_out = max(self._last_out, picture.timestamp)
+        return self._pictures[ts]
+
+    def _forget(self, ts: int, group: int) -> None:
+        """Drop the pictures no longer kept after showing ``ts`` (in the group from ``group``)."""
+        pictures = self._pictures
+        if not self._keep:
+            # Read in order: frames up to this one will not be asked for again.
+            for old in [t for t in pictures if t <= ts]:
+                del pictures[old]
+            return
+        # Pictures of earlier groups go; of this one, the earliest while over the budget.
+        for old in [t for t in pictures if t < group]:
+            del pictures[old]
+        held = sum(p.nbytes for p in pictures.values())
+        for old in sorted(pictures):
+            if held <= self._keep:
+                break
+            held -= pictures.pop(old).nbytes
 
 
 def with_threads(codec: StreamCodec | None, threads: int) -> StreamCodec | None:

@@ -23,7 +23,7 @@ from ..registry import codec_for_reading
 from . import _header as header
 from . import _index as fmt
 from ._packets import PacketAccess
-from ._readahead import ColorStream, ReadAhead, with_threads
+from ._readahead import KEEP_PICTURES, ColorStream, ReadAhead, with_threads
 from .verify import VerifyReport, index_problems, structure_problems
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
@@ -39,7 +39,9 @@ class Recording(PacketAccess):
 
     ``len(rec)``, ``rec[i]``, ``rec[a:b]`` (a list), iteration, ``rec.nearest(t)`` and
     ``rec.play()`` give :class:`Frame` objects. Random access reads only the frame's own messages,
-    plus the color packets from the keyframe before it; iteration decodes each packet once.
+    plus the color packets from the keyframe before it, and converts only its own color to RGB;
+    the group of pictures decoded last is kept, so frames read again or backwards within it are
+    not decoded again (``docs/recording.md``). Iteration decodes each packet once.
 
     ``threads`` (``None``: each codec's default, one frame at a time; ``0``: the codecs choose)
     is how many cores reading may use. With 2 or more, iteration and :meth:`play` read ahead:
@@ -246,7 +248,7 @@ class Recording(PacketAccess):
         self._pose_matrix_at = {
             int(t): int(o) for t, o in zip(m_times.tolist(), m_offsets.tolist(), strict=True)
         }
-        self._stream = ColorStream(self, self.color_shape)
+        self._stream = ColorStream(self, self.color_shape, keep=KEEP_PICTURES)
         self._projector: Projector | None = None
 
     # -- description ---------------------------------------------------------------------
