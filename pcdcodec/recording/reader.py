@@ -332,12 +332,19 @@ class Recording(PacketAccess):
     def _pose(self, i: int) -> npt.NDArray[np.float64] | None:
         ts = int(self._times[i])
         found = self._pose_messages(i, ts)
-        if fmt.TOPIC_POSE_MATRIX in found:
-            offset = self._pose_matrix_at[ts]
-            return header.parse_pose_matrix(found[fmt.TOPIC_POSE_MATRIX], i, offset)
-        if fmt.TOPIC_POSE in found:
-            return header.transform_matrix(found[fmt.TOPIC_POSE])
-        return None
+        try:
+            if fmt.TOPIC_POSE_MATRIX in found:
+                offset = self._pose_matrix_at[ts]
+                return header.parse_pose_matrix(found[fmt.TOPIC_POSE_MATRIX], i, offset)
+            if fmt.TOPIC_POSE not in found:
+                return None
+            with np.errstate(all="ignore"):
+                pose = header.transform_matrix(found[fmt.TOPIC_POSE])
+            if not np.isfinite(pose).all():
+                raise DecodeError(f"its {fmt.TOPIC_POSE} message is not finite")
+            return pose
+        except PcdcodecError as exc:  # a damaged message in a file without digests
+            raise DecodeError(f"{str(self.path)!r}: frame {i} (t={ts} ns) pose: {exc}") from None
 
     def poses(self) -> list[npt.NDArray[np.float64] | None]:
         """The pose of every frame (``None`` for frames written without one)."""
