@@ -83,13 +83,17 @@ def _fill(
 def _pooled(pool: dict[str, Any], key: str) -> tuple[npt.NDArray[np.float32] | None, int]:
     """The pool's ``key`` array (or ``None``) and its reference count as seen from here."""
     buf: npt.NDArray[np.float32] | None = pool.get(key)
-    return buf, sys.getrefcount(buf)
+    refs = sys.getrefcount(buf)  # counted before ``buf`` is on the stack for the tuple
+    return buf, refs
 
 
 #: The count :func:`_pooled` sees for an array that only the pool holds, measured rather than
 #: assumed: which references ``sys.getrefcount`` counts (a local name, its own argument) differs
-#: between Python versions, and a count one too high would hand out an array still in use.
-_FREE = _pooled({"free": np.empty(0)}, "free")[1]
+#: between Python versions, and a count one too high would hand out an array still in use. It
+#: is never above 3 (the pool's, the local name's, the argument's), so that a measurement taken
+#: while something else held the array (a tracer keeping frame locals) errs only towards
+#: making new arrays.
+_FREE = min(3, _pooled({"free": np.empty(0)}, "free")[1])
 
 
 def _array(pool: dict[str, Any], key: str, n: int) -> npt.NDArray[np.float32]:
