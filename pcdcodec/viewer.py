@@ -162,18 +162,23 @@ def view_open3d(
     threads: int | None = None,
 ) -> None:
     """Play the recording's point clouds in Open3D's window (needs a display); ``threads`` as
-    for :func:`view`."""
+    for :func:`view`. Raises :class:`~pcdcodec.InputError` for bad options and a recording that
+    cannot be read before any window opens."""
     import time
 
     import open3d as o3d
 
     from .recording import open as open_recording
 
-    vis: Any = o3d.visualization.Visualizer()
-    if not vis.create_window(window_name=f"pcdcodec {Path(path).name}"):
-        raise PcdcodecError("Open3D could not open a window (no display?); use --save out.rrd")
-    try:
-        with open_recording(path, threads=threads) as recording:
+    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+        raise InputError(f"every must be a positive int, got {every!r}")
+    if fps is not None and not fps > 0:
+        raise InputError(f"fps must be positive, got {fps!r}")
+    with open_recording(path, threads=threads) as recording:
+        vis: Any = o3d.visualization.Visualizer()
+        if not vis.create_window(window_name=f"pcdcodec {Path(path).name}"):
+            raise PcdcodecError("Open3D could not open a window (no display?); use --save out.rrd")
+        try:
             delay = 1.0 / (fps or recording.fps)
             cloud = None
             for _, frame in _frames(recording, every, None):
@@ -188,5 +193,5 @@ def view_open3d(
                     break
                 vis.update_renderer()
                 time.sleep(delay)
-    finally:
-        vis.destroy_window()
+        finally:
+            vis.destroy_window()

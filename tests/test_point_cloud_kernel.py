@@ -7,6 +7,9 @@ numpy path it replaced (positions, and colors as uint8 that were divided by 255 
 
 from __future__ import annotations
 
+import importlib
+import sys
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -14,6 +17,7 @@ import numpy.typing as npt
 import pytest
 
 from pcdcodec.datasets import load_sample
+from pcdcodec.geometry import _cloud_kernels
 from pcdcodec.geometry._cloud_kernels import SHADES, cloud_arrays, metres_table
 from pcdcodec.geometry.camera import CameraIntrinsics
 from pcdcodec.geometry.projector import Projector
@@ -149,3 +153,71 @@ def test_arrays_are_reused_only_when_nothing_holds_them() -> None:
         assert cloud.point.positions.numpy().tobytes() == points.tobytes()
         assert shades is not None
         assert cloud.point.colors.numpy().tobytes() == shades.tobytes()
+
+
+def test_clouds_kept_across_frames_and_views_of_dropped_clouds_keep_their_points() -> None:
+    projector = Projector(CAMERA, depth_scale=SAMPLE.depth_scale)
+    frames = SAMPLE.frames[:6]
+    expected = [numpy_cloud(projector, f.depth, f.color) for f in frames]
+    kept, views = [], []
+    for k, f in enumerate(frames * 3):
+        cloud = projector.to_point_cloud(f.depth, f.color if k % 2 else None, tensor=True)
+        if k < len(frames):
+            kept.append(cloud)  # whole clouds of the first pass
+        elif k % 3 == 0:
+            views.append((k % len(frames), cloud.point.positions.numpy()))  # views only
+        del cloud
+    for (points, _), cloud in zip(expected, kept, strict=True):
+        assert cloud.point.positions.numpy().tobytes() == points.tobytes()
+    for i, view in views:
+        assert view.tobytes() == expected[i][0].tobytes()
+
+
+def test_clouds_made_on_threads_keep_their_points() -> None:
+    projector = Projector(CAMERA, depth_scale=SAMPLE.depth_scale)
+    frames = SAMPLE.frames[:4]
+    expected = [numpy_cloud(projector, f.depth, f.color)[0].tobytes() for f in frames]
+
+    def make(k: int) -> list[tuple[int, Any]]:
+        out = []
+        for j in range(12):
+            i = (k + j) % len(frames)
+            cloud = projector.to_point_cloud(frames[i].depth, frames[i].color, tensor=True)
+            if j % 2:
+                out.append((i, cloud))
+        return out
+
+    with ThreadPoolExecutor(3) as pool:
+        made = [c for part in pool.map(make, range(6)) for c in part]
+    for i, cloud in made:
+        assert cloud.point.positions.numpy().tobytes() == expected[i]
+
+
+def test_reuse_holds_where_getrefcount_counts_fewer_references(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Pythons whose interpreter borrows references to locals (3.14) count fewer of them; the
+    # count of a free array must be measured, or an array still in use is handed out again.
+    real = sys.getrefcount
+    monkeypatch.setattr(sys, "getrefcount", lambda obj: real(obj) - 2)
+    kernels = importlib.reload(_cloud_kernels)
+    try:
+        camera = CameraIntrinsics(64, 48, 60.0, 60.0, 31.5, 23.5)
+        rng = np.random.default_rng(3)
+        projector = Projector(camera, depth_scale=1000.0)
+        depths = [rng.integers(1, 4000, (48, 64)).astype(np.uint16) for _ in range(3)]
+        held = [projector.to_point_cloud(d, tensor=True) for d in depths]
+        views = [c.point.positions.numpy() for c in held]
+        del held
+        for d, view in zip(depths, views, strict=True):
+            assert view.tobytes() == projector.to_points(d)[0].tobytes()
+        pool: dict[str, Any] = {}
+        metres = kernels.metres_table(np.zeros(65536, np.float32), 1000.0)
+        ray = np.ones(depths[0].size, np.float32)
+        first, _ = kernels.cloud_arrays(depths[0], 65535, None, metres, ray, ray, None, pool)
+        kept = first.copy()
+        kernels.cloud_arrays(depths[1], 65535, None, metres, ray, ray, None, pool)
+        assert first.tobytes() == kept.tobytes()
+    finally:
+        monkeypatch.undo()
+        importlib.reload(_cloud_kernels)

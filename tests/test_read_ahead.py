@@ -15,6 +15,7 @@ import pcdcodec
 from pcdcodec.recording import _index as fmt
 from pcdcodec.recording._readahead import ReadAhead
 from pcdcodec.recording.reader import READ_AHEAD
+from pcdcodec.registry import codec_class
 
 from .recording_rewrite import Message, positions, rewrite, with_data
 
@@ -207,6 +208,22 @@ def test_one_frame_at_a_time_starts_no_thread(recordings: dict[str, Path], threa
 def test_invalid_threads_are_refused(recordings: dict[str, Path], threads: Any) -> None:
     with pytest.raises(pcdcodec.InputError, match="threads"):
         pcdcodec.open(recordings["default"], threads=threads)
+
+
+def test_threads_a_codec_does_not_take(tmp_path: Path) -> None:
+    # jpegxl takes 1 … 256 threads and the video codecs 0 … 64: 0 (automatic) leaves jpegxl at
+    # its default, and a count a codec does not take is the option's fault, not the file's.
+    if codec_class("jpegxl").unavailable_reason() is not None:
+        pytest.skip("no JPEG XL")
+    path = record(tmp_path / "jxl.pcdc", "ffv1", "jpegxl")
+    expected = read_all(path, None)
+    assert expected[1] is None
+    assert read_all(path, 0) == expected
+    assert read_all(path, 3) == expected
+    for threads, codec in ((65, "color codec ffv1"), (300, "depth codec jpegxl")):
+        with pytest.raises(pcdcodec.InputError, match=rf"threads={threads} .*{codec}") as err:
+            pcdcodec.open(path, threads=threads)
+        assert not isinstance(err.value, pcdcodec.DecodeError)
 
 
 def test_closed_from_another_thread_the_rest_comes_in_order_on_the_callers_thread() -> None:

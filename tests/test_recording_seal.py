@@ -18,7 +18,15 @@ from pcdcodec.cli import main
 from pcdcodec.recording import _index as fmt
 from pcdcodec.recording.join import join
 
-from .recording_rewrite import Message, positions, read, rewrite, with_data, write
+from .recording_rewrite import (
+    Message,
+    positions,
+    read,
+    rewrite,
+    with_data,
+    without_integrity,
+    write,
+)
 
 W, H = 64, 48
 CAMERA = pcdcodec.CameraIntrinsics(W, H, 52.5, 52.5, 31.5, 23.5)
@@ -247,6 +255,51 @@ def test_swapped_poses_fail_the_frames(tmp_path: Path) -> None:
             with pytest.raises(pcdcodec.DecodeError, match=rf"frame {i} .*pose does not match"):
                 rec[i]
         assert not rec.verify().ok
+
+
+def _pose_only(path: Path, dst: Path, k: int, data: bytes) -> Path:
+    """``path`` as written before digests and pose matrices, the pose of frame ``k`` replaced."""
+    contents = without_integrity(read(path))
+    contents.channels.pop(fmt.TOPIC_POSE_MATRIX, None)
+    ms = [m for m in contents.messages if m.topic != fmt.TOPIC_POSE_MATRIX]
+    at = positions(ms, fmt.TOPIC_POSE)[k]
+    ms[at] = with_data(ms[at], data)
+    contents.messages = ms
+    write(contents, dst)
+    return dst
+
+
+def test_damaged_poses_without_digests_give_a_decode_error_naming_the_file(
+    tmp_path: Path,
+) -> None:
+    from pcdcodec.recording import _header as header
+
+    path = tmp_path / "poses.pcdc"
+    with pcdcodec.open(path, "w", intrinsics=CAMERA, color="ffv1", depth="zstd") as w:
+        for k, (c, d, ts) in enumerate(frames(3)):
+            pose = np.eye(4)
+            pose[0, 3] = k
+            w.write(c, d, ts, pose=pose)
+
+    def transform(translation: Any, rotation: Any) -> bytes:
+        return header.FrameTransform(0, "world", "camera", translation, rotation).encode()
+
+    damaged = {
+        "zero": transform((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 0.0)),
+        "nan": transform((np.nan, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0)),
+        "huge": transform((1.0, 2.0, 3.0), (1e200, 0.0, 0.0, 1.0)),
+        "short": transform((1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0))[:-1],
+    }
+    for name, data in damaged.items():
+        bad = _pose_only(path, tmp_path / f"{name}.pcdc", 1, data)
+        with pcdcodec.open(bad) as rec:
+            assert rec[2].pose[0, 3] == 2
+            with pytest.raises(pcdcodec.DecodeError, match=rf"{name}\.pcdc.*frame 1 .*pose"):
+                rec[1]
+    # Unchanged messages still give their poses.
+    plain = _pose_only(path, tmp_path / "plain.pcdc", 1, transform((1.0, 0.0, 0.0), (0, 0, 0, 1)))
+    with pcdcodec.open(plain) as rec:
+        assert [p[0, 3] for p in rec.poses()] == [0, 1, 2]
 
 
 def test_changed_color_byte_gives_an_error_not_wrong_color(

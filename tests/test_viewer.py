@@ -120,3 +120,37 @@ def test_view_rejects_bad_options(recording: Path, tmp_path: Path) -> None:
         view(recording, save=tmp_path / "x.rrd", stride=0)
     with pytest.raises(pcdcodec.InputError, match="folder"):
         view(recording, save=tmp_path)
+
+
+def test_view_open3d_checks_its_options_before_opening_a_window(
+    recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import open3d as o3d
+
+    from pcdcodec.viewer import view_open3d
+
+    windows = []
+
+    class Visualizer:
+        def create_window(self, **_: Any) -> bool:
+            windows.append(self)
+            return False
+
+        def destroy_window(self) -> None:
+            pass
+
+    monkeypatch.setattr(o3d.visualization, "Visualizer", Visualizer)
+    for options, match in (
+        ({"every": 0}, "every must be a positive int"),
+        ({"every": -2}, "every must be a positive int"),
+        ({"fps": -1.0}, "fps must be positive"),
+        ({"threads": -1}, "threads must be a non-negative int"),
+    ):
+        with pytest.raises(pcdcodec.InputError, match=match):
+            view_open3d(recording, **options)
+    with pytest.raises(pcdcodec.InputError, match="does not exist"):
+        view_open3d(tmp_path / "missing.pcdc")
+    assert not windows
+    with pytest.raises(pcdcodec.PcdcodecError, match="could not open a window"):
+        view_open3d(recording, threads=2)
+    assert len(windows) == 1

@@ -80,16 +80,27 @@ def _fill(
         j += 1
 
 
-#: References to a pooled array when nothing else holds it: the pool's, the caller's local name
-#: and ``sys.getrefcount``'s argument.
-_FREE = 3
+def _pooled(pool: dict[str, Any], key: str) -> tuple[npt.NDArray[np.float32] | None, int]:
+    """The pool's ``key`` array (or ``None``) and its reference count as seen from here."""
+    buf: npt.NDArray[np.float32] | None = pool.get(key)
+    refs = sys.getrefcount(buf)  # counted before ``buf`` is on the stack for the tuple
+    return buf, refs
+
+
+#: The count :func:`_pooled` sees for an array that only the pool holds, measured rather than
+#: assumed: which references ``sys.getrefcount`` counts (a local name, its own argument) differs
+#: between Python versions, and a count one too high would hand out an array still in use. It
+#: is never above 3 (the pool's, the local name's, the argument's), so that a measurement taken
+#: while something else held the array (a tracer keeping frame locals) errs only towards
+#: making new arrays.
+_FREE = min(3, _pooled({"free": np.empty(0)}, "free")[1])
 
 
 def _array(pool: dict[str, Any], key: str, n: int) -> npt.NDArray[np.float32]:
     """An N × 3 float32 array: the start of the pool's ``key`` array when nothing else holds it
     and it is at most 1/8 larger, else a new one (1/16 larger), kept in the pool."""
-    buf: npt.NDArray[np.float32] | None = pool.get(key)
-    if buf is not None and sys.getrefcount(buf) <= _FREE and n <= len(buf) <= n + n // 8 + 256:
+    buf, refs = _pooled(pool, key)
+    if buf is not None and refs <= _FREE and n <= len(buf) <= n + n // 8 + 256:
         return buf[:n]
     buf = pool[key] = np.empty((n + n // 16 + 64, 3), dtype=np.float32)
     return buf[:n]

@@ -34,6 +34,32 @@ __all__ = ["Frame", "Recording", "VerifyReport"]
 READ_AHEAD = 6
 
 
+class _ThreadsError(InputError):
+    """A ``threads`` that a codec of the recording does not take."""
+
+
+def _codec_for_reading(config: Any, kind: str, threads: int | None) -> Any:
+    """The codec of ``config`` with ``threads`` where it takes them: ``0`` (automatic) leaves a
+    codec that has no automatic setting at its default; another count it does not take is a
+    :class:`_ThreadsError`, not a fault of the file."""
+    try:
+        return codec_for_reading(config, kind=kind, threads=threads)
+    except UnknownCodecError:
+        raise
+    except Exception as exc:
+        if threads is None:
+            raise
+        try:
+            codec = codec_for_reading(config, kind=kind)
+        except Exception:
+            raise exc from None
+        if threads == 0:
+            return codec
+        raise _ThreadsError(
+            f"threads={threads} is more than the {kind} codec {codec.name} takes: {exc}"
+        ) from None
+
+
 class Recording(PacketAccess):
     """A ``.pcdc`` recording opened for reading. Use :func:`pcdcodec.open`.
 
@@ -141,12 +167,12 @@ class Recording(PacketAccess):
         depth_config, color_config = settings.depth_codec, settings.color_codec
         self.metadata: dict[str, str] = header.read_user_metadata(index)
         try:
-            depth_codec = codec_for_reading(depth_config, kind="depth", threads=self.threads)
+            depth_codec = _codec_for_reading(depth_config, "depth", self.threads)
             color_codec = (
-                codec_for_reading(color_config, kind="color", threads=self.threads)
-                if color_config
-                else None
+                _codec_for_reading(color_config, "color", self.threads) if color_config else None
             )
+        except _ThreadsError:
+            raise
         except UnknownCodecError as exc:
             raise UnknownCodecError(
                 f"{name!r} was written with a codec not available here: {exc}"
@@ -334,12 +360,19 @@ class Recording(PacketAccess):
     def _pose(self, i: int) -> npt.NDArray[np.float64] | None:
         ts = int(self._times[i])
         found = self._pose_messages(i, ts)
-        if fmt.TOPIC_POSE_MATRIX in found:
-            offset = self._pose_matrix_at[ts]
-            return header.parse_pose_matrix(found[fmt.TOPIC_POSE_MATRIX], i, offset)
-        if fmt.TOPIC_POSE in found:
-            return header.transform_matrix(found[fmt.TOPIC_POSE])
-        return None
+        try:
+            if fmt.TOPIC_POSE_MATRIX in found:
+                offset = self._pose_matrix_at[ts]
+                return header.parse_pose_matrix(found[fmt.TOPIC_POSE_MATRIX], i, offset)
+            if fmt.TOPIC_POSE not in found:
+                return None
+            with np.errstate(all="ignore"):
+                pose = header.transform_matrix(found[fmt.TOPIC_POSE])
+            if not np.isfinite(pose).all():
+                raise DecodeError(f"its {fmt.TOPIC_POSE} message is not finite")
+            return pose
+        except PcdcodecError as exc:  # a damaged message in a file without digests
+            raise DecodeError(f"{str(self.path)!r}: frame {i} (t={ts} ns) pose: {exc}") from None
 
     def poses(self) -> list[npt.NDArray[np.float64] | None]:
         """The pose of every frame (``None`` for frames written without one)."""
