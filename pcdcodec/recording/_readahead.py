@@ -6,6 +6,7 @@ frames of a recording in order while worker threads decode the next few: one thr
 color stream of its own (color decodes in sequence), the others decode depth frames, which are
 independent, several at once. Each frame is still put together, and its errors raised, by the
 caller's thread, as :meth:`Recording.frame` does it one frame at a time.
+:func:`codec_with_threads` makes a recording's codecs with the ``threads`` a reader was given.
 """
 
 from __future__ import annotations
@@ -21,11 +22,18 @@ import numpy as np
 import numpy.typing as npt
 
 from ..color.base import DecodedPicture, StreamCodec
-from ..errors import DecodeError
+from ..errors import DecodeError, InputError, UnknownCodecError
 from ..registry import codec_for_reading
 from ._packets import PacketAccess
 
-__all__ = ["KEEP_PICTURES", "ColorStream", "ReadAhead", "with_threads"]
+__all__ = [
+    "KEEP_PICTURES",
+    "ColorStream",
+    "ReadAhead",
+    "ThreadsError",
+    "codec_with_threads",
+    "with_threads",
+]
 
 T = TypeVar("T")
 Image = npt.NDArray[np.uint8]
@@ -252,3 +260,29 @@ def _result(future: Future[T], fn: Callable[[int], T], i: int) -> Callable[[], T
             return fn(i)
 
     return get
+
+
+class ThreadsError(InputError):
+    """A ``threads`` that a codec of the recording does not take."""
+
+
+def codec_with_threads(config: Any, kind: str, threads: int | None) -> Any:
+    """The codec of ``config`` with ``threads`` where it takes them: ``0`` (automatic) leaves a
+    codec that has no automatic setting at its default; another count it does not take is a
+    :class:`ThreadsError`, not a fault of the file."""
+    try:
+        return codec_for_reading(config, kind=kind, threads=threads)
+    except UnknownCodecError:
+        raise
+    except Exception as exc:
+        if threads is None:
+            raise
+        try:
+            codec = codec_for_reading(config, kind=kind)
+        except Exception:
+            raise exc from None
+        if threads == 0:
+            return codec
+        raise ThreadsError(
+            f"threads={threads} is more than the {kind} codec {codec.name} takes: {exc}"
+        ) from None

@@ -19,11 +19,17 @@ from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, Unk
 from ..frame import Frame
 from ..geometry.camera import CameraIntrinsics
 from ..geometry.projector import Projector
-from ..registry import codec_for_reading
 from . import _header as header
 from . import _index as fmt
 from ._packets import PacketAccess
-from ._readahead import KEEP_PICTURES, ColorStream, ReadAhead, with_threads
+from ._readahead import (
+    KEEP_PICTURES,
+    ColorStream,
+    ReadAhead,
+    ThreadsError,
+    codec_with_threads,
+    with_threads,
+)
 from .verify import VerifyReport, index_problems, structure_problems
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
@@ -32,32 +38,6 @@ __all__ = ["Frame", "Recording", "VerifyReport"]
 #: deeper window lets the color and depth threads drift apart without waiting (measured with
 #: ``benchmarks/read_threads.py``: 2 per thread left the second core idle more often).
 READ_AHEAD = 6
-
-
-class _ThreadsError(InputError):
-    """A ``threads`` that a codec of the recording does not take."""
-
-
-def _codec_for_reading(config: Any, kind: str, threads: int | None) -> Any:
-    """The codec of ``config`` with ``threads`` where it takes them: ``0`` (automatic) leaves a
-    codec that has no automatic setting at its default; another count it does not take is a
-    :class:`_ThreadsError`, not a fault of the file."""
-    try:
-        return codec_for_reading(config, kind=kind, threads=threads)
-    except UnknownCodecError:
-        raise
-    except Exception as exc:
-        if threads is None:
-            raise
-        try:
-            codec = codec_for_reading(config, kind=kind)
-        except Exception:
-            raise exc from None
-        if threads == 0:
-            return codec
-        raise _ThreadsError(
-            f"threads={threads} is more than the {kind} codec {codec.name} takes: {exc}"
-        ) from None
 
 
 class Recording(PacketAccess):
@@ -167,11 +147,11 @@ class Recording(PacketAccess):
         depth_config, color_config = settings.depth_codec, settings.color_codec
         self.metadata: dict[str, str] = header.read_user_metadata(index)
         try:
-            depth_codec = _codec_for_reading(depth_config, "depth", self.threads)
+            depth_codec = codec_with_threads(depth_config, "depth", self.threads)
             color_codec = (
-                _codec_for_reading(color_config, "color", self.threads) if color_config else None
+                codec_with_threads(color_config, "color", self.threads) if color_config else None
             )
-        except _ThreadsError:
+        except ThreadsError:
             raise
         except UnknownCodecError as exc:
             raise UnknownCodecError(
