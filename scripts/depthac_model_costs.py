@@ -49,7 +49,7 @@ def features(image: Any) -> tuple[Any, Any, int]:
     h, w = image.shape
     pad = kern._PAD
     st = w + 2 * pad
-    valid = np.zeros((h + pad) * st + pad, dtype=np.uint8)
+    px = np.zeros((h + pad) * st + pad, dtype=np.int64)  # the coder's packed pixel states
     rank = np.zeros(65536, dtype=np.int64)
     nvalid = 0
     for y in range(h):
@@ -57,7 +57,7 @@ def features(image: Any) -> tuple[Any, Any, int]:
             v = image[y, x]
             rank[v] = 1
             if v != 0:
-                valid[(y + pad) * st + pad + x] = 1
+                px[(y + pad) * st + pad + x] = kern._VALID
                 nvalid += 1
     rank[0] = 0
     ntable = 0
@@ -68,34 +68,31 @@ def features(image: Any) -> tuple[Any, Any, int]:
     if not (nvalid > 0 and 2 * ntable <= nvalid):
         for v in range(65536):
             rank[v] = v + 1
-    idx = np.zeros(valid.size, dtype=np.int32)
-    err = np.zeros(valid.size, dtype=np.int32)
     pix = np.zeros((nvalid, 5), dtype=np.int64)
     mask = np.zeros((h * w, 2), dtype=np.int64)
     last = 0
     k = 0
     for y in range(h):
         o0 = (y + pad) * st + pad
-        r1, r2 = kern._mask_row_start(valid, o0, st)
+        r1, r2 = kern._mask_row_start(px, o0, st)
         wb = 0
         for o in range(o0, o0 + w):
-            vo = np.int64(valid[o])
+            vo = (px[o] >> 31) & 1
             mask[(y * w) + o - o0, 0] = kern._MASK_LUT[(r2 << 7) | (r1 << 2) | wb]
             mask[(y * w) + o - o0, 1] = vo
-            r1 = ((r1 << 1) & 31) | np.int64(valid[o - st + 3])
-            r2 = ((r2 << 1) & 7) | np.int64(valid[o - 2 * st + 2])
+            r1 = ((r1 << 1) & 31) | ((px[o - st + 3] >> 31) & 1)
+            r2 = ((r2 << 1) & 7) | ((px[o - 2 * st + 2] >> 31) & 1)
             wb = ((wb << 1) | vo) & 3
             if vo == 0:
                 continue
             v = rank[np.int64(image[y, o - o0])] - 1
-            p, ctx, q = kern._predict(idx, err, valid, o, st, last, kern._G_LUT, kern._E_LUT)
+            p, ctx, q, ew, en = kern._predict(px, o, st, last, kern._G_LUT, kern._E_LUT)
             pix[k, 0] = ctx
             pix[k, 1] = q
             pix[k, 2] = v - p
-            pix[k, 3] = err[o - 1]
-            pix[k, 4] = err[o - st]
-            idx[o] = v
-            err[o] = v - p
+            pix[k, 3] = ew
+            pix[k, 4] = en
+            px[o] = ((v - p) << 32) | kern._VALID | v
             last = v
             k += 1
     return pix, mask, ntable

@@ -56,7 +56,8 @@ KINDS = ("table", "mask", "zero", "sign", "exponent", "mantissa")
 @njit(cache=False, error_model="numpy")
 def trace_decode(buf: Any, out_img: Any, models: Any, kinds: Any, bits: Any, arrays: Any) -> Any:
     """The lossless decoder (``decode_image``, near = 0) recording each decision's model, kind
-    and bit, and leaving its working arrays (valid, idx, err) in ``arrays``; returns the count."""
+    and bit, and leaving its packed working array (see ``kern._VALID``) in ``arrays``; returns
+    the count."""
     h, w = out_img.shape
     n = buf.size
     code = (
@@ -116,16 +117,14 @@ def trace_decode(buf: Any, out_img: Any, models: Any, kinds: Any, bits: Any, arr
         for i in range(65536):
             table[i] = i
     st = w + 2 * kern._PAD
-    valid = arrays[0]
-    idx = arrays[1]
-    err = arrays[2]
+    px = arrays
     last = 0
     mlut = kern._MASK_LUT
     glut = kern._G_LUT
     elut = kern._E_LUT
     for y in range(h):
         o0 = (y + kern._PAD) * st + kern._PAD
-        r1, r2 = kern._mask_row_start(valid, o0, st)
+        r1, r2 = kern._mask_row_start(px, o0, st)
         wb = 0
         for x in range(w):
             o = o0 + x
@@ -133,15 +132,14 @@ def trace_decode(buf: Any, out_img: Any, models: Any, kinds: Any, bits: Any, arr
                 mc = mlut[(r2 << 7) | (r1 << 2) | wb]
                 bit, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, kern._M_MASK + mc)
                 t = rec(kern._M_MASK + mc, MASK, bit, t)
-                r1 = ((r1 << 1) & 31) | np.int64(valid[o - st + 3])
-                r2 = ((r2 << 1) & 7) | np.int64(valid[o - 2 * st + 2])
+                r1 = ((r1 << 1) & 31) | ((px[o - st + 3] >> 31) & 1)
+                r2 = ((r2 << 1) & 7) | ((px[o - 2 * st + 2] >> 31) & 1)
                 wb = ((wb << 1) | bit) & 3
                 if bit == 0:
                     out_img[y, x] = 0
                     continue
-            valid[o] = 1
-            p, ctx, q = kern._predict(idx, err, valid, o, st, last, glut, elut)
-            zc, sc = kern._coding_ctx(ctx, q, err, o, st)
+            p, ctx, q, ew, en = kern._predict(px, o, st, last, glut, elut)
+            zc, sc = kern._coding_ctx(ctx, q, ew, en)
             nz, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, zc)
             t = rec(zc, ZERO, nz, t)
             e = 0
@@ -164,8 +162,7 @@ def trace_decode(buf: Any, out_img: Any, models: Any, kinds: Any, bits: Any, arr
                     m = (m << 1) | bit
                 e = -m if neg else m
             v = p + e
-            idx[o] = v
-            err[o] = e
+            px[o] = (e << 32) | kern._VALID | v
             out_img[y, x] = table[v]
             last = v
     return t
@@ -173,29 +170,21 @@ def trace_decode(buf: Any, out_img: Any, models: Any, kinds: Any, bits: Any, arr
 
 @njit(cache=False, error_model="numpy")
 def setup_only(h: int, w: int) -> int:
-    """The decoder's allocations: models, value table, padded valid/idx/err arrays."""
+    """The decoder's allocations: models, value table, the padded packed working array."""
     probs = np.full(kern._NMODELS, kern._STATE_INIT, dtype=np.int32)
     table = np.zeros(65536, dtype=np.int64)
     st = w + 2 * kern._PAD
-    valid = np.zeros((h + kern._PAD) * st + kern._PAD, dtype=np.uint8)
-    idx = np.zeros(valid.size, dtype=np.int32)
-    err = np.zeros(valid.size, dtype=np.int32)
-    return probs[0] + table[1] + valid[2] + idx[3] + err[4]
+    px = np.zeros((h + kern._PAD) * st + kern._PAD, dtype=np.int64)
+    return probs[0] + table[1] + px[2]
 
 
 @njit(cache=False, error_model="numpy")
 def ladder(out_img: Any, known: Any, table: Any, code_mask: bool, stage: int, work: Any) -> int:
     """The decoder's pixel loop with the decoded values known: stage 0 stores only, 1 adds the
-    hole-mask context, 2 adds prediction and coding contexts. ``work`` (valid, idx, err)
-    starts zeroed; ``known`` holds the final arrays."""
+    hole-mask context, 2 adds prediction and coding contexts. ``work`` (the packed working
+    array) starts zeroed; ``known`` holds its final state."""
     h, w = out_img.shape
     st = w + 2 * kern._PAD
-    kvalid = known[0]
-    kidx = known[1]
-    kerr = known[2]
-    valid = work[0]
-    idx = work[1]
-    err = work[2]
     mlut = kern._MASK_LUT
     glut = kern._G_LUT
     elut = kern._E_LUT
@@ -203,28 +192,27 @@ def ladder(out_img: Any, known: Any, table: Any, code_mask: bool, stage: int, wo
     last = 0
     for y in range(h):
         o0 = (y + kern._PAD) * st + kern._PAD
-        r1, r2 = kern._mask_row_start(valid, o0, st)
+        r1, r2 = kern._mask_row_start(work, o0, st)
         wb = 0
         for x in range(w):
             o = o0 + x
-            bit = np.int64(kvalid[_U(o)])
+            bit = (known[_U(o)] >> 31) & 1
             if code_mask:
                 if stage >= 1:
                     acc += mlut[_U((r2 << 7) | (r1 << 2) | wb)]
-                    r1 = ((r1 << 1) & 31) | np.int64(valid[_U(o - st + 3)])
-                    r2 = ((r2 << 1) & 7) | np.int64(valid[_U(o - 2 * st + 2)])
+                    r1 = ((r1 << 1) & 31) | ((work[_U(o - st + 3)] >> 31) & 1)
+                    r2 = ((r2 << 1) & 7) | ((work[_U(o - 2 * st + 2)] >> 31) & 1)
                     wb = ((wb << 1) | bit) & 3
                 if bit == 0:
                     out_img[_U(y), _U(x)] = 0
                     continue
-            valid[_U(o)] = 1
             if stage >= 2:
-                p, ctx, q = kern._predict(idx, err, valid, o, st, last, glut, elut)
-                zc, sc = kern._coding_ctx(ctx, q, err, o, st)
+                p, ctx, q, ew, en = kern._predict(work, o, st, last, glut, elut)
+                zc, sc = kern._coding_ctx(ctx, q, ew, en)
                 acc += p + zc + sc
-            v = np.int64(kidx[_U(o)])
-            idx[_U(o)] = v
-            err[_U(o)] = kerr[_U(o)]
+            state = known[_U(o)]
+            v = state & kern._INDEX
+            work[_U(o)] = state
             out_img[_U(y), _U(x)] = table[_U(v)]
             last = v
     return acc
@@ -308,19 +296,19 @@ def profile(depth: np.ndarray[Any, Any], rounds: int) -> dict[str, Any]:
     models = np.zeros(worst, np.int64)
     kinds = np.zeros(worst, np.uint8)
     bits = np.zeros(worst, np.uint8)
-    known = np.zeros((3, size), np.int32)
+    known = np.zeros(size, np.int64)
     out = np.empty((h, w), np.uint16)
     count = trace_decode(body, out, models, kinds, bits, known)
     np.testing.assert_array_equal(out, depth)
     code_mask = bool(body[0] & 2)
     table = np.zeros(65536, np.int64)
-    table[known[1][known[0] != 0]] = depth[depth > 0]
+    table[(known & kern._INDEX)[(known & kern._VALID) != 0]] = depth[depth > 0]
     if not body[0] & 1:
         table[:] = np.arange(65536)
 
     def run_ladder(stage: int) -> Callable[[], Any]:
         def fn() -> Any:
-            work = np.zeros((3, size), np.int32)
+            work = np.zeros(size, np.int64)
             return ladder(out, known, table, code_mask, stage, work)
 
         return fn

@@ -134,6 +134,12 @@ def _dec(
 # -- shared modelling ---------------------------------------------------------------------
 
 
+# Each pixel's state in one int64 of the padded working array: the residual above bit 32, a
+# valid bit at 31, and the index below it. One load gives a neighbour's validity, index and
+# residual (the loop's time goes on instructions, and three arrays cost three times the loads).
+_VALID = np.int64(1) << 31
+_INDEX = _VALID - 1
+
 _Q9_LUT = np.array(
     [0] * 3 + [1] * 5 + [2] * 2 + [3, 4, 5] + [6] * 2 + [7] * 5 + [8] * 3, dtype=np.int64
 )
@@ -184,23 +190,29 @@ _MASK_LUT = _mask_lut()
 
 
 @njit(cache=True, error_model="numpy")
-def _mask_row_start(valid: Any, o: int, s: int) -> tuple[int, int]:
+def _mask_row_start(px: Any, o: int, s: int) -> tuple[int, int]:
     """Bit windows of the two rows above for the first pixel of a row (see :func:`_mask_lut`)."""
     n = o - s
     nn = n - s
     r1 = (
-        (np.int64(valid[_U(n - 2)]) << 4)
-        | (np.int64(valid[_U(n - 1)]) << 3)
-        | (np.int64(valid[_U(n)]) << 2)
-        | (np.int64(valid[_U(n + 1)]) << 1)
-        | np.int64(valid[_U(n + 2)])
+        (_bit_valid(px[_U(n - 2)]) << 4)
+        | (_bit_valid(px[_U(n - 1)]) << 3)
+        | (_bit_valid(px[_U(n)]) << 2)
+        | (_bit_valid(px[_U(n + 1)]) << 1)
+        | _bit_valid(px[_U(n + 2)])
     )
     r2 = (
-        (np.int64(valid[_U(nn - 1)]) << 2)
-        | (np.int64(valid[_U(nn)]) << 1)
-        | np.int64(valid[_U(nn + 1)])
+        (_bit_valid(px[_U(nn - 1)]) << 2)
+        | (_bit_valid(px[_U(nn)]) << 1)
+        | _bit_valid(px[_U(nn + 1)])
     )
     return r1, r2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _bit_valid(state: int) -> int:
+    """1 if the packed pixel ``state`` is valid, else 0."""
+    return (state >> 31) & 1
 
 
 @njit(cache=True, error_model="numpy")
@@ -217,55 +229,61 @@ def _ctx(g: int, e: int, cls: int, glut: Any, elut: Any) -> int:
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _predict(
-    idx: Any, err: Any, valid: Any, o: int, s: int, last: int, glut: Any, elut: Any
-) -> tuple[int, int, int]:
-    """Prediction, model context and gradient-triple context at flat position ``o``.
+    px: Any, o: int, s: int, last: int, glut: Any, elut: Any
+) -> tuple[int, int, int, int, int]:
+    """Prediction, model context, gradient-triple context and the west and north residuals at
+    flat position ``o`` of the packed working array ``px``.
 
-    The arrays are padded with invalid pixels, so no neighbour lookup leaves them.
+    The array is padded with invalid pixels, so no neighbour lookup leaves it.
     """
     n = o - s
-    va = valid[_U(o - 1)] != 0
-    vb = valid[_U(n)] != 0
-    a = np.int64(idx[_U(o - 1)])
-    b = np.int64(idx[_U(n)])
-    ea = np.int64(err[_U(o - 1)])
-    eb = np.int64(err[_U(n)])
+    pa = px[_U(o - 1)]
+    pb = px[_U(n)]
+    pc = px[_U(n - 1)]
+    va = (pa & _VALID) != 0
+    vb = (pb & _VALID) != 0
+    a = pa & _INDEX
+    b = pb & _INDEX
+    ea = pa >> 32
+    eb = pb >> 32
     e = (ea if ea > 0 else -ea) + (eb if eb > 0 else -eb)
-    if va and vb and valid[_U(n - 1)] != 0:
-        c = np.int64(idx[_U(n - 1)])
+    if va and vb and (pc & _VALID) != 0:
+        c = pc & _INDEX
         # The median edge detector as a clamp (no jumps): a + b - c kept within [min, max].
         mx = max(a, b)
         mn = min(a, b)
         p = min(max(a + b - c, mn), mx)
         g = _absdiff(a, c) + _absdiff(b, c)
-        if valid[_U(n + 1)] != 0:
-            d = np.int64(idx[_U(n + 1)])
+        pd = px[_U(n + 1)]
+        if (pd & _VALID) != 0:
+            d = pd & _INDEX
             g += _absdiff(b, d)
             q = (_q9(d - b) * 9 + _q9(b - c)) * 9 + _q9(c - a)
-            return p, _ctx(g, e, 0, glut, elut), q
+            return p, _ctx(g, e, 0, glut, elut), q, ea, eb
         q = (4 * 9 + _q9(b - c)) * 9 + _q9(c - a)
-        return p, _ctx(g + (g >> 1), e, 1, glut, elut), q
+        return p, _ctx(g + (g >> 1), e, 1, glut, elut), q, ea, eb
     if va and vb:
-        return (a + b) >> 1, _ctx(2 * _absdiff(a, b), e, 2, glut, elut), _NOBIAS
+        return (a + b) >> 1, _ctx(2 * _absdiff(a, b), e, 2, glut, elut), _NOBIAS, ea, eb
     if va:
-        g = 2 * _absdiff(a, np.int64(idx[_U(o - 2)])) if valid[_U(o - 2)] != 0 else 0
-        return a, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS
+        pw = px[_U(o - 2)]
+        g = 2 * _absdiff(a, pw & _INDEX) if (pw & _VALID) != 0 else 0
+        return a, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS, ea, eb
     if vb:
-        g = 2 * _absdiff(b, np.int64(idx[_U(n - s)])) if valid[_U(n - s)] != 0 else 0
-        return b, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS
-    if valid[_U(n + 1)] != 0:
-        return np.int64(idx[_U(n + 1)]), _ctx(0, 1, 4, glut, elut), _NOBIAS
-    return last, _ctx(0, 0, 4, glut, elut), _NOBIAS
+        pn = px[_U(n - s)]
+        g = 2 * _absdiff(b, pn & _INDEX) if (pn & _VALID) != 0 else 0
+        return b, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS, ea, eb
+    pd = px[_U(n + 1)]
+    if (pd & _VALID) != 0:
+        return pd & _INDEX, _ctx(0, 1, 4, glut, elut), _NOBIAS, ea, eb
+    return last, _ctx(0, 0, 4, glut, elut), _NOBIAS, ea, eb
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _coding_ctx(ctx: int, q: int, err: Any, o: int, s: int) -> tuple[int, int]:
-    """Models of the zero flag and of the sign."""
+def _coding_ctx(ctx: int, q: int, ew: int, en: int) -> tuple[int, int]:
+    """Models of the zero flag and of the sign, from the west and north residuals."""
     if q == _NOBIAS:
         return _M_ZERO + ctx, _M_SIGN + ctx
     eb = ctx % _NEBIN
-    ew = err[_U(o - 1)]
-    en = err[_U(o - s)]
     sg = (0 if ew == 0 else (1 if ew > 0 else 2)) * 3 + (0 if en == 0 else (1 if en > 0 else 2))
     return _M_QZERO + q * _NQE + (eb if eb < _NQE else _NQE - 1), _M_QSIGN + q * 9 + sg
 
@@ -429,7 +447,7 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
     elut = _E_LUT
     rank = np.zeros(65536, dtype=np.int64)
     st = w + 2 * _PAD
-    valid = np.zeros((h + _PAD) * st + _PAD, dtype=np.uint8)
+    px = np.zeros((h + _PAD) * st + _PAD, dtype=np.int64)  # packed pixel states, see _VALID
     nvalid = 0
     for y in range(h):
         o = (y + _PAD) * st + _PAD
@@ -437,7 +455,7 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
             v = image[_U(y), _U(x)]
             rank[_U(v)] = 1
             if v != 0:
-                valid[_U(o + x)] = 1
+                px[_U(o + x)] = _VALID
                 nvalid += 1
     rank[_U(0)] = 0
     ntable = 0
@@ -465,9 +483,8 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
     if not use_table:
         for v in range(65536):
             rank[_U(v)] = v + 1
-    # Indices are filled in as the pixels are coded: the model reads only valid causal ones.
-    idx = np.zeros(valid.size, dtype=np.int32)
-    err = np.zeros(valid.size, dtype=np.int32)
+    # Indices and residuals are filled in as the pixels are coded: the model reads only causal
+    # ones, and the valid bits of all (the mask is known before it is coded).
     code_mask = nvalid < npix
     last = 0
     mlut = _MASK_LUT
@@ -477,28 +494,27 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
             grown[:pos] = out[:pos]
             out = grown
         o0 = (y + _PAD) * st + _PAD
-        r1, r2 = _mask_row_start(valid, o0, st)
+        r1, r2 = _mask_row_start(px, o0, st)
         wb = 0
         for o in range(o0, o0 + w):
-            vo = np.int64(valid[_U(o)])
+            vo = _bit_valid(px[_U(o)])
             if code_mask:
                 mc = mlut[_U((r2 << 7) | (r1 << 2) | wb)]
                 low, rng, pos = _enc(low, rng, pos, out, probs, _M_MASK + mc, vo)
-                r1 = ((r1 << 1) & 31) | np.int64(valid[_U(o - st + 3)])
-                r2 = ((r2 << 1) & 7) | np.int64(valid[_U(o - 2 * st + 2)])
+                r1 = ((r1 << 1) & 31) | _bit_valid(px[_U(o - st + 3)])
+                r2 = ((r2 << 1) & 7) | _bit_valid(px[_U(o - 2 * st + 2)])
                 wb = ((wb << 1) | vo) & 3
             if vo == 0:
                 continue
             v = rank[np.int64(image[_U(y), _U(o - o0)])] - 1
-            p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
-            zc, sc = _coding_ctx(ctx, q, err, o, st)
+            p, ctx, q, ew, en = _predict(px, o, st, last, glut, elut)
+            zc, sc = _coding_ctx(ctx, q, ew, en)
             e = v - p
             if near > 0:
                 e = (e + near) // step if e >= 0 else -((near - e) // step)
                 v = _clamp_index(p + e * step)
                 recon[y, o - o0] = v
-            idx[_U(o)] = v
-            err[_U(o)] = e
+            px[_U(o)] = (e << 32) | _VALID | v
             last = v
             low, rng, pos = write_residual(low, rng, pos, out, probs, zc, sc, ctx, e)
     for _ in range(4):
@@ -553,37 +569,33 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
             table[_U(i)] = i
 
     st = w + 2 * _PAD
-    valid = np.zeros((h + _PAD) * st + _PAD, dtype=np.uint8)
-    idx = np.zeros(valid.size, dtype=np.int32)
-    err = np.zeros(valid.size, dtype=np.int32)
+    px = np.zeros((h + _PAD) * st + _PAD, dtype=np.int64)  # packed pixel states, see _VALID
     last = 0
     mlut = _MASK_LUT
     for y in range(h):
         if pos > n:
             return ERR_LENGTH
         o0 = (y + _PAD) * st + _PAD
-        r1, r2 = _mask_row_start(valid, o0, st)
+        r1, r2 = _mask_row_start(px, o0, st)
         wb = 0
         for x in range(w):
             o = o0 + x
             if code_mask:
                 mc = mlut[_U((r2 << 7) | (r1 << 2) | wb)]
                 bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_MASK + mc)
-                r1 = ((r1 << 1) & 31) | np.int64(valid[_U(o - st + 3)])
-                r2 = ((r2 << 1) & 7) | np.int64(valid[_U(o - 2 * st + 2)])
+                r1 = ((r1 << 1) & 31) | _bit_valid(px[_U(o - st + 3)])
+                r2 = ((r2 << 1) & 7) | _bit_valid(px[_U(o - 2 * st + 2)])
                 wb = ((wb << 1) | bit) & 3
                 if bit == 0:
                     out_img[_U(y), _U(x)] = 0
                     continue
-            valid[_U(o)] = 1
-            p, ctx, q = _predict(idx, err, valid, o, st, last, glut, elut)
-            zc, sc = _coding_ctx(ctx, q, err, o, st)
+            p, ctx, q, ew, en = _predict(px, o, st, last, glut, elut)
+            zc, sc = _coding_ctx(ctx, q, ew, en)
             e, code, rng, pos = read_residual(code, rng, pos, buf, n, probs, zc, sc, ctx)
             v = p + e if near == 0 else _clamp_index(p + e * step)
             if v < 0 or v > maxidx or table[_U(v)] == 0:
                 return ERR_INDEX
-            idx[_U(o)] = v
-            err[_U(o)] = e
+            px[_U(o)] = (e << 32) | _VALID | v
             out_img[_U(y), _U(x)] = table[_U(v)]
             last = v
     if pos != n:
