@@ -34,12 +34,13 @@ import numpy as np
 from numba import njit
 
 from pcdcodec.bench.sequences import ALL_DEPTH_SETS, load_frames, set_present
-from pcdcodec.depth import _depthac_kernels as kern  # the model under study
+from pcdcodec.depth import _depthac_kernels as kern  # the coder under study
+from pcdcodec.depth import _depthac_model as model  # its model
 
-_RATE = kern._RATE_LUT
+_RATE = model._RATE_LUT
 #: A slower final adaptation: shift 5 until 96 uses, then 6.
 SLOW_RATES = np.concatenate([_RATE[:-1], np.full(72, 5), [6]]).astype(np.int64)
-_NOBIAS = kern._NOBIAS
+_NOBIAS = model._NOBIAS
 
 
 @njit(cache=True)
@@ -47,7 +48,7 @@ def features(image: Any) -> tuple[Any, Any, int]:
     """Per valid pixel (context, triple, residual, west and north residuals), per pixel
     (mask context, mask bit), and the value table's length, as the encoder computes them."""
     h, w = image.shape
-    pad = kern._PAD
+    pad = model._PAD
     st = w + 2 * pad
     px = np.zeros((h + pad) * st + pad, dtype=np.int64)  # the coder's packed pixel states
     rank = np.zeros(65536, dtype=np.int64)
@@ -57,7 +58,7 @@ def features(image: Any) -> tuple[Any, Any, int]:
             v = image[y, x]
             rank[v] = 1
             if v != 0:
-                px[(y + pad) * st + pad + x] = kern._VALID
+                px[(y + pad) * st + pad + x] = model._VALID
                 nvalid += 1
     rank[0] = 0
     ntable = 0
@@ -74,11 +75,11 @@ def features(image: Any) -> tuple[Any, Any, int]:
     k = 0
     for y in range(h):
         o0 = (y + pad) * st + pad
-        r1, r2 = kern._mask_row_start(px, o0, st)
+        r1, r2 = model._mask_row_start(px, o0, st)
         wb = 0
         for o in range(o0, o0 + w):
             vo = (px[o] >> 31) & 1
-            mask[(y * w) + o - o0, 0] = kern._MASK_LUT[(r2 << 7) | (r1 << 2) | wb]
+            mask[(y * w) + o - o0, 0] = model._MASK_LUT[(r2 << 7) | (r1 << 2) | wb]
             mask[(y * w) + o - o0, 1] = vo
             r1 = ((r1 << 1) & 31) | ((px[o - st + 3] >> 31) & 1)
             r2 = ((r2 << 1) & 7) | ((px[o - 2 * st + 2] >> 31) & 1)
@@ -86,13 +87,13 @@ def features(image: Any) -> tuple[Any, Any, int]:
             if vo == 0:
                 continue
             v = rank[np.int64(image[y, o - o0])] - 1
-            p, ctx, q, ew, en = kern._predict(px, o, st, last, kern._G_LUT, kern._E_LUT)
+            p, ctx, q, ew, en = model._predict(px, o, st, last, model._G_LUT, model._E_LUT)
             pix[k, 0] = ctx
             pix[k, 1] = q
             pix[k, 2] = v - p
             pix[k, 3] = ew
             pix[k, 4] = en
-            px[o] = ((v - p) << 32) | kern._VALID | v
+            px[o] = ((v - p) << 32) | model._VALID | v
             last = v
             k += 1
     return pix, mask, ntable
@@ -156,12 +157,12 @@ def _rest_bits(state: Any, ctx: int, m: int, rates: Any = _RATE) -> float:
     k = 0
     while (m >> (k + 1)) != 0:
         k += 1
-    e0 = kern._M_EXP + ctx * kern._EXP
+    e0 = model._M_EXP + ctx * model._EXP
     for j in range(k):
         bits += _bit(state, e0 + j, 1, rates)
     if k < 15:
         bits += _bit(state, e0 + k, 0, rates)
-    m0 = kern._M_MANT + (ctx // kern._PERCLASS) * 256 + k * 16
+    m0 = model._M_MANT + (ctx // model._PERCLASS) * 256 + k * 16
     for j in range(k - 1, -1, -1):
         bits += _bit(state, m0 + j, (m >> j) & 1, rates)
     return bits
@@ -170,8 +171,8 @@ def _rest_bits(state: Any, ctx: int, m: int, rates: Any = _RATE) -> float:
 @njit(cache=True)
 def _zero_model(ctx: int, q: int) -> int:
     if q == _NOBIAS:
-        return kern._M_ZERO + ctx
-    return kern._M_QZERO + q * kern._NQE + min(ctx % kern._NEBIN, kern._NQE - 1)
+        return model._M_ZERO + ctx
+    return model._M_QZERO + q * model._NQE + min(ctx % model._NEBIN, model._NQE - 1)
 
 
 @njit(cache=True)
@@ -180,17 +181,17 @@ def binary_bytes(
 ) -> float:
     """Today's decisions for valid pixels ``lo:hi`` and mask bits ``mlo:mhi``, in bytes, with
     the adaptation shifts ``rates``."""
-    state = np.full(kern._NMODELS, kern._STATE_INIT, dtype=np.int64)
+    state = np.full(model._NMODELS, model._STATE_INIT, dtype=np.int64)
     bits = 0.0
     for i in range(mlo, mhi):
-        bits += _bit(state, kern._M_MASK + mask[i, 0], mask[i, 1], rates)
+        bits += _bit(state, model._M_MASK + mask[i, 0], mask[i, 1], rates)
     for k in range(lo, hi):
         ctx, q, e, ew, en = pix[k, 0], pix[k, 1], pix[k, 2], pix[k, 3], pix[k, 4]
         if e == 0:
             bits += _bit(state, _zero_model(ctx, q), 0, rates)
             continue
         bits += _bit(state, _zero_model(ctx, q), 1, rates)
-        sc = kern._M_SIGN + ctx if q == _NOBIAS else kern._M_QSIGN + q * 9 + _sign_class(ew, en)
+        sc = model._M_SIGN + ctx if q == _NOBIAS else model._M_QSIGN + q * 9 + _sign_class(ew, en)
         bits += _bit(state, sc, 1 if e < 0 else 0, rates)
         bits += _rest_bits(state, ctx, -e if e < 0 else e, rates)
     return bits / 8
@@ -199,13 +200,13 @@ def binary_bytes(
 @njit(cache=True)
 def token_bytes(pix: Any) -> float:
     """One 9-symbol decision per valid pixel (0, ±1, ±2, ±3, ±4+), in bytes."""
-    state = np.full(kern._NMODELS, kern._STATE_INIT, dtype=np.int64)
-    cdf = _new_cdf(730 * 4 + kern._NCTX, 9)
+    state = np.full(model._NMODELS, model._STATE_INIT, dtype=np.int64)
+    cdf = _new_cdf(730 * 4 + model._NCTX, 9)
     count = np.zeros(cdf.shape[0], dtype=np.int64)
     bits = 0.0
     for k in range(pix.shape[0]):
         ctx, q, e = pix[k, 0], pix[k, 1], pix[k, 2]
-        c = q * 4 + min(ctx % kern._NEBIN, 3) if q != _NOBIAS else 730 * 4 + ctx
+        c = q * 4 + min(ctx % model._NEBIN, 3) if q != _NOBIAS else 730 * 4 + ctx
         m = -e if e < 0 else e
         s = 0 if m == 0 else 2 * min(m, 4) - (1 if e > 0 else 0)
         bits += _symbol(cdf, count, c, s, 9)
@@ -218,8 +219,8 @@ def token_bytes(pix: Any) -> float:
 def nonzero_token_bytes(pix: Any, variant: int) -> float:
     """Today's zero flag, then one 6-symbol decision (±1, ±2, ±3+) for a non-zero residual,
     by gradient triple (0), triple and signs (1) or pixel context (2), in bytes."""
-    state = np.full(kern._NMODELS, kern._STATE_INIT, dtype=np.int64)
-    cdf = _new_cdf(730 * 9 + kern._NCTX * 9, 6)
+    state = np.full(model._NMODELS, model._STATE_INIT, dtype=np.int64)
+    cdf = _new_cdf(730 * 9 + model._NCTX * 9, 6)
     count = np.zeros(cdf.shape[0], dtype=np.int64)
     bits = 0.0
     for k in range(pix.shape[0]):

@@ -45,6 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import pcdcodec
 from pcdcodec.bench.sequences import ALL_DEPTH_SETS, load_frames, set_present
 from pcdcodec.depth import _depthac_kernels as kern  # the loops under study
+from pcdcodec.depth import _depthac_model as model  # their model and coder
 from pcdcodec.depth import read_header
 
 _U = np.uint64
@@ -56,7 +57,7 @@ KINDS = ("table", "mask", "zero", "sign", "exponent", "mantissa")
 @njit(cache=False, error_model="numpy")
 def trace_decode(buf: Any, out_img: Any, models: Any, kinds: Any, bits: Any, arrays: Any) -> Any:
     """The lossless decoder (``decode_image``, near = 0) recording each decision's model, kind
-    and bit, and leaving its packed working array (see ``kern._VALID``) in ``arrays``; returns
+    and bit, and leaving its packed working array (see ``model._VALID``) in ``arrays``; returns
     the count."""
     h, w = out_img.shape
     n = buf.size
@@ -68,9 +69,9 @@ def trace_decode(buf: Any, out_img: Any, models: Any, kinds: Any, bits: Any, arr
     )
     use_table = (buf[0] & 1) != 0
     code_mask = (buf[0] & 2) != 0
-    rng = kern._MASK32
+    rng = model._MASK32
     pos = 5
-    probs = np.full(kern._NMODELS, kern._STATE_INIT, dtype=np.int32)
+    probs = np.full(model._NMODELS, model._STATE_INIT, dtype=np.int32)
     table = np.zeros(65536, dtype=np.int64)
     t = 0
 
@@ -83,30 +84,30 @@ def trace_decode(buf: Any, out_img: Any, models: Any, kinds: Any, bits: Any, arr
     if use_table:
         ntable = 0
         for j in range(16):
-            bit, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, kern._M_HDR + j)
-            t = rec(kern._M_HDR + j, TABLE, bit, t)
+            bit, code, rng, pos = model._dec(code, rng, pos, buf, n, probs, model._M_HDR + j)
+            t = rec(model._M_HDR + j, TABLE, bit, t)
             ntable = (ntable << 1) | bit
         ntable += 1
         prev = 0
         pgap = 0
         for i in range(ntable):
-            g = kern._gap_ctx(pgap)
-            bit, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, kern._M_TZERO + g)
-            t = rec(kern._M_TZERO + g, TABLE, bit, t)
+            g = model._gap_ctx(pgap)
+            bit, code, rng, pos = model._dec(code, rng, pos, buf, n, probs, model._M_TZERO + g)
+            t = rec(model._M_TZERO + g, TABLE, bit, t)
             gap = 0
             if bit:
                 k = 0
                 while k < 15:
-                    mi = kern._M_TEXP + g * 16 + k
-                    bit, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, mi)
+                    mi = model._M_TEXP + g * 16 + k
+                    bit, code, rng, pos = model._dec(code, rng, pos, buf, n, probs, mi)
                     t = rec(mi, TABLE, bit, t)
                     if bit == 0:
                         break
                     k += 1
                 gap = 1
                 for j in range(k - 1, -1, -1):
-                    mi = kern._M_TMANT + k * 16 + j
-                    bit, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, mi)
+                    mi = model._M_TMANT + k * 16 + j
+                    bit, code, rng, pos = model._dec(code, rng, pos, buf, n, probs, mi)
                     t = rec(mi, TABLE, bit, t)
                     gap = (gap << 1) | bit
             v = prev + gap + 1
@@ -116,53 +117,53 @@ def trace_decode(buf: Any, out_img: Any, models: Any, kinds: Any, bits: Any, arr
     else:
         for i in range(65536):
             table[i] = i
-    st = w + 2 * kern._PAD
+    st = w + 2 * model._PAD
     px = arrays
     last = 0
-    mlut = kern._MASK_LUT
-    glut = kern._G_LUT
-    elut = kern._E_LUT
+    mlut = model._MASK_LUT
+    glut = model._G_LUT
+    elut = model._E_LUT
     for y in range(h):
-        o0 = (y + kern._PAD) * st + kern._PAD
-        r1, r2 = kern._mask_row_start(px, o0, st)
+        o0 = (y + model._PAD) * st + model._PAD
+        r1, r2 = model._mask_row_start(px, o0, st)
         wb = 0
         for x in range(w):
             o = o0 + x
             if code_mask:
                 mc = mlut[(r2 << 7) | (r1 << 2) | wb]
-                bit, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, kern._M_MASK + mc)
-                t = rec(kern._M_MASK + mc, MASK, bit, t)
+                bit, code, rng, pos = model._dec(code, rng, pos, buf, n, probs, model._M_MASK + mc)
+                t = rec(model._M_MASK + mc, MASK, bit, t)
                 r1 = ((r1 << 1) & 31) | ((px[o - st + 3] >> 31) & 1)
                 r2 = ((r2 << 1) & 7) | ((px[o - 2 * st + 2] >> 31) & 1)
                 wb = ((wb << 1) | bit) & 3
                 if bit == 0:
                     out_img[y, x] = 0
                     continue
-            p, ctx, q, ew, en = kern._predict(px, o, st, last, glut, elut)
-            zc, sc = kern._coding_ctx(ctx, q, ew, en)
-            nz, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, zc)
+            p, ctx, q, ew, en = model._predict(px, o, st, last, glut, elut)
+            zc, sc = model._coding_ctx(ctx, q, ew, en)
+            nz, code, rng, pos = model._dec(code, rng, pos, buf, n, probs, zc)
             t = rec(zc, ZERO, nz, t)
             e = 0
             if nz:
-                neg, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, sc)
+                neg, code, rng, pos = model._dec(code, rng, pos, buf, n, probs, sc)
                 t = rec(sc, SIGN, neg, t)
-                e0 = kern._M_EXP + ctx * kern._EXP
+                e0 = model._M_EXP + ctx * model._EXP
                 k = 0
                 while k < 15:
-                    bit, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, e0 + k)
+                    bit, code, rng, pos = model._dec(code, rng, pos, buf, n, probs, e0 + k)
                     t = rec(e0 + k, EXP, bit, t)
                     if bit == 0:
                         break
                     k += 1
-                m0 = kern._M_MANT + (ctx // kern._PERCLASS) * 256 + k * 16
+                m0 = model._M_MANT + (ctx // model._PERCLASS) * 256 + k * 16
                 m = 1
                 for j in range(k - 1, -1, -1):
-                    bit, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, m0 + j)
+                    bit, code, rng, pos = model._dec(code, rng, pos, buf, n, probs, m0 + j)
                     t = rec(m0 + j, MANT, bit, t)
                     m = (m << 1) | bit
                 e = -m if neg else m
             v = p + e
-            px[o] = (e << 32) | kern._VALID | v
+            px[o] = (e << 32) | model._VALID | v
             out_img[y, x] = table[v]
             last = v
     return t
@@ -171,10 +172,10 @@ def trace_decode(buf: Any, out_img: Any, models: Any, kinds: Any, bits: Any, arr
 @njit(cache=False, error_model="numpy")
 def setup_only(h: int, w: int) -> int:
     """The decoder's allocations: models, value table, the padded packed working array."""
-    probs = np.full(kern._NMODELS, kern._STATE_INIT, dtype=np.int32)
+    probs = np.full(model._NMODELS, model._STATE_INIT, dtype=np.int32)
     table = np.zeros(65536, dtype=np.int64)
-    st = w + 2 * kern._PAD
-    px = np.zeros((h + kern._PAD) * st + kern._PAD, dtype=np.int64)
+    st = w + 2 * model._PAD
+    px = np.zeros((h + model._PAD) * st + model._PAD, dtype=np.int64)
     return probs[0] + table[1] + px[2]
 
 
@@ -184,15 +185,15 @@ def ladder(out_img: Any, known: Any, table: Any, code_mask: bool, stage: int, wo
     hole-mask context, 2 adds prediction and coding contexts. ``work`` (the packed working
     array) starts zeroed; ``known`` holds its final state."""
     h, w = out_img.shape
-    st = w + 2 * kern._PAD
-    mlut = kern._MASK_LUT
-    glut = kern._G_LUT
-    elut = kern._E_LUT
+    st = w + 2 * model._PAD
+    mlut = model._MASK_LUT
+    glut = model._G_LUT
+    elut = model._E_LUT
     acc = 0
     last = 0
     for y in range(h):
-        o0 = (y + kern._PAD) * st + kern._PAD
-        r1, r2 = kern._mask_row_start(work, o0, st)
+        o0 = (y + model._PAD) * st + model._PAD
+        r1, r2 = model._mask_row_start(work, o0, st)
         wb = 0
         for x in range(w):
             o = o0 + x
@@ -207,11 +208,11 @@ def ladder(out_img: Any, known: Any, table: Any, code_mask: bool, stage: int, wo
                     out_img[_U(y), _U(x)] = 0
                     continue
             if stage >= 2:
-                p, ctx, q, ew, en = kern._predict(work, o, st, last, glut, elut)
-                zc, sc = kern._coding_ctx(ctx, q, ew, en)
+                p, ctx, q, ew, en = model._predict(work, o, st, last, glut, elut)
+                zc, sc = model._coding_ctx(ctx, q, ew, en)
                 acc += p + zc + sc
             state = known[_U(o)]
-            v = state & kern._INDEX
+            v = state & model._INDEX
             work[_U(o)] = state
             out_img[_U(y), _U(x)] = table[_U(v)]
             last = v
@@ -231,14 +232,14 @@ def replay(buf: Any, models: Any, bits: Any, count: int, mode: int) -> tuple[int
         | (np.int64(buf[3]) << 8)
         | np.int64(buf[4])
     )
-    rng = kern._MASK32
+    rng = model._MASK32
     pos = 5
-    probs = np.full(kern._NMODELS, kern._STATE_INIT, dtype=np.int32)
-    rate = kern._RATE_LUT
+    probs = np.full(model._NMODELS, model._STATE_INIT, dtype=np.int32)
+    rate = model._RATE_LUT
     total = 0
     if mode == 0:
         for t in range(count):
-            bit, code, rng, pos = kern._dec(code, rng, pos, buf, n, probs, models[_U(t)])
+            bit, code, rng, pos = model._dec(code, rng, pos, buf, n, probs, models[_U(t)])
             total += bit
         return total, code
     if mode == 4:
@@ -259,10 +260,10 @@ def replay(buf: Any, models: Any, bits: Any, count: int, mode: int) -> tuple[int
             c = (c + 1 if c < 24 else c) << 16
             probs[_U(i)] = c | ((p - (p >> r)) if one else (p + ((65536 - p) >> r)))
         if mode <= 2:
-            while rng < kern._TOP:
+            while rng < model._TOP:
                 byte = np.int64(buf[_U(pos)]) if pos < n else np.int64(0)
                 pos += 1
-                code = ((code << 8) | byte) & kern._MASK32
+                code = ((code << 8) | byte) & model._MASK32
                 rng <<= 8
         # mode 3: no byte loop; the range runs down to 0, which changes no instruction's time
         total += 1 if one else 0
@@ -290,8 +291,8 @@ def profile(depth: np.ndarray[Any, Any], rounds: int) -> dict[str, Any]:
         header.header_size : header.header_size + header.body_length
     ].copy()
     h, w = depth.shape
-    st = w + 2 * kern._PAD
-    size = (h + kern._PAD) * st + kern._PAD
+    st = w + 2 * model._PAD
+    size = (h + model._PAD) * st + model._PAD
     worst = 40 * h * w + 2**20
     models = np.zeros(worst, np.int64)
     kinds = np.zeros(worst, np.uint8)
@@ -302,7 +303,7 @@ def profile(depth: np.ndarray[Any, Any], rounds: int) -> dict[str, Any]:
     np.testing.assert_array_equal(out, depth)
     code_mask = bool(body[0] & 2)
     table = np.zeros(65536, np.int64)
-    table[(known & kern._INDEX)[(known & kern._VALID) != 0]] = depth[depth > 0]
+    table[(known & model._INDEX)[(known & model._VALID) != 0]] = depth[depth > 0]
     if not body[0] & 1:
         table[:] = np.arange(65536)
 
