@@ -166,3 +166,54 @@ def test_compiled_loops_release_the_gil() -> None:
 
     for kernel in (kernels.encode_image, kernels.decode_image):
         assert kernel.targetoptions.get("nogil") is True
+
+
+def test_reused_working_arrays_never_leak_between_frames() -> None:
+    """The decoder keeps its working arrays per thread and frame shape: a frame with holes after
+    one without, a frame after a corrupt one, and frames of two shapes in turn all decode
+    exactly, on one thread and on several."""
+    import contextlib
+    import threading
+
+    codec = pcdcodec.get_codec("depthac")
+    depth = load_frames("sample", 1)[0]
+    full = np.where(depth > 0, depth, 4000).astype(np.uint16)
+    small = np.ascontiguousarray(depth[100:220, 50:250])
+    frames = [full, depth, small, full, small, depth]
+    encoded = [codec.encode(f) for f in frames]
+    corrupt = bytearray(encoded[1])
+    corrupt[len(corrupt) // 2] ^= 0xFF
+
+    def run(errors: list[str]) -> None:
+        for k, (frame, data) in enumerate(zip(frames, encoded, strict=True)):
+            if k == 3:
+                with contextlib.suppress(pcdcodec.DecodeError):
+                    codec.decode(bytes(corrupt))  # the kernel stops part way through
+            if not np.array_equal(codec.decode(data), frame):
+                errors.append(f"frame {k}")
+
+    errors: list[str] = []
+    run(errors)
+    threads = [threading.Thread(target=run, args=(errors,)) for _ in range(3)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+
+
+def test_working_arrays_of_the_wrong_size_are_refused() -> None:
+    from pcdcodec.depth import _depthac_kernels as kernels
+
+    depth = np.ascontiguousarray(load_frames("sample", 1)[0][:40, :60])
+    body = np.frombuffer(pcdcodec.get_codec("depthac").encode(depth), np.uint8)
+    header = read_header(body.tobytes())
+    body = body[header.header_size :].copy()
+    out = np.empty(depth.shape, np.uint16)
+    good = np.zeros(kernels.working_size(40, 60), np.int64)
+    table = np.empty(65536, np.int64)
+    assert kernels.decode_into(body, out, 0, good, table) == kernels.OK
+    assert np.array_equal(out, depth)
+    short = np.zeros(good.size - 1, np.int64)
+    assert kernels.decode_into(body, out, 0, short, table) == kernels.ERR_ARRAYS
+    assert kernels.decode_into(body, out, 0, good, table[:100]) == kernels.ERR_ARRAYS

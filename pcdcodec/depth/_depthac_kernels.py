@@ -28,6 +28,7 @@ from ._depthac_model import (
     _STATE_INIT,
     _U,
     _VALID,
+    ERR_ARRAYS,
     ERR_FLAGS,
     ERR_INDEX,
     ERR_LENGTH,
@@ -143,6 +144,11 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
 # -- decoder ------------------------------------------------------------------------------
 
 
+def working_size(h: int, w: int) -> int:
+    """The length of the packed working array that :func:`decode_into` takes for h×w."""
+    return (h + _PAD) * (w + 2 * _PAD) + _PAD
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def decode_image(buf: Any, out_img: Any, near: int) -> int:
     """Decode a body into ``out_img`` (uint16, h×w); returns ``OK`` or an ``ERR_*`` status.
@@ -150,6 +156,22 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
     ``near`` must be the value the body was encoded with (see :func:`encode_image`).
     """
     h, w = out_img.shape
+    px = np.zeros((h + _PAD) * (w + 2 * _PAD) + _PAD, dtype=np.int64)
+    return decode_into(buf, out_img, near, px, np.empty(65536, dtype=np.int64))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def decode_into(buf: Any, out_img: Any, near: int, px: Any, table: Any) -> int:
+    """:func:`decode_image` with its working arrays given, so that a caller decoding frame
+    after frame reuses them (fresh memory costs page faults): ``px``, int64 of
+    :func:`working_size`, zero where it pads the image (the decoder never writes there, and
+    reads nothing of the image it has not written in this call), and ``table``, int64 of 65536
+    entries of any content.
+    """
+    h, w = out_img.shape
+    st = w + 2 * _PAD
+    if px.size != (h + _PAD) * st + _PAD or table.size != 65536:
+        return ERR_ARRAYS
     n = buf.size
     glut = _G_LUT
     elut = _E_LUT
@@ -173,7 +195,6 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
     pos = 5
     probs = np.full(_NMODELS, _STATE_INIT, dtype=np.int32)
 
-    table = np.zeros(65536, dtype=np.int64)
     maxidx = 65535
     if use_table:
         ntable, code, rng, pos = read_table(code, rng, pos, buf, n, probs, table)
@@ -184,8 +205,6 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
         for i in range(65536):
             table[_U(i)] = i
 
-    st = w + 2 * _PAD
-    px = np.zeros((h + _PAD) * st + _PAD, dtype=np.int64)  # packed pixel states, see _VALID
     last = 0
     mlut = _MASK_LUT
     for y in range(h):
@@ -204,6 +223,7 @@ def decode_image(buf: Any, out_img: Any, near: int) -> int:
                 wb = ((wb << 1) | bit) & 3
                 if bit == 0:
                     out_img[_U(y), _U(x)] = 0
+                    px[_U(o)] = 0
                     continue
             p, ctx, q, ew, en = _predict(px, o, st, last, glut, elut)
             zc, sc = _coding_ctx(ctx, q, ew, en)

@@ -53,6 +53,7 @@ ERR_TABLE = 1
 ERR_INDEX = 2
 ERR_LENGTH = 3
 ERR_FLAGS = 4
+ERR_ARRAYS = 5  # working arrays of the wrong size (a caller's error, not the stream's)
 
 _G_LUT = np.array([0, 1, 2, 3, 3, 4, 4, 4, 4] + [5] * 8 + [6] * 16, dtype=np.int64)  # < 33
 _E_LUT = np.array([0, 1, 2, 3, 3, 4, 4, 4, 4], dtype=np.int64)  # < 9

@@ -19,6 +19,7 @@ The bitstream is in ``docs/format.md``. The loops are compiled with numba and ca
 
 from __future__ import annotations
 
+import threading
 from typing import Any, ClassVar
 
 import numpy as np
@@ -42,7 +43,23 @@ _ERRORS = {
     2: "a pixel decodes to an index outside its value table",
     3: "its body length does not match the coded pixels (truncated or extended)",
     4: "its flags byte has unknown bits set",
+    5: "the decoder's working arrays do not fit the frame",
 }
+
+
+_WORK = threading.local()
+
+
+def _working_arrays(shape: tuple[int, int]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """This thread's working arrays for decoding frames of ``shape``, kept from its last frame
+    of that shape: fresh ones every frame cost page faults, about as much as a tenth of the
+    decode. One shape is kept per thread (a few MB)."""
+    kept = getattr(_WORK, "arrays", None)
+    if kept is None or kept[0] != shape:
+        size = _kernels().working_size(*shape)
+        kept = (shape, np.zeros(size, dtype=np.int64), np.empty(65536, dtype=np.int64))
+        _WORK.arrays = kept
+    return kept[1], kept[2]
 
 
 def _kernels() -> Any:
@@ -108,7 +125,8 @@ class DepthAC(FrameCodec):
             )
         buf = np.frombuffer(body, dtype=np.uint8)
         image = np.empty(shape, dtype=np.uint16)
-        status = _kernels().decode_image(buf, image, near)
+        px, table = _working_arrays(shape)
+        status = _kernels().decode_into(buf, image, near, px, table)
         if status:
             reason = _ERRORS.get(status, f"status {status}")
             raise DecodeError(f"depthac frame {shape[1]}x{shape[0]} is corrupt: {reason}")
