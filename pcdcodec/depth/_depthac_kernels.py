@@ -59,12 +59,23 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
     is within ``near`` of the input at every valid pixel (clamped to 1..65535).
     """
     h, w = image.shape
+    px = np.zeros((h + _PAD) * (w + 2 * _PAD) + _PAD, dtype=np.int64)
+    return encode_into(image, allow_table, near, recon, px, np.empty(65536, dtype=np.int64))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def encode_into(image: Any, allow_table: bool, near: int, recon: Any, px: Any, rank: Any) -> Any:
+    """:func:`encode_image` with its working arrays given (see :func:`decode_into`): ``px``,
+    int64 of :func:`working_size`, zero where it pads the image, and ``rank``, int64 of 65536
+    entries of any content. Arrays of other sizes raise ``ValueError``."""
+    h, w = image.shape
     npix = h * w
     glut = _G_LUT
     elut = _E_LUT
-    rank = np.zeros(65536, dtype=np.int64)
     st = w + 2 * _PAD
-    px = np.zeros((h + _PAD) * st + _PAD, dtype=np.int64)  # packed pixel states, see _VALID
+    if px.size != (h + _PAD) * st + _PAD or rank.size != 65536:
+        raise ValueError("depthac's working arrays do not fit the frame")
+    rank[:] = 0
     nvalid = 0
     for y in range(h):
         o = (y + _PAD) * st + _PAD
@@ -74,6 +85,8 @@ def encode_image(image: Any, allow_table: bool, near: int, recon: Any) -> Any:
             if v != 0:
                 px[_U(o + x)] = _VALID
                 nvalid += 1
+            else:
+                px[_U(o + x)] = 0
     rank[_U(0)] = 0
     ntable = 0
     for v in range(1, 65536):

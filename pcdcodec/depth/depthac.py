@@ -51,9 +51,9 @@ _WORK = threading.local()
 
 
 def _working_arrays(shape: tuple[int, int]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
-    """This thread's working arrays for decoding frames of ``shape``, kept from its last frame
-    of that shape: fresh ones every frame cost page faults, about as much as a tenth of the
-    decode. One shape is kept per thread (a few MB)."""
+    """This thread's working arrays for coding frames of ``shape`` (the encoder's and the
+    decoder's alike), kept from its last frame of that shape: fresh ones every frame cost page
+    faults, about as much as a tenth of the decode. One shape is kept per thread (a few MB)."""
     kept = getattr(_WORK, "arrays", None)
     if kept is None or kept[0] != shape:
         size = _kernels().working_size(*shape)
@@ -92,7 +92,8 @@ class DepthAC(FrameCodec):
             raise InputError(
                 f"depthac codes at most {_MAX_PIXELS} pixels per frame, got {image.size}"
             )
-        body: npt.NDArray[np.uint8] = _kernels().encode_image(image, True, 0, _NO_RECON)
+        px, rank = _working_arrays(image.shape)
+        body: npt.NDArray[np.uint8] = _kernels().encode_into(image, True, 0, _NO_RECON, px, rank)
         return body.tobytes()
 
     def _encode_levels(
@@ -103,7 +104,10 @@ class DepthAC(FrameCodec):
                 f"depthac codes at most {_MAX_PIXELS} pixels per frame, got {index.size}"
             )
         recon = np.zeros(index.shape, dtype=np.uint16) if near else _NO_RECON
-        body: npt.NDArray[np.uint8] = _kernels().encode_image(index, near == 0, near, recon)
+        px, rank = _working_arrays(index.shape)
+        body: npt.NDArray[np.uint8] = _kernels().encode_into(
+            index, near == 0, near, recon, px, rank
+        )
         return body.tobytes(), (recon if near else index)
 
     def _decode_levels(
