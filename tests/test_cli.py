@@ -209,7 +209,7 @@ def test_decode_threads_reads_ahead_and_writes_the_same_folder(
     assert len(folders[2]) >= 12
     assert folders[2] == folders[None]
     assert main(["decode", str(encoded), "-o", str(tmp_path / "bad"), "--threads", "-1"]) == 1
-    assert "threads must be a non-negative int" in capsys.readouterr().err
+    assert "threads must be an int in 0..256" in capsys.readouterr().err
 
 
 def test_decode_quiet_prints_nothing_but_errors(encoded: Path, tmp_path: Path) -> None:

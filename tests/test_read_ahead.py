@@ -204,7 +204,7 @@ def test_one_frame_at_a_time_starts_no_thread(recordings: dict[str, Path], threa
             assert not reader_threads()
 
 
-@pytest.mark.parametrize("threads", [-1, 1.5, True, "2"])
+@pytest.mark.parametrize("threads", [-1, 257, 1000, 1.5, True, "2"])
 def test_invalid_threads_are_refused(recordings: dict[str, Path], threads: Any) -> None:
     with pytest.raises(pcdcodec.InputError, match="threads"):
         pcdcodec.open(recordings["default"], threads=threads)
@@ -220,10 +220,12 @@ def test_threads_a_codec_does_not_take(tmp_path: Path) -> None:
     assert expected[1] is None
     assert read_all(path, 0) == expected
     assert read_all(path, 3) == expected
-    for threads, codec in ((65, "color codec ffv1"), (300, "depth codec jpegxl")):
-        with pytest.raises(pcdcodec.InputError, match=rf"threads={threads} .*{codec}") as err:
-            pcdcodec.open(path, threads=threads)
-        assert not isinstance(err.value, pcdcodec.DecodeError)
+    with pytest.raises(pcdcodec.InputError, match=r"threads=65 .*color codec ffv1") as err:
+        pcdcodec.open(path, threads=65)
+    assert not isinstance(err.value, pcdcodec.DecodeError)
+    # Above 256 (jpegxl's own limit too) the reader refuses the count before any codec.
+    with pytest.raises(pcdcodec.InputError, match=r"threads must be an int in 0\.\.256"):
+        pcdcodec.open(path, threads=300)
 
 
 def test_closed_from_another_thread_the_rest_comes_in_order_on_the_callers_thread() -> None:

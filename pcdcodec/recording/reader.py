@@ -61,10 +61,10 @@ class Recording(PacketAccess):
     """
 
     def __init__(self, path: str | os.PathLike[str], *, threads: int | None = None) -> None:
-        if threads is not None and (
-            isinstance(threads, bool) or not isinstance(threads, int) or threads < 0
+        if threads is not None and (  # more threads than 256 only start idle ones, GBs ahead
+            isinstance(threads, bool) or not isinstance(threads, int) or not 0 <= threads <= 256
         ):
-            raise InputError(f"threads must be a non-negative int (0: automatic), got {threads!r}")
+            raise InputError(f"threads must be an int in 0..256 (0: automatic), got {threads!r}")
         #: Decoder threads per codec chosen by this reader (``None``: each codec's default).
         self.threads = threads
         self.path = Path(path)
