@@ -18,14 +18,13 @@ import numpy as np
 from numba import njit
 
 from ._depthac_model import (
+    _B0,
     _E_LUT,
     _G_LUT,
     _M_MASK,
     _MASK32,
     _MASK_LUT,
-    _NMODELS,
     _PAD,
-    _STATE_INIT,
     _U,
     _VALID,
     ERR_ARRAYS,
@@ -37,9 +36,10 @@ from ._depthac_model import (
     _clamp_index,
     _coding_ctx,
     _dec,
-    _enc,
     _mask_row_start,
     _predict,
+    code_decisions,
+    fresh_models,
     read_residual,
     read_table,
     write_residual,
@@ -75,8 +75,9 @@ def encode_into(image: Any, allow_table: bool, near: int, recon: Any, px: Any, r
     st = w + 2 * _PAD
     if px.size != (h + _PAD) * st + _PAD or rank.size != 65536:
         raise ValueError("depthac's working arrays do not fit the frame")
-    rank[:] = 0
-    nvalid = 0
+    for v in range(65536):
+        rank[_U(v)] = 0
+    nvalid = _B0
     for y in range(h):
         o = (y + _PAD) * st + _PAD
         for x in range(w):
@@ -88,7 +89,7 @@ def encode_into(image: Any, allow_table: bool, near: int, recon: Any, px: Any, r
             else:
                 px[_U(o + x)] = 0
     rank[_U(0)] = 0
-    ntable = 0
+    ntable = _B0
     for v in range(1, 65536):
         if rank[_U(v)] != 0:
             rank[_U(v)] = ntable + 1
@@ -96,33 +97,29 @@ def encode_into(image: Any, allow_table: bool, near: int, recon: Any, px: Any, r
     use_table = near == 0 and allow_table and nvalid > 0 and 2 * ntable <= nvalid
     step = 2 * near + 1
 
-    # A decision never costs more than 16 bits: at most 33 per pixel and 32 per table entry.
-    # The buffer starts at 2 bytes per pixel (real depth needs under 1) and grows before any
-    # row that could overrun it, so the worst case is reserved one row at a time.
-    row_worst = 68 * w
-    out = np.empty(80 + 64 * ntable + row_worst + 2 * npix, dtype=np.uint8)
-    out[_U(0)] = (1 if use_table else 0) | (2 if nvalid < npix else 0)
-    low = 0
-    rng = _MASK32
-    pos = 1
-    probs = np.full(_NMODELS, _STATE_INIT, dtype=np.int32)
-
+    # The decisions are modelled first and coded at the end (see :func:`code_decisions`). A
+    # pixel makes at most 34 and a table entry 32, so the buffer, which starts at 4 per pixel
+    # (real depth makes under 3), grows before any row that could overrun it. A decision
+    # fits 16 bits (the models number under 2**15).
+    row_worst = 34 * w
+    dec = np.empty(64 * ntable + row_worst + 4 * npix + 16, dtype=np.uint16)
+    nd = _B0
     if use_table:
-        low, rng, pos = write_table(low, rng, pos, out, probs, rank, ntable)
-
-    if not use_table:
+        nd = write_table(dec, nd, rank, ntable)
+    else:
         for v in range(65536):
             rank[_U(v)] = v + 1
-    # Indices and residuals are filled in as the pixels are coded: the model reads only causal
-    # ones, and the valid bits of all (the mask is known before it is coded).
+    # Indices and residuals are filled in as the pixels are modelled: the model reads only
+    # causal ones, and the valid bits of all (the mask is known before it is coded).
     code_mask = nvalid < npix
-    last = 0
+    last = _B0
     mlut = _MASK_LUT
     for y in range(h):
-        if pos + row_worst + 8 > out.size:
-            grown = np.empty(2 * out.size + row_worst, dtype=np.uint8)
-            grown[:pos] = out[:pos]
-            out = grown
+        if nd + row_worst > dec.size:
+            grown = np.empty(2 * dec.size + row_worst, dtype=np.uint16)
+            for j in range(nd):
+                grown[_U(j)] = dec[_U(j)]
+            dec = grown
         o0 = (y + _PAD) * st + _PAD
         r1, r2 = _mask_row_start(px, o0, st)
         wb = 0
@@ -130,7 +127,8 @@ def encode_into(image: Any, allow_table: bool, near: int, recon: Any, px: Any, r
             vo = _bit_valid(px[_U(o)])
             if code_mask:
                 mc = mlut[_U((r2 << 7) | (r1 << 2) | wb)]
-                low, rng, pos = _enc(low, rng, pos, out, probs, _M_MASK + mc, vo)
+                dec[_U(nd)] = 2 * (_M_MASK + mc) + vo
+                nd += 1
                 r1 = ((r1 << 1) & 31) | _bit_valid(px[_U(o - st + 3)])
                 r2 = ((r2 << 1) & 7) | _bit_valid(px[_U(o - 2 * st + 2)])
                 wb = ((wb << 1) | vo) & 3
@@ -146,12 +144,8 @@ def encode_into(image: Any, allow_table: bool, near: int, recon: Any, px: Any, r
                 recon[y, o - o0] = v
             px[_U(o)] = (e << 32) | _VALID | v
             last = v
-            low, rng, pos = write_residual(low, rng, pos, out, probs, zc, sc, ctx, e)
-    for _ in range(4):
-        out[_U(pos)] = low >> 24
-        pos += 1
-        low = (low << 8) & _MASK32
-    return out[:pos]
+            nd = write_residual(dec, nd, zc, sc, ctx, e)
+    return code_decisions(dec, nd, (1 if use_table else 0) | (2 if nvalid < npix else 0))
 
 
 # -- decoder ------------------------------------------------------------------------------
@@ -204,9 +198,9 @@ def decode_into(buf: Any, out_img: Any, near: int, px: Any, table: Any) -> int:
         | (np.int64(buf[_U(3)]) << 8)
         | np.int64(buf[_U(4)])
     )
-    rng = _MASK32
-    pos = 5
-    probs = np.full(_NMODELS, _STATE_INIT, dtype=np.int32)
+    rng = np.int64(_MASK32)
+    pos = np.int64(5)
+    probs = fresh_models()
 
     maxidx = 65535
     if use_table:
@@ -218,7 +212,7 @@ def decode_into(buf: Any, out_img: Any, near: int, px: Any, table: Any) -> int:
         for i in range(65536):
             table[_U(i)] = i
 
-    last = 0
+    last = _B0
     mlut = _MASK_LUT
     for y in range(h):
         if pos > n:

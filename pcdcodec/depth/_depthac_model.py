@@ -42,6 +42,7 @@ _M_QZERO = _M_TMANT + 16 * 16  # zero flag and sign per (gradient triple, error 
 _NQE = 4
 _M_QSIGN = _M_QZERO + 730 * _NQE
 _NMODELS = _M_QSIGN + 730 * 9
+assert 2 * _NMODELS <= 65536  # a decision, 2 * model + bit, fits a uint16
 
 # Contexts of quantised gradient triples (9 levels each); the last one means no triple.
 _NBIAS = 9 * 9 * 9 + 1
@@ -68,6 +69,12 @@ _STATE_INIT = _PROB_INIT
 # wraparound, a third of the loops' time. Every index is non-negative by construction (padded
 # arrays, checked stream values), which the casts do not change.
 _U = np.uint64
+
+# Typed (not literal) constants for calls: numba compiles a function once per distinct set of
+# argument types, and a literal argument (``0``, ``4``) is a type of its own. Passing these
+# keeps every helper at one compiled version, which is most of the first use's compile time.
+_B0 = np.int64(0)
+_B1 = np.int64(1)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -126,6 +133,39 @@ def _dec(
         code = ((code << 8) | byte) & _MASK32
         rng <<= 8
     return bit, code, rng, pos
+
+
+@njit(cache=True, error_model="numpy")
+def code_decisions(dec: Any, nd: int, first: int) -> Any:
+    """Code the first ``nd`` decisions of ``dec`` (each ``2 * model + bit``) after the byte
+    ``first``; returns the bytes. The encoder models every decision first and codes them all
+    here, in one loop: the coder is compiled once, which is most of the encoder's first use.
+    """
+    # A decision costs at most 16 bits and the coder's rounding at most 1/150 bit more, so
+    # ``2 * nd + nd // 64`` bytes bound the output, with the first byte and the 4 flushed.
+    out = np.empty(2 * nd + (nd >> 6) + 16, dtype=np.uint8)
+    out[_U(0)] = first
+    probs = fresh_models()
+    low = _B0
+    rng = np.int64(_MASK32)
+    pos = _B1
+    for i in range(nd):
+        d = np.int64(dec[_U(i)])
+        low, rng, pos = _enc(low, rng, pos, out, probs, d >> 1, d & 1)
+    for _ in range(4):
+        out[_U(pos)] = low >> 24
+        pos += 1
+        low = (low << 8) & _MASK32
+    return out[:pos]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def fresh_models() -> Any:
+    """Every model at its initial state."""
+    probs = np.empty(_NMODELS, dtype=np.int32)
+    for i in range(_NMODELS):
+        probs[_U(i)] = _STATE_INIT
+    return probs
 
 
 # -- shared modelling ---------------------------------------------------------------------
@@ -217,13 +257,6 @@ def _absdiff(a: int, b: int) -> int:
     return a - b if a > b else b - a
 
 
-@njit(cache=True, error_model="numpy")
-def _ctx(g: int, e: int, cls: int, glut: Any, elut: Any) -> int:
-    gb = glut[_U(g)] if g < 33 else 7
-    eb = elut[_U(e)] if e < 9 else 5
-    return (cls * _NGBIN + gb) * _NEBIN + eb
-
-
 @njit(cache=True, inline="always", error_model="numpy")
 def _predict(
     px: Any, o: int, s: int, last: int, glut: Any, elut: Any
@@ -231,7 +264,9 @@ def _predict(
     """Prediction, model context, gradient-triple context and the west and north residuals at
     flat position ``o`` of the packed working array ``px``.
 
-    The array is padded with invalid pixels, so no neighbour lookup leaves it.
+    The array is padded with invalid pixels, so no neighbour lookup leaves it. The branches
+    set the prediction, the gradient activity ``g``, the error sum ``e`` and the neighbour
+    class; the context is formed once, after them (one exit keeps the compiled loop small).
     """
     n = o - s
     pa = px[_U(o - 1)]
@@ -244,35 +279,48 @@ def _predict(
     ea = pa >> 32
     eb = pb >> 32
     e = (ea if ea > 0 else -ea) + (eb if eb > 0 else -eb)
+    q = _NOBIAS
     if va and vb and (pc & _VALID) != 0:
         c = pc & _INDEX
         # The median edge detector as a clamp (no jumps): a + b - c kept within [min, max].
-        mx = max(a, b)
-        mn = min(a, b)
-        p = min(max(a + b - c, mn), mx)
+        p = min(max(a + b - c, min(a, b)), max(a, b))
         g = _absdiff(a, c) + _absdiff(b, c)
         pd = px[_U(n + 1)]
         if (pd & _VALID) != 0:
             d = pd & _INDEX
             g += _absdiff(b, d)
             q = (_q9(d - b) * 9 + _q9(b - c)) * 9 + _q9(c - a)
-            return p, _ctx(g, e, 0, glut, elut), q, ea, eb
-        q = (4 * 9 + _q9(b - c)) * 9 + _q9(c - a)
-        return p, _ctx(g + (g >> 1), e, 1, glut, elut), q, ea, eb
-    if va and vb:
-        return (a + b) >> 1, _ctx(2 * _absdiff(a, b), e, 2, glut, elut), _NOBIAS, ea, eb
-    if va:
+            cls = 0
+        else:
+            g += g >> 1
+            q = (4 * 9 + _q9(b - c)) * 9 + _q9(c - a)
+            cls = 1
+    elif va and vb:
+        p = (a + b) >> 1
+        g = 2 * _absdiff(a, b)
+        cls = 2
+    elif va:
+        p = a
         pw = px[_U(o - 2)]
         g = 2 * _absdiff(a, pw & _INDEX) if (pw & _VALID) != 0 else 0
-        return a, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS, ea, eb
-    if vb:
+        e *= 2
+        cls = 3
+    elif vb:
+        p = b
         pn = px[_U(n - s)]
         g = 2 * _absdiff(b, pn & _INDEX) if (pn & _VALID) != 0 else 0
-        return b, _ctx(g, 2 * e, 3, glut, elut), _NOBIAS, ea, eb
-    pd = px[_U(n + 1)]
-    if (pd & _VALID) != 0:
-        return pd & _INDEX, _ctx(0, 1, 4, glut, elut), _NOBIAS, ea, eb
-    return last, _ctx(0, 0, 4, glut, elut), _NOBIAS, ea, eb
+        e *= 2
+        cls = 3
+    else:
+        pd = px[_U(n + 1)]
+        vd = (pd & _VALID) != 0
+        p = pd & _INDEX if vd else last
+        g = 0
+        e = 1 if vd else 0
+        cls = 4
+    gbin = glut[_U(g)] if g < 33 else 7
+    ebin = elut[_U(e)] if e < 9 else 5
+    return p, (cls * _NGBIN + gbin) * _NEBIN + ebin, q, ea, eb
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -307,37 +355,41 @@ def _clamp_index(v: int) -> int:
 
 
 @njit(cache=True, error_model="numpy")
-def write_table(
-    low: int, rng: int, pos: int, out: Any, probs: Any, rank: Any, ntable: int
-) -> tuple[int, int, int]:
-    """Code the value table: its length, then each entry's gap to the previous one."""
+def write_table(dec: Any, nd: int, rank: Any, ntable: int) -> int:
+    """Append the decisions of the value table to ``dec`` from ``nd``: its length, then each
+    entry's gap to the previous one. Returns the new decision count (see :func:`code_decisions`).
+    """
     for j in range(16):
-        low, rng, pos = _enc(low, rng, pos, out, probs, _M_HDR + j, (ntable - 1) >> (15 - j) & 1)
-    prev = 0
-    pgap = 0
+        dec[_U(nd)] = 2 * (_M_HDR + j) + ((ntable - 1) >> (15 - j) & 1)
+        nd += 1
+    prev = _B0
+    pgap = _B0
     for v in range(1, 65536):
         if rank[_U(v)] == 0:
             continue
         gap = v - prev - 1
         g = _gap_ctx(pgap)
         if gap == 0:
-            low, rng, pos = _enc(low, rng, pos, out, probs, _M_TZERO + g, 0)
+            dec[_U(nd)] = 2 * (_M_TZERO + g)
+            nd += 1
         else:
-            low, rng, pos = _enc(low, rng, pos, out, probs, _M_TZERO + g, 1)
+            dec[_U(nd)] = 2 * (_M_TZERO + g) + 1
+            nd += 1
             k = 0
             while (gap >> (k + 1)) != 0:
                 k += 1
             for j in range(k):
-                low, rng, pos = _enc(low, rng, pos, out, probs, _M_TEXP + g * 16 + j, 1)
+                dec[_U(nd)] = 2 * (_M_TEXP + g * 16 + j) + 1
+                nd += 1
             if k < 15:
-                low, rng, pos = _enc(low, rng, pos, out, probs, _M_TEXP + g * 16 + k, 0)
+                dec[_U(nd)] = 2 * (_M_TEXP + g * 16 + k)
+                nd += 1
             for j in range(k - 1, -1, -1):
-                low, rng, pos = _enc(
-                    low, rng, pos, out, probs, _M_TMANT + k * 16 + j, (gap >> j) & 1
-                )
+                dec[_U(nd)] = 2 * (_M_TMANT + k * 16 + j) + ((gap >> j) & 1)
+                nd += 1
         pgap = gap
         prev = v
-    return low, rng, pos
+    return nd
 
 
 @njit(cache=True, error_model="numpy")
@@ -345,13 +397,13 @@ def read_table(
     code: int, rng: int, pos: int, buf: Any, n: int, probs: Any, table: Any
 ) -> tuple[int, int, int, int]:
     """Decode the value table into ``table``; returns its length, or minus an ``ERR_*`` status."""
-    ntable = 0
+    ntable = _B0
     for j in range(16):
         bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_HDR + j)
         ntable = (ntable << 1) | bit
     ntable += 1
-    prev = 0
-    pgap = 0
+    prev = _B0
+    pgap = _B0
     for i in range(ntable):
         g = _gap_ctx(pgap)
         bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TZERO + g)
@@ -379,27 +431,30 @@ def read_table(
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def write_residual(
-    low: int, rng: int, pos: int, out: Any, probs: Any, zc: int, sc: int, ctx: int, e: int
-) -> tuple[int, int, int]:
-    """Code a residual: zero flag, sign, unary exponent, mantissa bits."""
+def write_residual(dec: Any, nd: int, zc: int, sc: int, ctx: int, e: int) -> int:
+    """Append the decisions of a residual: zero flag, sign, unary exponent, mantissa bits."""
     if e == 0:
-        return _enc(low, rng, pos, out, probs, zc, 0)
-    low, rng, pos = _enc(low, rng, pos, out, probs, zc, 1)
-    low, rng, pos = _enc(low, rng, pos, out, probs, sc, 1 if e < 0 else 0)
+        dec[_U(nd)] = 2 * zc
+        return nd + 1
+    dec[_U(nd)] = 2 * zc + 1
+    dec[_U(nd + 1)] = 2 * sc + (1 if e < 0 else 0)
+    nd += 2
     m = -e if e < 0 else e
     k = 0
     while (m >> (k + 1)) != 0:
         k += 1
     e0 = _M_EXP + ctx * _EXP
     for j in range(k):
-        low, rng, pos = _enc(low, rng, pos, out, probs, e0 + j, 1)
+        dec[_U(nd)] = 2 * (e0 + j) + 1
+        nd += 1
     if k < 15:
-        low, rng, pos = _enc(low, rng, pos, out, probs, e0 + k, 0)
+        dec[_U(nd)] = 2 * (e0 + k)
+        nd += 1
     m0 = _M_MANT + (ctx // _PERCLASS) * 256 + k * 16
     for j in range(k - 1, -1, -1):
-        low, rng, pos = _enc(low, rng, pos, out, probs, m0 + j, (m >> j) & 1)
-    return low, rng, pos
+        dec[_U(nd)] = 2 * (m0 + j) + ((m >> j) & 1)
+        nd += 1
+    return nd
 
 
 @njit(cache=True, inline="always", error_model="numpy")
