@@ -288,4 +288,7 @@ def test_keyframe_interval_says_where_a_stream_may_be_cut() -> None:
     assert get_codec("mjpeg").keyframe_interval(30.0) == 1  # intra-only
     assert get_codec("huffyuv").keyframe_interval(30.0) == 1
     assert get_codec({"id": "h264", "gop": 12}).keyframe_interval(30.0) == 12
-    assert get_codec("h264").keyframe_interval(15.0) == 15  # default: one second of frames
+    # The default: a third of a second of frames.
+    assert get_codec("h264").keyframe_interval(30.0) == 10
+    assert get_codec("h264").keyframe_interval(15.0) == 5
+    assert get_codec("h264").keyframe_interval(1.0) == 1

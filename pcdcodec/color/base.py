@@ -46,6 +46,7 @@ __all__ = [
     "VideoFileReader",
     "VideoFileWriter",
     "decode_packets",
+    "default_keyframe_interval",
     "encode_frames",
 ]
 
@@ -261,6 +262,19 @@ class VideoDecoder(ABC):
 
     def _flush_pictures(self) -> list[DecodedPicture]:
         return [DecodedPicture.of(f) for f in self._flush()]
+
+
+#: The default keyframe interval of the video codecs, in seconds of frames. A third of a second
+#: keeps ``rec[i]`` at random within 2× the time of reading in order (it decodes, on average,
+#: half an interval of color before its frame) for about 2.5 % more bytes than one second
+#: (``docs/recording.md``).
+DEFAULT_KEYFRAME_SECONDS = 1 / 3
+
+
+def default_keyframe_interval(fps: float) -> int:
+    """The default keyframe interval at ``fps`` frames/s: :data:`DEFAULT_KEYFRAME_SECONDS` of
+    frames, at least 1 (10 at 30 fps)."""
+    return max(1, round(fps * DEFAULT_KEYFRAME_SECONDS))
 
 
 class StreamCodec(ColorCodec):

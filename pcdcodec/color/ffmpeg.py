@@ -22,7 +22,15 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import CodecUnavailableError, DecodeError
-from .base import DecodedFrame, DecodedPicture, Packet, StreamCodec, VideoDecoder, VideoEncoder
+from .base import (
+    DecodedFrame,
+    DecodedPicture,
+    Packet,
+    StreamCodec,
+    VideoDecoder,
+    VideoEncoder,
+    default_keyframe_interval,
+)
 
 __all__ = ["FFmpegDecoder", "FFmpegEncoder", "FFmpegSetup", "ffmpeg_packet", "probe"]
 
@@ -87,7 +95,7 @@ class FFmpegSetup:
     #: Multiples the width and height are padded to for :attr:`pix_fmt`.
     pad: tuple[int, int]
     threads: int
-    #: Keyframe interval in frames; ``None``: one second of frames.
+    #: Keyframe interval in frames; ``None``: the default (a third of a second of frames).
     gop: int | None
     bframes: int
     options: dict[str, str]
@@ -114,7 +122,7 @@ class FFmpegEncoder(VideoEncoder):
         ctx.pix_fmt = setup.pix_fmt
         ctx.time_base = 1 / rate
         ctx.framerate = rate
-        ctx.gop_size = setup.gop if setup.gop is not None else max(1, round(self.fps))
+        ctx.gop_size = setup.gop if setup.gop is not None else default_keyframe_interval(self.fps)
         ctx.max_b_frames = setup.bframes
         ctx.thread_count = setup.threads
         ctx.options = setup.options

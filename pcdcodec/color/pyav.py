@@ -20,7 +20,7 @@ import os
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from .._validate import check_choice, check_int, check_number
-from .base import StreamCodec, VideoDecoder, VideoEncoder
+from .base import StreamCodec, VideoDecoder, VideoEncoder, default_keyframe_interval
 
 if TYPE_CHECKING:
     from .ffmpeg import FFmpegSetup
@@ -104,8 +104,8 @@ class PyAVCodec(StreamCodec):
     ) -> None:
         """Check and keep the shared parameters this codec takes, in this order.
 
-        ``gop``: the keyframe interval, 1..10000 frames, or ``None`` for one second of frames;
-        ``bframes``: 0..``max_bframes``; ``pix_fmt``: one of :attr:`pix_fmts`; ``threads``:
+        ``gop``: the keyframe interval, 1..10000 frames, or ``None`` for a third of a second of
+        frames; ``bframes``: 0..``max_bframes``; ``pix_fmt``: one of :attr:`pix_fmts`; ``threads``:
         0..64 (0 lets FFmpeg choose); ``low_delay``: a bool. A codec that does not take one
         gets ``gop=None``, ``bframes=0``, ``pix_fmt=pix_fmts[0]``, ``threads=0`` and no
         ``low_delay``.
@@ -135,12 +135,12 @@ class PyAVCodec(StreamCodec):
         return {}
 
     def _gop(self) -> int | None:
-        """The keyframe interval; ``None``: one second of frames."""
+        """The keyframe interval; ``None``: a third of a second of frames."""
         return self.gop
 
     def keyframe_interval(self, fps: float) -> int:
         gop = self._gop()
-        return int(gop) if gop is not None else max(1, round(fps))
+        return int(gop) if gop is not None else default_keyframe_interval(fps)
 
     def _pad(self) -> tuple[int, int]:
         """Multiples the width and height must be padded to for :attr:`pix_fmt`."""
@@ -174,7 +174,7 @@ class PyAVCodec(StreamCodec):
     def encoder(self, width: int, height: int, fps: float = 30.0) -> VideoEncoder:
         """Start a stream of ``width`` × ``height`` RGB frames at about ``fps`` frames/s.
 
-        The keyframe interval defaults to one second of frames. Raises
+        The keyframe interval defaults to a third of a second of frames. Raises
         :class:`~pcdcodec.CodecUnavailableError` when the FFmpeg encoder cannot be opened.
         """
         self._require_available()
@@ -218,10 +218,11 @@ class H264(PyAVCodec):
     ``crf`` is the constant rate factor (0–51, lower is better; 18 is about visually
     lossless), ``preset`` the speed/size trade-off, ``tune`` an optional x264 tuning
     (``film``, ``grain``, ``stillimage``, …), ``gop`` the keyframe interval in frames (default:
-    one second), ``bframes`` the number of B-frames (0 keeps decode order = display order),
-    ``pix_fmt`` ``yuv420p`` (most compatible) or ``yuv444p`` (full chroma). ``low_delay``
-    (the default) adds x264's ``zerolatency`` tuning: no lookahead and sliced threads, so every
-    frame's packet comes out as it goes in and a crash loses no frame the encoder held back;
+    a third of a second, 10 frames at 30 fps), ``bframes`` the number of B-frames (0 keeps
+    decode order = display order), ``pix_fmt`` ``yuv420p`` (most compatible) or ``yuv444p``
+    (full chroma). ``low_delay`` (the default) adds x264's ``zerolatency`` tuning: no lookahead
+    and sliced threads, so every frame's packet comes out as it goes in and a crash loses no
+    frame the encoder held back;
     ``False`` lets x264 hold about a dozen frames for a file a few percent smaller at most
     (see ``docs/format.md``).
     """
