@@ -41,6 +41,7 @@ def main() -> int:
             max_frames=args.frames,
             depth_scale=seq_info.depth_scale,
             intrinsics=CAMERAS.get(name),
+            layout=seq_info.layout,  # D435's lists hold time deltas: read it as plain folders
         )
         if seq.intrinsics is None:
             seq.intrinsics = pcdcodec.CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
