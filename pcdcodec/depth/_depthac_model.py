@@ -168,6 +168,16 @@ def fresh_models() -> Any:
     return probs
 
 
+@njit(cache=True, error_model="numpy")
+def _dec_called(
+    code: int, rng: int, pos: int, buf: Any, n: int, probs: Any, i: int
+) -> tuple[int, int, int, int]:
+    """:func:`_dec` as a call, for the value table's decisions: a copy of the decoder inlined at
+    each of their sites cost a quarter of a second of compiling, for a few thousand decisions
+    a frame where the pixels make hundreds of thousands."""
+    return _dec(code, rng, pos, buf, n, probs, i)
+
+
 # -- shared modelling ---------------------------------------------------------------------
 
 
@@ -399,25 +409,29 @@ def read_table(
     """Decode the value table into ``table``; returns its length, or minus an ``ERR_*`` status."""
     ntable = _B0
     for j in range(16):
-        bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_HDR + j)
+        bit, code, rng, pos = _dec_called(code, rng, pos, buf, n, probs, _M_HDR + j)
         ntable = (ntable << 1) | bit
     ntable += 1
     prev = _B0
     pgap = _B0
     for i in range(ntable):
         g = _gap_ctx(pgap)
-        bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TZERO + g)
+        bit, code, rng, pos = _dec_called(code, rng, pos, buf, n, probs, _M_TZERO + g)
         gap = 0
         if bit:
             k = 0
             while k < 15:
-                bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TEXP + g * 16 + k)
+                bit, code, rng, pos = _dec_called(
+                    code, rng, pos, buf, n, probs, _M_TEXP + g * 16 + k
+                )
                 if bit == 0:
                     break
                 k += 1
             gap = 1
             for j in range(k - 1, -1, -1):
-                bit, code, rng, pos = _dec(code, rng, pos, buf, n, probs, _M_TMANT + k * 16 + j)
+                bit, code, rng, pos = _dec_called(
+                    code, rng, pos, buf, n, probs, _M_TMANT + k * 16 + j
+                )
                 gap = (gap << 1) | bit
         v = prev + gap + 1
         if v > 65535:
