@@ -479,9 +479,20 @@ def test_worker_killed_mid_task_is_retried_and_exact(tmp_path: Path) -> None:
     assert not partials(out)
 
 
+# The run stops making progress once the first input is done and the second has two of its
+# three segments, so the kill below always lands mid-run, however fast the machine.
 _RUN = """
-import sys
-from pcdcodec.archive import archive
+import sys, time
+from pcdcodec.archive import archive, run as archive_run
+original = archive_run._encode_segment
+encoded = []
+def held(*args):
+    out = original(*args)
+    encoded.append(args[2])
+    if len(encoded) >= 5:
+        time.sleep(600)
+    return out
+archive_run._encode_segment = held
 archive(sys.argv[1:-1], sys.argv[-1], workers=1, processes=False, segment_frames=3,
         progress=False)
 """
