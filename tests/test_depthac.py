@@ -160,6 +160,22 @@ def test_encoder_memory_is_a_few_frames_not_the_worst_case() -> None:
     assert peak < 8 * depth.nbytes
 
 
+def test_encoder_memory_stays_bounded_on_noise() -> None:
+    # Noise makes up to 33 decisions a pixel; the encoder models and codes them a block at a
+    # time, so its memory is about the body's size, not 2 bytes per decision.
+    import tracemalloc
+
+    noise = np.random.default_rng(5).integers(0, 65536, (512, 512)).astype(np.uint16)
+    codec = DepthAC()
+    codec.encode(noise[:8, :8].copy())  # compiled and loaded before measuring
+    tracemalloc.start()
+    body = codec.encode(noise)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert np.array_equal(codec.decode(body), noise)
+    assert peak < 5 * len(body) + 4 * noise.nbytes
+
+
 def test_compiled_loops_release_the_gil() -> None:
     # Recordings encode and decode depth on worker threads beside the video codec.
     from pcdcodec.depth import _depthac_kernels as kernels

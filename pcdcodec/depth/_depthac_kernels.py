@@ -27,6 +27,7 @@ from ._depthac_model import (
     _PAD,
     _U,
     _VALID,
+    DECISION_BLOCK,
     ERR_ARRAYS,
     ERR_FLAGS,
     ERR_INDEX,
@@ -39,6 +40,7 @@ from ._depthac_model import (
     _mask_row_start,
     _predict,
     code_decisions,
+    finish_coding,
     fresh_models,
     read_residual,
     read_table,
@@ -97,15 +99,24 @@ def encode_into(image: Any, allow_table: bool, near: int, recon: Any, px: Any, r
     use_table = near == 0 and allow_table and nvalid > 0 and 2 * ntable <= nvalid
     step = 2 * near + 1
 
-    # The decisions are modelled first and coded at the end (see :func:`code_decisions`). A
-    # pixel makes at most 34 and a table entry 32, so the buffer, which starts at 4 per pixel
-    # (real depth makes under 3), grows before any row that could overrun it. A decision
-    # fits 16 bits (the models number under 2**15).
+    # Decisions are modelled a block at a time and coded at the end of each (see
+    # :func:`code_decisions`): once more than DECISION_BLOCK wait, before the next row. A pixel
+    # makes at most 34 decisions, so a row then fits; the table codes its blocks likewise (at
+    # most 32 decisions an entry, 16 for its length). A decision fits 16 bits (the models
+    # number under 2**15). The output starts at a quarter byte per pixel (real depth needs a
+    # tenth) and grows.
     row_worst = 34 * w
-    dec = np.empty(64 * ntable + row_worst + 4 * npix + 16, dtype=np.uint16)
+    dec = np.empty(DECISION_BLOCK + max(row_worst, 64), dtype=np.uint16)
+    out = np.empty(npix // 4 + 4096, dtype=np.uint8)
+    out[_U(0)] = (1 if use_table else 0) | (2 if nvalid < npix else 0)
+    state = np.empty(3, dtype=np.int64)
+    state[_U(0)] = 0
+    state[_U(1)] = _MASK32
+    state[_U(2)] = 1
+    probs = fresh_models()
     nd = _B0
     if use_table:
-        nd = write_table(dec, nd, rank, ntable)
+        nd, out = write_table(dec, nd, rank, ntable, state, out, probs)
     else:
         for v in range(65536):
             rank[_U(v)] = v + 1
@@ -115,11 +126,9 @@ def encode_into(image: Any, allow_table: bool, near: int, recon: Any, px: Any, r
     last = _B0
     mlut = _MASK_LUT
     for y in range(h):
-        if nd + row_worst > dec.size:
-            grown = np.empty(2 * dec.size + row_worst, dtype=np.uint16)
-            for j in range(nd):
-                grown[_U(j)] = dec[_U(j)]
-            dec = grown
+        if nd > DECISION_BLOCK:
+            out = code_decisions(dec, nd, state, out, probs)
+            nd = _B0
         o0 = (y + _PAD) * st + _PAD
         r1, r2 = _mask_row_start(px, o0, st)
         wb = 0
@@ -145,7 +154,8 @@ def encode_into(image: Any, allow_table: bool, near: int, recon: Any, px: Any, r
             px[_U(o)] = (e << 32) | _VALID | v
             last = v
             nd = write_residual(dec, nd, zc, sc, ctx, e)
-    return code_decisions(dec, nd, (1 if use_table else 0) | (2 if nvalid < npix else 0))
+    out = code_decisions(dec, nd, state, out, probs)
+    return finish_coding(state, out)
 
 
 # -- decoder ------------------------------------------------------------------------------

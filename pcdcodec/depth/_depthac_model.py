@@ -135,23 +135,45 @@ def _dec(
     return bit, code, rng, pos
 
 
+#: Decisions the encoder models before it codes them (see :func:`code_decisions`): about
+#: 128 KiB of them, so its memory stays a few frames' whatever the image.
+DECISION_BLOCK = 1 << 16
+
+
 @njit(cache=True, error_model="numpy")
-def code_decisions(dec: Any, nd: int, first: int) -> Any:
-    """Code the first ``nd`` decisions of ``dec`` (each ``2 * model + bit``) after the byte
-    ``first``; returns the bytes. The encoder models every decision first and codes them all
-    here, in one loop: the coder is compiled once, which is most of the encoder's first use.
+def code_decisions(dec: Any, nd: int, state: Any, out: Any, probs: Any) -> Any:
+    """Code the first ``nd`` decisions of ``dec`` (each ``2 * model + bit``) into ``out``.
+
+    The encoder models a block of decisions, then codes it here, in one loop: the coder is
+    compiled once, which is most of the encoder's first use. ``state`` holds the coder's
+    ``low``, ``range`` and output position between blocks; ``out`` is returned, grown first
+    when the block could overrun it (so the caller keeps the array returned).
     """
+    low = state[_U(0)]
+    rng = state[_U(1)]
+    pos = state[_U(2)]
     # A decision costs at most 16 bits and the coder's rounding at most 1/150 bit more, so
-    # ``2 * nd + nd // 64`` bytes bound the output, with the first byte and the 4 flushed.
-    out = np.empty(2 * nd + (nd >> 6) + 16, dtype=np.uint8)
-    out[_U(0)] = first
-    probs = fresh_models()
-    low = _B0
-    rng = np.int64(_MASK32)
-    pos = _B1
+    # ``2 * nd + nd // 64`` bytes bound a block, with room for the 4 flushed at the end.
+    need = pos + 2 * nd + (nd >> 6) + 16
+    if need > out.size:
+        grown = np.empty(max(2 * out.size, need), dtype=np.uint8)
+        for j in range(pos):
+            grown[_U(j)] = out[_U(j)]
+        out = grown
     for i in range(nd):
         d = np.int64(dec[_U(i)])
         low, rng, pos = _enc(low, rng, pos, out, probs, d >> 1, d & 1)
+    state[_U(0)] = low
+    state[_U(1)] = rng
+    state[_U(2)] = pos
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def finish_coding(state: Any, out: Any) -> Any:
+    """Flush the coder after the last block (:func:`code_decisions`); returns the bytes."""
+    low = state[_U(0)]
+    pos = state[_U(2)]
     for _ in range(4):
         out[_U(pos)] = low >> 24
         pos += 1
@@ -365,10 +387,13 @@ def _clamp_index(v: int) -> int:
 
 
 @njit(cache=True, error_model="numpy")
-def write_table(dec: Any, nd: int, rank: Any, ntable: int) -> int:
+def write_table(
+    dec: Any, nd: int, rank: Any, ntable: int, state: Any, out: Any, probs: Any
+) -> tuple[int, Any]:
     """Append the decisions of the value table to ``dec`` from ``nd``: its length, then each
-    entry's gap to the previous one. Returns the new decision count (see :func:`code_decisions`).
-    """
+    entry's gap to the previous one. A block of more than :data:`DECISION_BLOCK` is coded
+    (:func:`code_decisions`) before the next entry, so ``dec`` needs room for the block and
+    48 more. Returns the decisions left in ``dec`` and the output array."""
     for j in range(16):
         dec[_U(nd)] = 2 * (_M_HDR + j) + ((ntable - 1) >> (15 - j) & 1)
         nd += 1
@@ -377,6 +402,9 @@ def write_table(dec: Any, nd: int, rank: Any, ntable: int) -> int:
     for v in range(1, 65536):
         if rank[_U(v)] == 0:
             continue
+        if nd > DECISION_BLOCK:
+            out = code_decisions(dec, nd, state, out, probs)
+            nd = _B0
         gap = v - prev - 1
         g = _gap_ctx(pgap)
         if gap == 0:
@@ -399,7 +427,7 @@ def write_table(dec: Any, nd: int, rank: Any, ntable: int) -> int:
                 nd += 1
         pgap = gap
         prev = v
-    return nd
+    return nd, out
 
 
 @njit(cache=True, error_model="numpy")
