@@ -248,7 +248,7 @@ def main() -> None:
         nargs="*",
         type=int,
         default=None,
-        help="keyframe intervals to write (default: the codec's own, one second of frames)",
+        help="keyframe intervals to write (default: the codec's own, ⅓ s of frames)",
     )
     parser.add_argument("--threads", type=int, default=None, help="pcdcodec.open(threads=)")
     parser.add_argument("--breakdown", action="store_true")
