@@ -1,0 +1,275 @@
+"""PyTorch datasets over recordings: :class:`RecordingDataset` (map-style, random access) and
+:class:`IterableRecordingDataset` (in order, split between DataLoader workers).
+
+Both pickle as paths and settings and open their recordings lazily, once per process, so they
+work in a ``DataLoader`` with worker processes, forked or spawned (``docs/learning.md``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import torch
+from torch.utils.data import Dataset, IterableDataset, get_worker_info
+
+from ..errors import InputError, InputTypeError
+from ..recording.framesets import match_times
+from .catalog import Readers, find_recordings
+from .items import COLOR_FIELDS, DEFAULT_FIELDS, Decoded, build_item, check_fields
+
+__all__ = ["IterableRecordingDataset", "RecordingDataset"]
+
+#: Recordings a process keeps open at once, by default.
+MAX_OPEN = 32
+
+_NS = 1_000_000_000
+
+
+def _tensors(value: Any) -> Any:
+    """``value`` with every numpy array (also inside dicts) turned into a torch tensor."""
+    if isinstance(value, np.ndarray):
+        return torch.from_numpy(value if value.flags.writeable else value.copy())
+    if isinstance(value, dict):
+        return {k: _tensors(v) for k, v in value.items()}
+    return value
+
+
+def _check_threads(threads: Any) -> int | None:
+    if threads is not None and (
+        isinstance(threads, bool) or not isinstance(threads, int) or not 0 <= threads <= 256
+    ):
+        raise InputError(f"threads must be None or an int in 0..256, got {threads!r}")
+    return threads
+
+
+class RecordingDataset(Dataset[Any]):
+    """A map-style dataset over the frames of one or many recordings.
+
+    ``recordings`` is a ``.pcdc`` path, a folder (every ``.pcdc`` in it, recursively, sorted),
+    a glob pattern, or a list of these. Item ``i`` is a ``dict`` of ``fields`` (names from
+    :data:`pcdcodec.torch.FIELDS`; default ``("color", "depth")``) for the ``i``-th frame,
+    counting the recordings in order and, in a recording of several cameras, camera after
+    camera (``cameras`` picks some, in the order given).
+
+    ``framesets=True`` makes an item one set of frames of the cameras matched by time (as
+    :meth:`pcdcodec.RigRecording.framesets` matches them: a frame of each other camera within
+    ``tolerance`` seconds, by default half the first camera's frame interval): a ``dict`` of
+    camera name to that camera's fields. Sets missing a camera are left out.
+
+    ``dataset[i]`` decodes the frame's depth, and its color from the keyframe before it (the
+    recording's ``gop`` bounds how far back that is); fields without color skip the color
+    stream altogether. ``tensors=True`` turns arrays into ``torch`` tensors (sharing memory);
+    ``transform``, if given, is applied to the item last and its result returned. ``threads``
+    is the decoder threads of each reader (``1``, the default, suits one worker per core);
+    ``max_open`` bounds the recordings a process keeps open.
+    """
+
+    def __init__(
+        self,
+        recordings: Any,
+        fields: Any = DEFAULT_FIELDS,
+        *,
+        cameras: list[str] | tuple[str, ...] | None = None,
+        framesets: bool = False,
+        tolerance: float | None = None,
+        transform: Callable[[Any], Any] | None = None,
+        tensors: bool = False,
+        threads: int | None = 1,
+        max_open: int = MAX_OPEN,
+    ) -> None:
+        self.fields = check_fields(fields)
+        if transform is not None and not callable(transform):
+            raise InputTypeError(f"transform must be callable, got {type(transform).__name__}")
+        if isinstance(max_open, bool) or not isinstance(max_open, int) or max_open < 1:
+            raise InputError(f"max_open must be an int >= 1, got {max_open!r}")
+        if cameras is not None:
+            if isinstance(cameras, str) or not all(isinstance(c, str) for c in cameras):
+                raise InputTypeError(f"cameras must be a list of camera names, got {cameras!r}")
+            if not cameras:
+                raise InputError("cameras is empty: leave it out for every camera")
+        if tolerance is not None and (
+            isinstance(tolerance, bool)
+            or not isinstance(tolerance, (int, float))
+            or not 0 <= tolerance < 1e6
+        ):
+            raise InputError(f"tolerance must be a number of seconds >= 0, got {tolerance!r}")
+        self.transform = transform
+        self.tensors = bool(tensors)
+        self.framesets = bool(framesets)
+        self.tolerance = tolerance
+        self._readers = Readers(_check_threads(threads), max_open)
+        self._color = bool(COLOR_FIELDS & set(self.fields))
+        self._pose = "pose" in self.fields
+        self.sources = [str(p) for p in find_recordings(recordings)]
+        #: per part (a camera's frames, or a recording's frame sets): source, cameras, items
+        self.parts: list[tuple[str, tuple[str, ...], int]] = []
+        self._sets: dict[str, npt.NDArray[np.int64]] = {}
+        try:
+            self._catalog(None if cameras is None else tuple(cameras))
+        finally:
+            self._readers.close()  # nothing stays open in the process that made the dataset
+        counts = np.array([n for _, _, n in self.parts], np.int64)
+        self._starts: npt.NDArray[np.int64] = np.concatenate([[0], np.cumsum(counts)])
+        self._sets.clear()  # rebuilt where read: they are not worth pickling
+
+    def _catalog(self, wanted: tuple[str, ...] | None) -> None:
+        found: set[str] = set()
+        for source in self.sources:
+            rec = self._readers.recording(source)
+            names = list(rec.camera_names)
+            chosen = names if wanted is None else [c for c in wanted if c in names]
+            found.update(chosen)
+            if self.framesets and wanted is not None and len(chosen) != len(wanted):
+                missing = [c for c in wanted if c not in names]
+                raise InputError(
+                    f"{source!r} has no camera {missing[0]!r} (its cameras: {names}); frame "
+                    "sets need every camera asked for in every recording"
+                )
+            for name in chosen:
+                cam = self._readers.camera(source, name)
+                if self._color and not cam.has_color:
+                    raise InputError(
+                        f"{source!r}: camera {name!r} was recorded without color, and fields "
+                        f"{list(self.fields)} ask for it"
+                    )
+            if self.framesets:
+                if chosen:
+                    self.parts.append((source, tuple(chosen), len(self._matches(source, chosen))))
+            else:
+                self.parts.extend(
+                    (source, (name,), len(self._readers.camera(source, name).timestamps))
+                    for name in chosen
+                )
+        if wanted is not None:
+            absent = [c for c in wanted if c not in found]
+            if absent:
+                raise InputError(f"no recording has camera {absent[0]!r}")
+
+    def _matches(self, source: str, cameras: tuple[str, ...] | list[str]) -> npt.NDArray[np.int64]:
+        """The complete frame sets of ``cameras`` in ``source``: sets × cameras frame indexes."""
+        got = self._sets.get(source)
+        if got is not None:
+            return got
+        times = [self._readers.camera(source, c).timestamps for c in cameras]
+        ref = self._readers.camera(source, cameras[0]).recording
+        tolerance = self.tolerance if self.tolerance is not None else 0.5 / ref.fps
+        tol = round(tolerance * _NS)
+        columns = [np.arange(len(times[0]), dtype=np.int64)]
+        columns += [match_times(times[0], t, tol) for t in times[1:]]
+        matches = np.stack(columns, axis=1)
+        matches = matches[(matches >= 0).all(axis=1)]
+        self._sets[source] = matches
+        return matches
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_sets"] = {}  # rebuilt from the files, in each worker
+        return state
+
+    def __len__(self) -> int:
+        return int(self._starts[-1])
+
+    def locate(self, i: int) -> tuple[str, tuple[str, ...], int]:
+        """Where item ``i`` is: its recording, its camera(s), and its frame (or set) index."""
+        n = len(self)
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+            raise InputTypeError(f"an item index must be an int, got {type(i).__name__}")
+        if not -n <= i < n:
+            raise IndexError(f"item {i} is out of range for {n} items")
+        i = int(i) % n
+        part = int(np.searchsorted(self._starts, i, side="right")) - 1
+        source, cameras, _ = self.parts[part]
+        return source, cameras, i - int(self._starts[part])
+
+    def _frame(self, source: str, camera: str, j: int) -> dict[str, Any]:
+        cam = self._readers.camera(source, camera)
+        rec = cam.recording
+        if self._color:
+            frame = rec[j]
+            color, depth, pose = frame.color, frame.depth, frame.pose
+        else:  # no color field: the color stream is never touched
+            color, depth = None, rec.depth(j)
+            pose = cam.pose(j) if self._pose else None
+        decoded = Decoded(
+            color,
+            depth,
+            int(cam.timestamps[j]),
+            pose,
+            rec.projector,
+            cam.rig_pose,
+            camera,
+            source,
+            j,
+        )
+        return build_item(decoded, self.fields)
+
+    def raw(self, i: int) -> Any:
+        """Item ``i`` as numpy arrays, before ``tensors`` and ``transform``."""
+        source, cameras, j = self.locate(i)
+        if not self.framesets:
+            return self._frame(source, cameras[0], j)
+        row = self._matches(source, cameras)[j]
+        return {c: self._frame(source, c, int(k)) for c, k in zip(cameras, row, strict=True)}
+
+    def __getitem__(self, i: int) -> Any:
+        item = self.raw(i)
+        if self.tensors:
+            item = _tensors(item)
+        if self.transform is not None:
+            item = self.transform(item)
+        return item
+
+    def close(self) -> None:
+        """Close the recordings this process opened (they open again when next read)."""
+        self._readers.close()
+
+    def __repr__(self) -> str:
+        kind = "frame sets" if self.framesets else "frames"
+        return (
+            f"<{type(self).__name__}: {len(self)} {kind} of {len(self.sources)} recording(s), "
+            f"fields {list(self.fields)}>"
+        )
+
+
+def share(n: int) -> tuple[int, int]:
+    """The items ``[start, stop)`` of ``n`` this process reads: all of them outside a
+    DataLoader worker, else the worker's contiguous share (the first workers take one more)."""
+    info = get_worker_info()
+    if info is None:
+        return 0, n
+    workers, k = int(info.num_workers), int(info.id)
+    return n * k // workers, n * (k + 1) // workers
+
+
+class IterableRecordingDataset(IterableDataset[Any]):
+    """The items of a :class:`RecordingDataset` (same arguments), read in order: the fastest
+    full pass, since each color packet is decoded once.
+
+    In a ``DataLoader`` with workers, each worker reads a contiguous share of the items (the
+    first ``len / num_workers``, the next, ...), so a batch holds consecutive frames of one
+    worker and batches come from the workers in turn. Shuffle with :class:`RecordingDataset`
+    and a sampler instead.
+    """
+
+    def __init__(self, recordings: Any, fields: Any = DEFAULT_FIELDS, **options: Any) -> None:
+        #: the map-style dataset whose items this reads in order
+        self.dataset = RecordingDataset(recordings, fields, **options)
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __iter__(self) -> Iterator[Any]:
+        start, stop = share(len(self.dataset))
+        for i in range(start, stop):
+            # rec[j] after rec[j - 1] continues the decoder: one color packet per frame.
+            yield self.dataset[i]
+
+    def close(self) -> None:
+        """Close the recordings this process opened."""
+        self.dataset.close()
+
+    def __repr__(self) -> str:
+        return repr(self.dataset).replace("RecordingDataset", type(self).__name__, 1)
