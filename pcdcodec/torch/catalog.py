@@ -4,10 +4,17 @@
 :class:`Readers` opens each recording once per process, on first use: a dataset handed to
 DataLoader workers (forked or spawned) carries only paths and settings, and each worker opens
 its own files (a file shared across a fork would share its read position too).
+
+A forked worker never frees what it inherited: freeing a decoder (or a decoded picture) whose
+FFmpeg threads stayed behind in the parent waits for those threads forever. So readers opened
+before the fork stay referenced in the child, and the child freezes the garbage collector's
+view of everything inherited (``gc.freeze``), so that no cycle left over in the parent, a
+recording's or anyone's, is collected there.
 """
 
 from __future__ import annotations
 
+import gc
 import glob
 import os
 from collections import OrderedDict
@@ -26,6 +33,11 @@ __all__ = ["Camera", "Readers", "find_recordings"]
 #: The file name ending of recordings found in a folder.
 SUFFIX = ".pcdc"
 _GLOB_CHARS = frozenset("*?[")
+
+#: What a forked process inherited of its parent's readers, kept so that it is never freed.
+_INHERITED: list[Any] = []
+
+os.register_at_fork(after_in_child=gc.freeze)
 
 
 def _one(spec: str | os.PathLike[str]) -> list[Path]:
@@ -116,6 +128,7 @@ class Readers:
     def recording(self, source: str) -> Any:
         """The recording at ``source`` (a ``Recording`` or a ``RigRecording``), open."""
         if self._pid != os.getpid():  # a forked worker: the parent's files are not ours
+            _INHERITED.append((self._open, self._cameras))
             self._open = OrderedDict()
             self._cameras = {}
             self._pid = os.getpid()
@@ -152,5 +165,7 @@ class Readers:
         if self._pid == os.getpid():
             for rec in self._open.values():
                 rec.close()
+        else:
+            _INHERITED.append((self._open, self._cameras))
         self._open = OrderedDict()
         self._cameras = {}

@@ -1,0 +1,234 @@
+"""Training-data throughput: ``pcdcodec.torch`` datasets against PNG files and raw ``.npy``.
+
+For each set (the TUM fr1_rpy, RealSense D435 and 7-Scenes frames of ``../shared/data`` where
+present, the bundled sample otherwise) this writes the same ``--frames`` frames (each set played
+forward and back, as ``benchmarks/random_access.py`` does) four ways: a ``.pcdc`` recording per
+``--gops`` value (h264 and depthac, the defaults), a color PNG and a 16-bit depth PNG per frame
+(OpenCV, zlib level 6), and a color and a depth ``.npy`` per frame. Then, round after round,
+each in turn (so that a slow spell of a shared machine lands on all of them):
+
+- one process reads every frame (color and depth) in a random order and in order, and its frames
+  per second are printed (median over rounds, range in brackets), wall-clock and CPU time;
+- a ``DataLoader`` (batches of 8, fork) with 1, 2 and 4 workers reads an epoch, shuffled (and,
+  for the recording, also in order through ``IterableRecordingDataset``): frames per second from
+  its first batch to its last.
+
+The bytes per frame of each way of storing the frames come with them.
+
+    python benchmarks/dataloader_throughput.py --rounds 3
+    python benchmarks/dataloader_throughput.py --rounds 3 --gops 5 10 30 --workers 1 2 4
+"""
+
+from __future__ import annotations
+
+import argparse
+import random
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from torch.utils.data import DataLoader, Dataset
+
+import pcdcodec
+from benchmarks.random_access import PRESENT, looped, sequence, write
+from pcdcodec.torch import IterableRecordingDataset, RecordingDataset
+
+FRAMES = 300
+FIELDS = ["color", "depth"]
+
+
+class PngFrames(Dataset[Any]):
+    """Frame ``i`` from ``color/{i}.png`` (RGB) and ``depth/{i}.png`` (16-bit)."""
+
+    def __init__(self, root: Path, n: int) -> None:
+        self.root, self.n = root, n
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        bgr = cv2.imread(str(self.root / "color" / f"{i:06d}.png"), cv2.IMREAD_COLOR)
+        depth = cv2.imread(str(self.root / "depth" / f"{i:06d}.png"), cv2.IMREAD_UNCHANGED)
+        return {"color": cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), "depth": depth}
+
+
+class NpyFrames(Dataset[Any]):
+    """Frame ``i`` from ``color/{i}.npy`` and ``depth/{i}.npy``."""
+
+    def __init__(self, root: Path, n: int) -> None:
+        self.root, self.n = root, n
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        return {
+            "color": np.load(self.root / "color" / f"{i:06d}.npy"),
+            "depth": np.load(self.root / "depth" / f"{i:06d}.npy"),
+        }
+
+
+def write_files(seq: Any, root: Path, frames: int) -> tuple[Path, Path]:
+    """The frames as PNG files and as ``.npy`` files; the two folders."""
+    png, npy = root / "png", root / "npy"
+    for top in (png, npy):
+        (top / "color").mkdir(parents=True)
+        (top / "depth").mkdir(parents=True)
+    level = [cv2.IMWRITE_PNG_COMPRESSION, 6]
+    for k, (rgb, depth) in enumerate(looped(seq, frames)):
+        name = f"{k:06d}"
+        cv2.imwrite(str(png / "color" / f"{name}.png"), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), level)
+        cv2.imwrite(str(png / "depth" / f"{name}.png"), depth, level)
+        np.save(npy / "color" / f"{name}.npy", rgb)
+        np.save(npy / "depth" / f"{name}.npy", depth)
+    return png, npy
+
+
+def folder_bytes(root: Path) -> int:
+    return sum(p.stat().st_size for p in root.rglob("*") if p.is_file())
+
+
+def one_pass(items: Iterable[Any]) -> tuple[float, float, int]:
+    """Wall-clock and CPU seconds to take every item, and the number of items."""
+    c0, t0 = time.process_time(), time.perf_counter()
+    n = 0
+    for item in items:
+        assert item["depth"].dtype == np.uint16
+        n += 1
+    return time.perf_counter() - t0, time.process_time() - c0, n
+
+
+def loader_pass(dataset: Any, workers: int, shuffle: bool) -> float:
+    """Frames per second of one DataLoader epoch, from its first batch to its last."""
+    loader = DataLoader(
+        dataset,
+        batch_size=8,
+        shuffle=shuffle,
+        num_workers=workers,
+        multiprocessing_context="fork" if workers else None,
+    )
+    it = iter(loader)
+    first = next(it)
+    t0 = time.perf_counter()
+    n = 0
+    for batch in it:
+        n += len(batch["depth"])
+    del first
+    return n / (time.perf_counter() - t0)
+
+
+def spread(values: list[float], digits: int = 0) -> str:
+    if not values:
+        return "-"
+    med = statistics.median(values)
+    return f"{med:.{digits}f} ({min(values):.{digits}f}-{max(values):.{digits}f})"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sets", nargs="*", default=PRESENT)
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--frames", type=int, default=FRAMES)
+    parser.add_argument("--gops", nargs="*", type=int, default=[5, 10, 30])
+    parser.add_argument("--workers", nargs="*", type=int, default=[1, 2, 4])
+    parser.add_argument(
+        "--loader-gop", type=int, default=None, help="gop of the DataLoader runs (first --gops)"
+    )
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    rng = random.Random(args.seed)
+    print(f"pcdcodec {pcdcodec.__version__}; {args.frames} frames per set; {args.rounds} rounds")
+    for name in args.sets:
+        work = Path(tempfile.mkdtemp(prefix="dataloader-"))
+        try:
+            measure(name, work, args, rng)
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+def measure(name: str, work: Path, args: argparse.Namespace, rng: random.Random) -> None:
+    """Write set ``name`` each way into ``work``, measure, print its tables."""
+    loader_gop = args.loader_gop or args.gops[0]
+    seq = sequence(name)
+    recs = {g: write(seq, work / f"gop{g}.pcdc", frames=args.frames, gop=g) for g in args.gops}
+    png, npy = write_files(seq, work, args.frames)
+    n = args.frames
+    sizes = {f"pcdc gop {g}": p.stat().st_size / n for g, p in recs.items()}
+    sizes["PNG"] = folder_bytes(png) / n
+    sizes["npy"] = folder_bytes(npy) / n
+    makers: dict[str, Callable[[list[int]], Iterable[Any]]] = {}
+    for g, p in recs.items():
+        makers[f"pcdc gop {g}|random"] = lambda o, p=p: _indexed(RecordingDataset(p, FIELDS), o)
+        makers[f"pcdc gop {g}|in order"] = lambda o, p=p: IterableRecordingDataset(p, FIELDS)
+    makers["PNG|random"] = lambda o: _indexed(PngFrames(png, n), o)
+    makers["PNG|in order"] = lambda o: _indexed(PngFrames(png, n), list(range(n)))
+    makers["npy|random"] = lambda o: _indexed(NpyFrames(npy, n), o)
+    makers["npy|in order"] = lambda o: _indexed(NpyFrames(npy, n), list(range(n)))
+    wall: dict[str, list[float]] = {k: [] for k in makers}
+    cpu: dict[str, list[float]] = {k: [] for k in makers}
+    loaders: dict[str, Callable[[], Any]] = {
+        f"pcdc gop {loader_gop}|random": lambda: RecordingDataset(recs[loader_gop], FIELDS),
+        f"pcdc gop {loader_gop}|in order": lambda: IterableRecordingDataset(
+            recs[loader_gop], FIELDS
+        ),
+        "PNG|random": lambda: PngFrames(png, n),
+        "npy|random": lambda: NpyFrames(npy, n),
+    }
+    loader_fps: dict[tuple[str, int], list[float]] = {
+        (k, w): [] for k in loaders for w in args.workers
+    }
+    for round_ in range(args.rounds + 1):
+        order = list(range(n))
+        rng.shuffle(order)
+        keys = list(makers)
+        rng.shuffle(keys)
+        for key in keys:
+            w_s, c_s, got = one_pass(makers[key](order))
+            assert got == n
+            if round_:  # the first round warms up (page cache, compiled kernels)
+                wall[key].append(n / w_s)
+                cpu[key].append(n / c_s)
+        if not round_:
+            continue
+        runs = list(loader_fps)
+        rng.shuffle(runs)
+        for key, w in runs:
+            ds = loaders[key]()
+            loader_fps[(key, w)].append(loader_pass(ds, w, key.endswith("random")))
+    print(f"\n## {name}: {n} frames of {seq.intrinsics.width}x{seq.intrinsics.height}")
+    print(
+        "\n| stored as | bytes/frame | × npy | random fps | in order fps | CPU: random fps "
+        "| in order fps |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for label, size in sizes.items():
+        r, o = f"{label}|random", f"{label}|in order"
+        print(
+            f"| {label} | {size:,.0f} | {sizes['npy'] / size:.1f} | {spread(wall[r])} | "
+            f"{spread(wall[o])} | {spread(cpu[r])} | {spread(cpu[o])} |"
+        )
+    heads = " | ".join(f"{w} worker{'s' * (w > 1)}" for w in args.workers)
+    print(f"\n| DataLoader, frames/s | {heads} |")
+    print("|---|" + "---|" * len(args.workers))
+    for key in loaders:
+        cells = " | ".join(spread(loader_fps[(key, w)]) for w in args.workers)
+        print(f"| {key.replace('|', ', ')} | {cells} |")
+    sys.stdout.flush()
+
+
+def _indexed(dataset: Any, order: list[int]) -> Iterable[Any]:
+    return (dataset[i] for i in order)
+
+
+if __name__ == "__main__":
+    main()
