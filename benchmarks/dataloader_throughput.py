@@ -2,21 +2,23 @@
 
 For each set (the TUM fr1_rpy, RealSense D435 and 7-Scenes frames of ``../shared/data`` where
 present, the bundled sample otherwise) this writes the same ``--frames`` frames (each set played
-forward and back, as ``benchmarks/random_access.py`` does) four ways: a ``.pcdc`` recording per
-``--gops`` value (h264 and depthac, the defaults), a color PNG and a 16-bit depth PNG per frame
-(OpenCV, zlib level 6), and a color and a depth ``.npy`` per frame. Then, round after round,
-each in turn (so that a slow spell of a shared machine lands on all of them):
+forward and back, as ``benchmarks/random_access.py`` does) several ways: a ``.pcdc`` recording
+per ``--variants`` value (h264 crf 18 with that keyframe interval, and the x264 tune if one is
+named; depthac depth), a color PNG and a 16-bit depth PNG per frame (OpenCV, zlib level 6), and
+a color and a depth ``.npy`` per frame. Then, round after round (after one to warm up), each in
+turn and in a new random order every round, so that a slow spell of a shared machine lands on
+all of them:
 
 - one process reads every frame (color and depth) in a random order and in order, and its frames
   per second are printed (median over rounds, range in brackets), wall-clock and CPU time;
 - a ``DataLoader`` (batches of 8, fork) with 1, 2 and 4 workers reads an epoch, shuffled (and,
-  for the recording, also in order through ``IterableRecordingDataset``): frames per second from
-  its first batch to its last.
+  for the recording, also in order through ``IterableRecordingDataset``): frames per second
+  from its first batch to its last.
 
 The bytes per frame of each way of storing the frames come with them.
 
     python benchmarks/dataloader_throughput.py --rounds 3
-    python benchmarks/dataloader_throughput.py --rounds 3 --gops 5 10 30 --workers 1 2 4
+    python benchmarks/dataloader_throughput.py --variants 2 5 10 --workers 1 2 --frames 150
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from torch.utils.data import DataLoader, Dataset
 
 import pcdcodec
-from benchmarks.random_access import PRESENT, looped, sequence, write
+from benchmarks.random_access import PRESENT, looped, sequence
 from pcdcodec.torch import IterableRecordingDataset, RecordingDataset
 
 FRAMES = 300
@@ -94,6 +96,31 @@ def write_files(seq: Any, root: Path, frames: int) -> tuple[Path, Path]:
     return png, npy
 
 
+def color_config(variant: str) -> dict[str, Any]:
+    """The h264 config of a variant: ``"G"`` (keyframe interval G) or ``"G:TUNE"``."""
+    gop, _, tune = variant.partition(":")
+    config: dict[str, Any] = {"id": "h264", "gop": int(gop)}
+    if tune:
+        config["tune"] = tune
+    return config
+
+
+def write_recording(seq: Any, path: Path, frames: int, variant: str) -> Path:
+    """``frames`` frames of ``seq`` at 30 fps, color as ``variant`` says, depth the default."""
+    with pcdcodec.open(
+        path,
+        "w",
+        intrinsics=seq.intrinsics,
+        depth_scale=seq.depth_scale,
+        color=color_config(variant),
+        fps=30.0,
+        overwrite=True,
+    ) as rec:
+        for k, (rgb, d) in enumerate(looped(seq, frames)):
+            rec.write(rgb, d, timestamp=round(k * 1e9 / 30))
+    return path
+
+
 def folder_bytes(root: Path) -> int:
     return sum(p.stat().st_size for p in root.rglob("*") if p.is_file())
 
@@ -139,10 +166,15 @@ def main() -> None:
     parser.add_argument("--sets", nargs="*", default=PRESENT)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--frames", type=int, default=FRAMES)
-    parser.add_argument("--gops", nargs="*", type=int, default=[5, 10, 30])
+    parser.add_argument(
+        "--variants",
+        nargs="*",
+        default=["5", "10", "30", "5:fastdecode"],
+        help='recordings to write: "G" (h264 with keyframe interval G) or "G:TUNE" (x264 tune)',
+    )
     parser.add_argument("--workers", nargs="*", type=int, default=[1, 2, 4])
     parser.add_argument(
-        "--loader-gop", type=int, default=None, help="gop of the DataLoader runs (first --gops)"
+        "--loader-variant", default=None, help="recording of the DataLoader runs (first variant)"
     )
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
@@ -158,9 +190,12 @@ def main() -> None:
 
 def measure(name: str, work: Path, args: argparse.Namespace, rng: random.Random) -> None:
     """Write set ``name`` each way into ``work``, measure, print its tables."""
-    loader_gop = args.loader_gop or args.gops[0]
+    loader_gop = args.loader_variant or args.variants[0]
     seq = sequence(name)
-    recs = {g: write(seq, work / f"gop{g}.pcdc", frames=args.frames, gop=g) for g in args.gops}
+    recs = {
+        g: write_recording(seq, work / f"gop{g.replace(':', '-')}.pcdc", args.frames, g)
+        for g in args.variants
+    }
     png, npy = write_files(seq, work, args.frames)
     n = args.frames
     sizes = {f"pcdc gop {g}": p.stat().st_size / n for g, p in recs.items()}
