@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
@@ -89,3 +91,12 @@ def test_rig_recording(tmp_path: Path) -> None:
     assert "15 frame sets, 7 without a wrist frame" in out.stdout
     assert "(missing: wrist)" in out.stdout
     assert "rig verified" in out.stdout
+
+
+def test_torch_dataloader(tmp_path: Path) -> None:
+    pytest.importorskip("torch")
+    out = run("torch_dataloader.py", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "shuffled, 2 workers: read 15 frames" in out.stdout
+    assert "in order, 2 workers: read 15 frames" in out.stdout
+    assert "(a batch of color: (" in out.stdout
