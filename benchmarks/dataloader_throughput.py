@@ -97,11 +97,15 @@ def write_files(seq: Any, root: Path, frames: int) -> tuple[Path, Path]:
 
 
 def color_config(variant: str) -> dict[str, Any]:
-    """The h264 config of a variant: ``"G"`` (keyframe interval G) or ``"G:TUNE"``."""
-    gop, _, tune = variant.partition(":")
+    """The h264 config of a variant: ``"G"`` (keyframe interval G), then optionally ``:TUNE``
+    (an x264 tune) and ``:crf=N``, e.g. ``"5:fastdecode:crf=20"``."""
+    gop, *rest = variant.split(":")
     config: dict[str, Any] = {"id": "h264", "gop": int(gop)}
-    if tune:
-        config["tune"] = tune
+    for part in rest:
+        if part.startswith("crf="):
+            config["crf"] = int(part[4:])
+        else:
+            config["tune"] = part
     return config
 
 
@@ -242,16 +246,19 @@ def measure(name: str, work: Path, args: argparse.Namespace, rng: random.Random)
             loader_fps[(key, w)].append(loader_pass(ds, w, key.endswith("random")))
     print(f"\n## {name}: {n} frames of {seq.intrinsics.width}x{seq.intrinsics.height}")
     print(
-        "\n| stored as | bytes/frame | × npy | random fps | in order fps | CPU: random fps "
-        "| in order fps |"
+        "\n| stored as | bytes/frame | PNG / this | npy / this | random fps | in order fps "
+        "| CPU: random fps | in order fps |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for label, size in sizes.items():
         r, o = f"{label}|random", f"{label}|in order"
         print(
-            f"| {label} | {size:,.0f} | {sizes['npy'] / size:.1f} | {spread(wall[r])} | "
+            f"| {label} | {size:,.0f} | {sizes['PNG'] / size:.1f} | {sizes['npy'] / size:.1f} | "
+            f"{spread(wall[r])} | "
             f"{spread(wall[o])} | {spread(cpu[r])} | {spread(cpu[o])} |"
         )
+    if not args.workers:
+        return
     heads = " | ".join(f"{w} worker{'s' * (w > 1)}" for w in args.workers)
     print(f"\n| DataLoader, frames/s | {heads} |")
     print("|---|" + "---|" * len(args.workers))
