@@ -3,9 +3,9 @@
 Trains nothing: it reads every frame the way a training loop would, through
 ``pcdcodec.torch.RecordingDataset`` (any frame at random, here shuffled) and
 ``IterableRecordingDataset`` (in order, split between the workers), with worker processes.
-Without arguments it records the bundled sample first (with ``gop=5``: the keyframe interval
-``docs/learning.md`` suggests for training); otherwise it reads the recordings given (files,
-folders or glob patterns).
+Without arguments it records the bundled sample first (with ``pcdcodec.torch.TRAINING_COLOR``,
+the color codec ``docs/learning.md`` suggests for training data); otherwise it reads the
+recordings given (files, folders or glob patterns).
 
 Run: ``python examples/torch_dataloader.py [RECORDING ...] [--workers N] [--batch N]``
 (needs ``pip install "pcdcodec[torch]"``).
@@ -22,11 +22,11 @@ from typing import Any
 from torch.utils.data import DataLoader
 
 import pcdcodec
-from pcdcodec.torch import IterableRecordingDataset, RecordingDataset
+from pcdcodec.torch import TRAINING_COLOR, IterableRecordingDataset, RecordingDataset
 
 
 def record_sample(folder: Path) -> Path:
-    """The bundled sample as a recording with a keyframe every 5 frames."""
+    """The bundled sample as a recording made for training."""
     seq = pcdcodec.load_sample()
     path = folder / "sample.pcdc"
     with pcdcodec.open(
@@ -34,7 +34,7 @@ def record_sample(folder: Path) -> Path:
         "w",
         intrinsics=seq.intrinsics,
         depth_scale=seq.depth_scale,
-        color={"id": "h264", "gop": 5},
+        color=TRAINING_COLOR,
     ) as rec:
         for frame in seq:
             rec.write(frame.color, frame.depth, frame.timestamp_ns, pose=frame.pose)

@@ -21,8 +21,8 @@ FRAMES = 15  # the bundled sample
 
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Two one-camera recordings of the sample (the second reversed, with gop 4, no poses)
-    in a folder."""
+    """Two one-camera recordings of the sample in a folder (the second reversed, recorded with
+    the training color codec, without poses)."""
     root = tmp_path_factory.mktemp("recs")
     seq = pcdcodec.load_sample()
     frames = list(seq)
@@ -31,7 +31,7 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> Path:
     ) as w:
         for f in frames:
             w.write(f.color, f.depth, f.timestamp_ns, pose=f.pose)
-    color = pcdcodec.get_codec("h264", gop=4)
+    color = pt.TRAINING_COLOR
     with pcdcodec.open(
         root / "b.pcdc", "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale, color=color
     ) as w:

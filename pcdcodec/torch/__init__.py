@@ -2,7 +2,8 @@
 
 :class:`RecordingDataset` reads any frame at random, :class:`IterableRecordingDataset` reads
 them in order; both are safe in a ``DataLoader`` with worker processes (``docs/learning.md``).
-:data:`FIELDS` lists what an item can hold.
+:data:`FIELDS` lists what an item can hold; :data:`TRAINING_COLOR` is the color codec to record
+training data with.
 """
 
 from __future__ import annotations
@@ -17,12 +18,13 @@ except ImportError:
     ) from None
 
 from .catalog import find_recordings
-from .dataset import IterableRecordingDataset, RecordingDataset
+from .dataset import TRAINING_COLOR, IterableRecordingDataset, RecordingDataset
 from .items import DEFAULT_FIELDS, FIELDS
 
 __all__ = [
     "DEFAULT_FIELDS",
     "FIELDS",
+    "TRAINING_COLOR",
     "IterableRecordingDataset",
     "RecordingDataset",
     "find_recordings",
