@@ -12,7 +12,9 @@ at its recorded time (timeline ``time``) and by number (timeline ``frame``):
 * ``world/trajectory``: the camera positions as a line, where poses exist.
 
 :func:`view_open3d` plays the point clouds in Open3D's own window, for machines with a display
-and without Rerun. rerun and open3d are imported only here, when called.
+and without Rerun. :class:`LiveView` streams frames to a Rerun viewer as they are recorded
+(``pcdcodec record --view``), one entity tree per camera (``world/<name>/...``). rerun and open3d
+are imported only here, when called.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ import numpy as np
 from ._atomic import partial_path
 from .errors import InputError, PcdcodecError
 
-__all__ = ["view", "view_open3d"]
+__all__ = ["LiveView", "view", "view_open3d"]
 
 _INSTALL = 'pip install "pcdcodec[view]"'
 
@@ -195,3 +197,75 @@ def view_open3d(
                 time.sleep(delay)
         finally:
             vis.destroy_window()
+
+
+class LiveView:
+    """Frames streamed to a Rerun viewer while they are recorded, at most ``max_fps`` a camera.
+
+    ``cameras`` is one ``(name, projector)`` per camera (a
+    :class:`~pcdcodec.geometry.projector.Projector` with the camera's intrinsics, depth scale and
+    color camera). :meth:`log` shows the color image, the depth image and every ``stride``-th
+    point of the cloud under ``world/<name>``; frames coming faster than ``max_fps`` are
+    skipped, so the viewer never slows the recording much. ``spawn=False`` with ``save`` writes
+    a ``.rrd`` file instead of opening a window. Raises :class:`~pcdcodec.PcdcodecError`
+    naming ``pip install "pcdcodec[view]"`` when rerun-sdk is not installed.
+    """
+
+    def __init__(
+        self,
+        cameras: list[tuple[str, Any]],
+        *,
+        max_fps: float = 5.0,
+        stride: int = 4,
+        save: str | os.PathLike[str] | None = None,
+    ) -> None:
+        import time
+
+        rr = _rerun()
+        self._rr, self._time = rr, time.monotonic
+        self.cameras, self.stride, self.period = cameras, stride, 1.0 / max_fps
+        self._last = [float("-inf")] * len(cameras)
+        self.stream = rr.RecordingStream("pcdcodec-record")
+        if save is not None:
+            self.stream.save(str(save))
+        else:
+            self.stream.spawn()
+        self.stream.log("world", rr.ViewCoordinates.RDF, static=True)
+        for name, projector in cameras:
+            cam = projector.intrinsics
+            self.stream.log(
+                f"world/{name}",
+                rr.Pinhole(
+                    image_from_camera=cam.K,
+                    resolution=[cam.width, cam.height],
+                    camera_xyz=rr.ViewCoordinates.RDF,
+                    image_plane_distance=0.3,
+                ),
+                static=True,
+            )
+
+    def log(self, index: int, frame: Any) -> bool:
+        """Show ``frame`` of camera ``index``, unless one was shown less than a period ago."""
+        now = self._time()
+        if now - self._last[index] < self.period:
+            return False
+        self._last[index] = now
+        rr, stream = self._rr, self.stream
+        name, projector = self.cameras[index]
+        stream.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
+        if frame.color is not None:
+            stream.log(f"world/{name}/color", rr.Image(frame.color).compress(jpeg_quality=80))
+        meter = 1.0 if frame.depth.dtype == np.float32 else projector.depth_scale
+        stream.log(f"world/{name}/depth", rr.DepthImage(frame.depth, meter=meter))
+        points, colors = projector.to_points(frame.depth, frame.color)
+        step = self.stride * self.stride
+        stream.log(
+            f"world/{name}/points",
+            rr.Points3D(points[::step], colors=None if colors is None else colors[::step]),
+        )
+        return True
+
+    def close(self) -> None:
+        """Send what is left and let the viewer go."""
+        self.stream.flush()
+        self.stream.disconnect()

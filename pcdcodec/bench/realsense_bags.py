@@ -77,8 +77,9 @@ def write_realsense_bag(
 
     path = Path(path)
     if len(depths) != len(colors) or not depths:
-        raise InputError(f"need as many depth as color frames, at least one: {len(depths)}, "
-                         f"{len(colors)}")
+        raise InputError(
+            f"need as many depth as color frames, at least one: {len(depths)}, {len(colors)}"
+        )
     numbers = list(range(len(depths))) if frame_numbers is None else list(frame_numbers)
     if len(numbers) != len(depths):
         raise InputError(f"{len(numbers)} frame numbers for {len(depths)} frames")
@@ -88,9 +89,7 @@ def write_realsense_bag(
     period = round(_NS / fps)
     with Reader(Path(template)) as reader:
         template_msgs = [
-            (c, t, bytes(raw))
-            for c, t, raw in reader.messages()
-            if "/image/" not in c.topic
+            (c, t, bytes(raw)) for c, t, raw in reader.messages() if "/image/" not in c.topic
         ]
         conns = {c.topic: c for c in reader.connections}
     depth_prefix = next(t for t in conns if t.endswith("/Depth_0/image/data"))[: -len("/data")]
@@ -111,21 +110,22 @@ def write_realsense_bag(
             if c.msgtype == "realsense_msgs/msg/StreamInfo":  # uint32 fps first
                 data = struct.pack("<I", round(fps)) + raw[4:]
             elif c.topic.endswith("/info") and c.msgtype == "diagnostic_msgs/msg/KeyValue":
-                msg = ts.deserialize_ros1(raw, c.msgtype)
+                msg: Any = ts.deserialize_ros1(raw, c.msgtype)
                 value = {"Serial Number": serial, "Name": name}.get(str(msg.key))
                 if value is not None and c.topic.count("/") == 2:  # /device_0/info
                     data = bytes(ts.serialize_ros1(KeyValue(key=msg.key, value=value), c.msgtype))
             elif c.topic.endswith("/camera_info") and intrinsics is not None:
-                msg = ts.deserialize_ros1(raw, c.msgtype)
+                info: Any = ts.deserialize_ros1(raw, c.msgtype)
                 k = intrinsics
-                msg.width, msg.height = k.width, k.height
-                msg.K = np.array([k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1], dtype=np.float64)
-                msg.P = np.array(
+                info.width, info.height = k.width, k.height
+                row = [k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1]
+                info.K = np.array(row, dtype=np.float64)
+                info.P = np.array(
                     [k.fx, 0, k.cx, 0, 0, k.fy, k.cy, 0, 0, 0, 1, 0], dtype=np.float64
                 )
-                data = bytes(ts.serialize_ros1(msg, c.msgtype))
+                data = bytes(ts.serialize_ros1(info, c.msgtype))
             writer.write(conn(c.topic), t, data)
-        for i, (depth, color) in enumerate(zip(depths, colors)):
+        for i, (depth, color) in enumerate(zip(depths, colors, strict=True)):
             stamp = start_ns + i * period
             log_time = 1_000 + i * period  # librealsense paces playback by the log time
             number = numbers[i]
@@ -135,7 +135,9 @@ def write_realsense_bag(
             ):
                 msg = _image_msg(types, number, stamp, image, encoding)
                 topic = f"{prefix}/data"
-                writer.write(conn(topic), log_time, bytes(ts.serialize_ros1(msg, "sensor_msgs/msg/Image")))
+                writer.write(
+                    conn(topic), log_time, bytes(ts.serialize_ros1(msg, "sensor_msgs/msg/Image"))
+                )
                 meta = conn(f"{prefix}/metadata")
                 for key, value in (
                     ("system_time", f"{stamp / 1e6:.6f}"),

@@ -20,6 +20,7 @@ written to librealsense's documented API but are tested through playback only.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Iterator
@@ -183,9 +184,17 @@ class RealSenseLiveSource(Source):
                 )
         self._pipeline = rs.pipeline()
         self._running = False
+        self._first: Any = None
         self._start()
         try:
             self._describe(global_time, sync, (width, height, fps))
+            # The first frames say which clock stamps them, before anything is written.
+            self._first = self._wait()
+            if self._first is not None:
+                self._first.keep()
+                depth = self._first.get_depth_frame()
+                if depth:
+                    self._domain(depth)
         except BaseException:
             self.close()
             raise
@@ -203,9 +212,7 @@ class RealSenseLiveSource(Source):
             device = self._profile.get_device().as_playback()
             device.set_real_time(bool(self.real_time))
 
-    def _describe(
-        self, global_time: bool | None, sync: str | None, asked: tuple[Any, ...]
-    ) -> None:
+    def _describe(self, global_time: bool | None, sync: str | None, asked: tuple[Any, ...]) -> None:
         rs = self._rs
         profile = self._profile
         device = profile.get_device()
@@ -214,7 +221,7 @@ class RealSenseLiveSource(Source):
         if self.playback and any(v is not None for v in asked):
             k = depth.as_video_stream_profile()
             got = (k.width(), k.height(), k.fps())
-            if any(a is not None and a != g for a, g in zip(asked, got)):
+            if any(a is not None and a != g for a, g in zip(asked, got, strict=True)):
                 raise InputError(
                     f"{str(self.path)!r} holds depth at {got[0]}x{got[1]} {got[2]} fps; "
                     f"asked for {asked}"
@@ -286,7 +293,7 @@ class RealSenseLiveSource(Source):
         return None
 
     def _stamp(self, frame: Any) -> int:
-        return round(frame.get_timestamp() * _NS_PER_MS)
+        return round(float(frame.get_timestamp()) * _NS_PER_MS)
 
     def _framesets(self) -> Iterator[Any]:
         """Every frameset, through the loops of a looped playback; the time offset of each
@@ -294,7 +301,8 @@ class RealSenseLiveSource(Source):
         self._offset = 0
         first: int | None = None  # the first depth stamp of the file, as the device gives it
         while True:
-            frames = self._wait()
+            frames = self._first if self._first is not None else self._wait()
+            self._first = None
             if frames is None:
                 last = self._depth.last
                 if not self.loop or self._stop.is_set() or last is None or first is None:
@@ -415,10 +423,8 @@ class RealSenseLiveSource(Source):
         self._stop.set()
         if self._running:
             self._running = False
-            try:
+            with contextlib.suppress(RuntimeError):  # already stopped
                 self._pipeline.stop()
-            except RuntimeError:
-                pass  # already stopped
 
 
 def realsense_live(
