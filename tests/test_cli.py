@@ -446,6 +446,10 @@ def test_options_go_anywhere_among_a_commands_arguments() -> None:
             {"input": "x.pcdc", "every": 2, "max_frames": 5, "threads": 3},
         ),
         "codecs": (["--kind", "depth"], {"kind": "depth"}),
+        "record": (
+            ["--serial", "1", "-o", "x.pcdc", "--serial", "2", "--fps", "30"],
+            {"serial": ["1", "2"], "output": "x.pcdc", "fps": 30},
+        ),
     }
     assert sorted(intermixed) == sorted(commands)
     for name, (words, want) in intermixed.items():
