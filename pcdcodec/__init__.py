@@ -52,7 +52,7 @@ from .sources import Source, open_source
 if TYPE_CHECKING:
     from .bench.evaluation import Evaluation, evaluate
     from .convert.rosbag import export_bag
-    from .recording import Recording, RecordingWriter
+    from .recording import CameraSpec, FrameSet, Recording, RecordingWriter, RigRecording, RigWriter
 
 #: Public names whose modules load on first use, so that ``import pcdcodec`` stays light.
 _LAZY = {
@@ -61,6 +61,10 @@ _LAZY = {
     "export_bag": "pcdcodec.convert.rosbag",
     "Recording": "pcdcodec.recording.reader",
     "RecordingWriter": "pcdcodec.recording.writer",
+    "CameraSpec": "pcdcodec.recording.rig",
+    "RigWriter": "pcdcodec.recording.rig",
+    "RigRecording": "pcdcodec.recording.rig_reader",
+    "FrameSet": "pcdcodec.recording.framesets",
 }
 
 #: Module paths of earlier releases, and where their contents live now. Importing an old path
@@ -133,6 +137,7 @@ __all__ = [
     "KINDS",
     "ArchiveLockedError",
     "CameraIntrinsics",
+    "CameraSpec",
     "Codec",
     "CodecUnavailableError",
     "ColorCodec",
@@ -142,6 +147,7 @@ __all__ = [
     "Evaluation",
     "Frame",
     "FrameCodec",
+    "FrameSet",
     "InputError",
     "InputTypeError",
     "PcdcodecError",
@@ -151,6 +157,8 @@ __all__ = [
     "Recording",
     "RecordingWriter",
     "Reprojection",
+    "RigRecording",
+    "RigWriter",
     "Source",
     "UnknownCodecError",
     "VerificationError",

@@ -18,12 +18,18 @@ from .recover import recover
 
 if TYPE_CHECKING:
     from .reader import Recording
+    from .rig import CameraSpec, RigWriter
+    from .rig_reader import FrameSet, RigRecording
     from .verify import VerifyReport
     from .writer import RecordingWriter
 
 #: Names whose modules load on first use, so that ``import pcdcodec`` stays light (the
 #: reader and the writer bring their codecs' machinery).
 _LAZY = {
+    "CameraSpec": "pcdcodec.recording.rig",
+    "FrameSet": "pcdcodec.recording.rig_reader",
+    "RigRecording": "pcdcodec.recording.rig_reader",
+    "RigWriter": "pcdcodec.recording.rig",
     "Recording": "pcdcodec.recording.reader",
     "RecordingWriter": "pcdcodec.recording.writer",
     "VerifyReport": "pcdcodec.recording.verify",
@@ -52,10 +58,14 @@ def __getattr__(name: str) -> Any:
 
 __all__ = [
     "FORMAT_VERSION",
+    "CameraSpec",
     "EncodeSummary",
     "Frame",
+    "FrameSet",
     "Recording",
     "RecordingWriter",
+    "RigRecording",
+    "RigWriter",
     "VerifyReport",
     "encode",
     "open",
@@ -82,6 +92,17 @@ def open(
     in_flight: int = ...,
     frame_id: str = ...,
 ) -> RecordingWriter: ...
+@overload
+def open(
+    path: str | os.PathLike[str],
+    mode: Literal["w"],
+    *,
+    cameras: list[CameraSpec],
+    metadata: dict[str, Any] | None = ...,
+    overwrite: bool = ...,
+    in_flight: int = ...,
+    rig_frame_id: str = ...,
+) -> RigWriter: ...
 
 
 def open(path: str | os.PathLike[str], mode: str = "r", **options: Any) -> Any:
@@ -109,14 +130,23 @@ def open(path: str | os.PathLike[str], mode: str = "r", **options: Any) -> Any:
     decode the next ``6 × threads`` frames on worker threads while the caller uses the current
     one: the same frames in the same order, checked as ever (see :class:`Recording`).
     """
-    from .reader import Recording
+    from .reader import Recording, SeveralCamerasError
     from .writer import RecordingWriter
 
     if mode == "r":
         unknown = sorted(set(options) - {"threads"})
         if unknown:
             raise InputError(f"reading takes only the option threads, got {unknown}")
-        return Recording(path, **options)
+        try:
+            return Recording(path, **options)
+        except SeveralCamerasError as rig:
+            from .rig_reader import RigRecording
+
+            return RigRecording(path, index=rig.index, **options)
     if mode == "w":
+        if "cameras" in options:
+            from .rig import RigWriter
+
+            return RigWriter(path, **options)
         return RecordingWriter(path, **options)
     raise InputError(f"mode must be 'r' or 'w', got {mode!r}")

@@ -7,6 +7,7 @@ image and checks nothing the writer checked: it runs on the writer's one writing
 
 from __future__ import annotations
 
+import threading
 from collections import deque
 from collections.abc import Callable
 from pathlib import Path
@@ -30,6 +31,18 @@ from . import _header as header
 from . import _index as fmt
 
 
+class SharedFile:
+    """The file the cameras of a rig write into together (format version 3): its MCAP writer,
+    the lock each camera holds while writing, and the first failure, which stops them all."""
+
+    def __init__(self, file: IO[bytes], writing: Path) -> None:
+        self.file = file
+        self.writing = writing
+        self.mcap: Any = None
+        self.lock = threading.Lock()
+        self.failures: list[BaseException] = []
+
+
 class Container:
     """Writes a recording's records and messages into an open file, in order.
 
@@ -46,6 +59,8 @@ class Container:
         *,
         video_format: str | None,
         world_frame_id: str,
+        camera: str | None = None,
+        shared: SharedFile | None = None,
     ) -> None:
         self.file = file
         self.writing = writing
@@ -55,8 +70,15 @@ class Container:
         self.video_format = video_format
         #: The frame the poses are given in (their ``FrameTransform`` parent).
         self.world_frame_id = world_frame_id
+        #: The camera's name in a file of several (its topics are ``/<camera>/...`` and its
+        #: seal its own), or ``None`` for a one-camera file.
+        self.camera = camera
+        #: The file this camera shares with others, or ``None`` when it has the file alone.
+        self.shared = shared
+        #: Held while writing: the cameras of one file share its MCAP writer.
+        self.lock = shared.lock if shared is not None else threading.Lock()
+        self._failures: list[BaseException] = shared.failures if shared is not None else []
         self.mcap: Any = None
-        self.broken: BaseException | None = None
         self.channels: dict[str, int] = {}
         self.sequence = 0
         self.sealer = fmt.Sealer()
@@ -70,6 +92,15 @@ class Container:
         self.bytes_color = 0
         self.bytes_depth = 0
         self.poses_written = 0
+
+    @property
+    def broken(self) -> BaseException | None:
+        """The error that stopped writing to the file (by any camera of it), or ``None``."""
+        return self._failures[0] if self._failures else None
+
+    def topic(self, topic: str) -> str:
+        """Where this camera writes what a one-camera file writes on ``topic``."""
+        return topic if self.camera is None else fmt.camera_topic(topic, self.camera)
 
     def start(self, user: dict[str, str]) -> None:
         """Write the file's header and metadata records."""
@@ -90,36 +121,42 @@ class Container:
             meta = header.color_channel(cw, ch, s.color_codec, extradata, video_format)
             if video_format:
                 sid = mcap.register_schema(COMPRESSED_VIDEO, "ros2msg", COMPRESSED_VIDEO_SCHEMA)
-                self.channels["color"] = mcap.register_channel(fmt.TOPIC_COLOR, "cdr", sid, meta)
+                self.channels["color"] = mcap.register_channel(
+                    self.topic(fmt.TOPIC_COLOR), "cdr", sid, meta
+                )
             else:
                 self.channels["color"] = mcap.register_channel(
-                    fmt.TOPIC_COLOR, fmt.ENCODING_COLOR, 0, meta
+                    self.topic(fmt.TOPIC_COLOR), fmt.ENCODING_COLOR, 0, meta
                 )
             self.channels["key"] = mcap.register_channel(
-                fmt.TOPIC_KEYFRAMES, fmt.ENCODING_KEYFRAME, 0, {}
+                self.topic(fmt.TOPIC_KEYFRAMES), fmt.ENCODING_KEYFRAME, 0, {}
             )
         self.channels["depth"] = mcap.register_channel(
-            fmt.TOPIC_DEPTH,
+            self.topic(fmt.TOPIC_DEPTH),
             fmt.ENCODING_DEPTH,
             0,
             header.depth_channel(width, height, s.depth_codec, s.depth_scale),
         )
         self.channels["digest"] = mcap.register_channel(
-            fmt.TOPIC_FRAME_DIGEST, fmt.ENCODING_FRAME_DIGEST, 0, {}
+            self.topic(fmt.TOPIC_FRAME_DIGEST), fmt.ENCODING_FRAME_DIGEST, 0, {}
         )
         sid = mcap.register_schema(CAMERA_CALIBRATION, "ros2msg", CAMERA_CALIBRATION_SCHEMA)
-        cal = self.channels["cal"] = mcap.register_channel(fmt.TOPIC_CALIBRATION, "cdr", sid, {})
+        cal = self.channels["cal"] = mcap.register_channel(
+            self.topic(fmt.TOPIC_CALIBRATION), "cdr", sid, {}
+        )
         mcap.add_message(
             cal, timestamp, header.calibration(s.intrinsics, s.frame_id, timestamp), timestamp
         )
         self.sealer.note(fmt.TOPIC_CALIBRATION, timestamp)
         if s.color_intrinsics is not None and s.depth_to_color is not None:
             color_frame = f"{s.frame_id}_color"
-            ccal = mcap.register_channel(fmt.TOPIC_COLOR_CALIBRATION, "cdr", sid, {})
+            ccal = mcap.register_channel(self.topic(fmt.TOPIC_COLOR_CALIBRATION), "cdr", sid, {})
             message = header.calibration(s.color_intrinsics, color_frame, timestamp)
             mcap.add_message(ccal, timestamp, message, timestamp)
             self.sealer.note(fmt.TOPIC_COLOR_CALIBRATION, timestamp)
-            ext = mcap.register_channel(fmt.TOPIC_EXTRINSICS, "cdr", self._transform_schema(), {})
+            ext = mcap.register_channel(
+                self.topic(fmt.TOPIC_EXTRINSICS), "cdr", self._transform_schema(), {}
+            )
             pose = header.extrinsics(s.depth_to_color)
             message = header.transform(pose, timestamp, s.frame_id, color_frame)
             mcap.add_message(ext, timestamp, message, timestamp)
@@ -140,9 +177,10 @@ class Container:
                 f"({self.broken!r})"
             )
         try:
-            step()
+            with self.lock:
+                step()
         except BaseException as exc:
-            self.broken = exc
+            self._failures.append(exc)
             raise
 
     # -- frames ----------------------------------------------------------------------------
@@ -201,10 +239,10 @@ class Container:
         if pose is not None:
             if "pose" not in self.channels:
                 self.channels["pose"] = self.mcap.register_channel(
-                    fmt.TOPIC_POSE, "cdr", self._transform_schema(), {}
+                    self.topic(fmt.TOPIC_POSE), "cdr", self._transform_schema(), {}
                 )
                 self.channels["pose_matrix"] = self.mcap.register_channel(
-                    fmt.TOPIC_POSE_MATRIX, fmt.ENCODING_POSE_MATRIX, 0, {}
+                    self.topic(fmt.TOPIC_POSE_MATRIX), fmt.ENCODING_POSE_MATRIX, 0, {}
                 )
             msg = header.transform(pose, timestamp, self.world_frame_id, s.frame_id)
             self.mcap.add_message(self.channels["pose"], timestamp, msg, timestamp)
@@ -240,7 +278,8 @@ class Container:
     def seal(self) -> None:
         """Write the seal: what the file holds, and the digest of the packets after the last
         frame's digest (the encoder's flush)."""
-        self.mcap.add_metadata(fmt.SEAL_NAME, fmt.seal(fmt.SEAL_NAME, self.sealer.seal()))
+        name = fmt.SEAL_NAME if self.camera is None else fmt.camera_seal(self.camera)
+        self.mcap.add_metadata(name, fmt.seal(name, self.sealer.seal()))
         self.color_written.update(self.group_pts)
         self.group_pts.clear()
         self._count_complete()

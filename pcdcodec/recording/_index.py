@@ -10,8 +10,10 @@ the seal vouch for the messages (:class:`Sealer`). :func:`load` finds a file's m
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
+import re
 import struct
 from typing import IO
 
@@ -87,6 +89,102 @@ SEALED_TOPICS = (
     TOPIC_POSE,
     TOPIC_POSE_MATRIX,
 )
+
+
+# -- several cameras in one file (format version 3) -------------------------------------------
+
+#: The format version of recordings with several cameras: each camera's messages and records
+#: are those of a one-camera file, under the camera's own namespace and record names.
+RIG_VERSION = 3
+#: In the ``pcdcodec`` record of a version 3 file: JSON list of the camera names, in order.
+CAMERAS_KEY = "cameras"
+#: In the ``pcdcodec`` record of a version 3 file: the frame the cameras' poses are given in.
+RIG_FRAME_KEY = "rig_frame_id"
+#: In a camera's record: JSON 4 x 4 rigid transform from its depth camera frame to the rig frame.
+RIG_POSE_KEY = "rig_pose"
+#: A one-camera file's topics all start with this; a camera of a rig uses ``/<name>`` instead.
+ONE_CAMERA_NAMESPACE = "/camera"
+#: Camera names: what ROS takes as a namespace, and what a folder or record name can hold.
+CAMERA_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}")
+#: A one-camera file's own topics beside the sealed ones (none today).
+_LANE_TOPICS = SEALED_TOPICS
+
+
+def camera_record(name: str) -> str:
+    """The metadata record of camera ``name`` of a rig."""
+    return f"{METADATA_NAME}.camera.{name}"
+
+
+def camera_seal(name: str) -> str:
+    """The seal record of camera ``name`` of a rig."""
+    return f"{SEAL_NAME}.{name}"
+
+
+def camera_topic(topic: str, name: str) -> str:
+    """Where camera ``name`` of a rig keeps what a one-camera file keeps on ``topic``."""
+    return "/" + name + topic[len(ONE_CAMERA_NAMESPACE) :]
+
+
+def rig_cameras(index: FileIndex, what: str) -> list[str] | None:
+    """The camera names of a version 3 file, checked; ``None`` for a one-camera file."""
+    main = index.metadata.get(METADATA_NAME)
+    if main is None or CAMERAS_KEY not in main:
+        return None
+    try:
+        names = json.loads(main[CAMERAS_KEY])
+    except ValueError:
+        names = None
+    if (
+        not isinstance(names, list)
+        or not names
+        or not all(isinstance(n, str) and CAMERA_NAME.fullmatch(n) for n in names)
+        or len(set(names)) != len(names)
+    ):
+        raise DecodeError(
+            f"{what}: {CAMERAS_KEY!r} is {main[CAMERAS_KEY]!r}, expected a JSON list of distinct "
+            "camera names"
+        )
+    return names
+
+
+def camera_view(index: FileIndex, name: str) -> FileIndex:
+    """Camera ``name`` of a rig's file seen as a one-camera file: its channels under the
+    one-camera topics, its record as the ``pcdcodec`` record and its seal as the seal.
+
+    The records are sealed again under their one-camera names: call this only on an index whose
+    digests were checked (:func:`check_metadata` on the whole file).
+    """
+    topics = {camera_topic(t, name): t for t in _LANE_TOPICS}
+    channels = {
+        cid: dataclasses.replace(info, topic=topics[info.topic])
+        for cid, info in index.channels.items()
+        if info.topic in topics
+    }
+    renamed = {camera_record(name): METADATA_NAME, camera_seal(name): SEAL_NAME}
+    if USER_METADATA_NAME in index.metadata:
+        renamed[USER_METADATA_NAME] = USER_METADATA_NAME
+    metadata: dict[str, dict[str, str]] = {}
+    offsets: dict[str, int] = {}
+    for real, seen in renamed.items():
+        if real in index.metadata:
+            data = dict(index.metadata[real])
+            if seen == METADATA_NAME:
+                data[RECORDS_KEY] = json.dumps(
+                    [USER_METADATA_NAME] if USER_METADATA_NAME in renamed else []
+                )
+            metadata[seen] = seal(seen, data) if DIGEST_KEY in data else data
+            if real in index.metadata_offsets:
+                offsets[seen] = index.metadata_offsets[real]
+    return dataclasses.replace(
+        index,
+        channels=channels,
+        channel_schema={c: s for c, s in index.channel_schema.items() if c in channels},
+        metadata=metadata,
+        metadata_offsets=offsets,
+        times={topics[t]: v for t, v in index.times.items() if t in topics},
+        offsets={topics[t]: v for t, v in index.offsets.items() if t in topics},
+        damaged_chunks=list(index.damaged_chunks),
+    )
 
 
 def load(f: IO[bytes]) -> FileIndex:
@@ -293,6 +391,13 @@ def seal_problems(index: FileIndex, what: str) -> list[str]:
     """
     if not integrity_version(index, what):
         return []
+    names = rig_cameras(index, what)
+    if names is not None:
+        return [
+            f"camera {name!r}: {problem}"
+            for name in names
+            for problem in seal_problems(camera_view(index, name), what)
+        ]
     seal_ = index.metadata.get(SEAL_NAME)
     if seal_ is None:
         if index.indexed or index.data_crc is not None:

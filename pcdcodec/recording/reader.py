@@ -30,7 +30,8 @@ from ._readahead import (
     codec_with_threads,
     with_threads,
 )
-from .verify import VerifyReport, index_problems, structure_problems
+from .framesets import OneCamera
+from .verify import VerifyReport, verify_recording
 
 __all__ = ["Frame", "Recording", "VerifyReport"]
 
@@ -40,7 +41,20 @@ __all__ = ["Frame", "Recording", "VerifyReport"]
 READ_AHEAD = 6
 
 
-class Recording(PacketAccess):
+class SeveralCamerasError(InputError):
+    """A recording of several cameras was opened as a one-camera :class:`Recording`."""
+
+    def __init__(self, name: str, cameras: list[str], index: fmt.FileIndex) -> None:
+        super().__init__(
+            f"{name!r} holds {len(cameras)} cameras ({', '.join(cameras)}): open it with "
+            "pcdcodec.open(), which gives a RigRecording, and pick a camera with "
+            "rec.frames(camera=...)"
+        )
+        #: the file's index, checked up to its records' digests
+        self.index = index
+
+
+class Recording(PacketAccess, OneCamera):
     """A ``.pcdc`` recording opened for reading. Use :func:`pcdcodec.open`.
 
     ``len(rec)``, ``rec[i]``, ``rec[a:b]`` (a list), iteration, ``rec.nearest(t)`` and
@@ -89,15 +103,22 @@ class Recording(PacketAccess):
             self._file.close()
             raise
 
-    def _load(self) -> None:
-        name = str(self.path)
+    #: The camera of a rig's file this reads (``None``: a one-camera file).
+    camera: str | None = None
+
+    def _read_index(self, name: str) -> fmt.FileIndex:
+        """The index of the file, as a one-camera file's."""
         header.check_magic(self._file, name)
         try:
-            index = fmt.load(self._file)
+            return fmt.load(self._file)
         except DecodeError as exc:
             raise DecodeError(f"{name!r}: {exc}") from exc
         except Exception as exc:  # whatever a damaged file makes the MCAP records raise
             raise DecodeError(f"{name!r} could not be read ({type(exc).__name__}: {exc})") from exc
+
+    def _load(self) -> None:
+        name = str(self.path)
+        index = self._read_index(name)
         self.index = index
         if index.damaged_at is not None:
             summary = f"; its summary is unusable: {index.summary_problem}" * bool(
@@ -120,6 +141,9 @@ class Recording(PacketAccess):
                 f"(profile {index.profile!r}, no {fmt.METADATA_NAME!r} metadata)"
             )
         fmt.check_metadata(index, repr(name))
+        cameras = fmt.rig_cameras(index, repr(name))
+        if cameras is not None:
+            raise SeveralCamerasError(name, cameras, index)
         #: 1 for files with frame digests and a seal (``docs/format.md``), 0 for earlier ones.
         self.integrity = fmt.integrity_version(index, repr(name))
         problems = fmt.seal_problems(index, repr(name))
@@ -137,6 +161,8 @@ class Recording(PacketAccess):
         )
         settings = header.Settings.parse(meta, name, where)
         self.format_version = settings.format_version
+        #: The camera's frame name (also its name in :attr:`cameras`).
+        self.frame_id = settings.frame_id
         #: The color camera when it is apart from the depth camera (format version 2), else None.
         self.color_intrinsics: CameraIntrinsics | None = settings.color_intrinsics
         #: The rigid 4 × 4 transform from the depth to the color camera frame, or None.
@@ -554,38 +580,7 @@ class Recording(PacketAccess):
         with frame digests and a seal, what the scan finds is compared with the seal too, and
         every group of color packets with its digest (``docs/format.md``).
         """
-        errors: list[str] = []
-        index = self.index
-        errors.extend(index_problems(index))
-        with self._lock:
-            errors.extend(
-                structure_problems(
-                    self._file,
-                    index,
-                    integrity=self.integrity,
-                    has_color=self.color_codec is not None,
-                    intrinsics=self.intrinsics,
-                )
-            )
-        if self.integrity and self.color_codec is not None:
-            # Every group, also those no frame's color comes from (the end of the stream).
-            groups = len(self._digest_offsets) + (self._seal is not None)
-            with self._lock:
-                for g in range(groups):
-                    try:
-                        problem = self._group_problem(g)
-                    except PcdcodecError as exc:
-                        problem = str(exc)
-                    if problem:
-                        errors.append(problem)
-        for i in range(len(self)):
-            try:
-                self.frame(i)
-            except PcdcodecError as exc:
-                errors.append(str(exc))
-                with self._lock:
-                    self._stream.reset()
-        return VerifyReport(len(self), errors, index.indexed, index.truncated_at)
+        return verify_recording(self)
 
     def close(self) -> None:
         """Stop the threads reading ahead (if any), then close the file."""

@@ -8,7 +8,7 @@ the index the frames are read through (``docs/format.md``).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import IO
+from typing import IO, Any
 
 import numpy as np
 
@@ -54,12 +54,18 @@ def structure_problems(
     integrity: int,
     has_color: bool,
     intrinsics: CameraIntrinsics,
+    camera: str | None = None,
 ) -> list[str]:
     """Problems found by reading every record of ``f``, compared with the ``index`` the frames
     use (of a file written with ``integrity`` records, with color or not, of a camera with
-    ``intrinsics``). The caller holds whatever lock guards ``f``."""
+    ``intrinsics``; ``camera``: of that camera of a rig, whose ``index`` is its
+    :func:`~pcdcodec.recording._index.camera_view`). The caller holds whatever lock guards
+    ``f``."""
     try:
         scanned = fmt.scan(f, skip_damaged_chunks=True)
+        if camera is not None:
+            fmt.check_metadata(scanned, "reading the whole file")
+            scanned = fmt.camera_view(scanned, camera)
     except PcdcodecError as exc:
         return [f"reading the whole file failed: {exc}"]
     errors: list[str] = []
@@ -129,3 +135,40 @@ def structure_problems(
             )
     errors.extend(header.calibration_problems(f, scanned, intrinsics))
     return errors
+
+
+def verify_recording(rec: Any) -> VerifyReport:
+    """:meth:`pcdcodec.Recording.verify` of ``rec``."""
+    errors: list[str] = []
+    index = rec.index
+    errors.extend(index_problems(index))
+    with rec._lock:
+        errors.extend(
+            structure_problems(
+                rec._file,
+                index,
+                integrity=rec.integrity,
+                has_color=rec.color_codec is not None,
+                intrinsics=rec.intrinsics,
+                camera=rec.camera,
+            )
+        )
+    if rec.integrity and rec.color_codec is not None:
+        # Every group, also those no frame's color comes from (the end of the stream).
+        groups = len(rec._digest_offsets) + (rec._seal is not None)
+        with rec._lock:
+            for g in range(groups):
+                try:
+                    problem = rec._group_problem(g)
+                except PcdcodecError as exc:
+                    problem = str(exc)
+                if problem:
+                    errors.append(problem)
+    for i in range(len(rec)):
+        try:
+            rec.frame(i)
+        except PcdcodecError as exc:
+            errors.append(str(exc))
+            with rec._lock:
+                rec._stream.reset()
+    return VerifyReport(len(rec), errors, index.indexed, index.truncated_at)

@@ -27,7 +27,7 @@ from ..geometry.projector import check_color_camera
 from ..geometry.transform import as_rigid
 from ..registry import as_codec
 from . import _header as header
-from ._container import Container
+from ._container import Container, SharedFile
 from ._inputs import FrameInputs
 from ._pipeline import Pipeline
 
@@ -89,6 +89,9 @@ class RecordingWriter(FrameInputs):
     the background is raised by the next :meth:`write`, :meth:`flush` or :meth:`close`.
     """
 
+    _file: IO[bytes]
+    _container: Container
+
     def __init__(
         self,
         path: str | os.PathLike[str],
@@ -105,6 +108,8 @@ class RecordingWriter(FrameInputs):
         color_intrinsics: Any = None,
         depth_to_color: Any = None,
         world_frame_id: str = "world",
+        _shared: SharedFile | None = None,
+        _camera: str | None = None,
     ) -> None:
         self.path = Path(path)
         self.intrinsics = header.writer_camera(intrinsics)
@@ -157,6 +162,36 @@ class RecordingWriter(FrameInputs):
             self.depth_to_color,
         )
 
+        video_format = self.color_codec.video_format if self.color_codec else None
+        #: Whether this writer has the file alone (else it is one camera of a rig's file).
+        self._owns_file = _shared is None
+        if _shared is not None:
+            # One camera of a rig (:class:`~pcdcodec.recording.rig.RigWriter`), which opened
+            # the file, writes its records and finishes it.
+            self._target = self._writing = _shared.writing
+            self._file = _shared.file
+            self._container = Container(
+                _shared.file,
+                _shared.writing,
+                self._settings,
+                video_format=video_format,
+                world_frame_id=world_frame_id,
+                camera=_camera,
+                shared=_shared,
+            )
+        else:
+            self._open_file(overwrite, video_format, user)
+        self._encoder: VideoEncoder | None = None
+        self._shape: tuple[int, int] | None = None
+        self._last_ts: int | None = None
+        self._pipeline = Pipeline(in_flight, lambda: self._drain_one())
+        self._sync: Any = None
+        self._poses: dict[int, npt.NDArray[np.float64]] = {}
+        self._mode: str | None = None  # "frames" (write) or "encoded" (write_encoded)
+        self._closed = False
+
+    def _open_file(self, overwrite: bool, video_format: str | None, user: dict[str, str]) -> None:
+        """Create the file (beside an existing one it replaces) and write its records."""
         if self.path.exists() and not overwrite:
             raise InputError(
                 f"{str(self.path)!r} already exists; pass overwrite=True to replace it"
@@ -170,13 +205,13 @@ class RecordingWriter(FrameInputs):
         self._target = self.path
         self._writing = partial_path(self.path) if self.path.exists() else self.path
         mode = "xb" if self._writing == self.path else "wb"
-        self._file: IO[bytes] = open(self._writing, mode)  # noqa: SIM115 - closed by close()
+        self._file = open(self._writing, mode)  # noqa: SIM115 - closed by close()
         self._container = Container(
             self._file,
             self._writing,
             self._settings,
-            video_format=self.color_codec.video_format if self.color_codec else None,
-            world_frame_id=world_frame_id,
+            video_format=video_format,
+            world_frame_id=self.world_frame_id,
         )
         try:
             self._start(user)
@@ -185,14 +220,6 @@ class RecordingWriter(FrameInputs):
             self._file.close()
             self._writing.unlink(missing_ok=True)
             raise
-        self._encoder: VideoEncoder | None = None
-        self._shape: tuple[int, int] | None = None
-        self._last_ts: int | None = None
-        self._pipeline = Pipeline(in_flight, lambda: self._drain_one())
-        self._sync: Any = None
-        self._poses: dict[int, npt.NDArray[np.float64]] = {}
-        self._mode: str | None = None  # "frames" (write) or "encoded" (write_encoded)
-        self._closed = False
 
     def _start(self, user: dict[str, str]) -> None:
         """Write the file's header and metadata."""
@@ -257,7 +284,8 @@ class RecordingWriter(FrameInputs):
             ch, cw = self.color_shape
             self._encoder = self.color_codec.encoder(cw, ch, self.fps)
             extradata = self._encoder.extradata
-        self._container.start_streams(height, width, timestamp, extradata)
+        with self._container.lock:  # the cameras of a rig share the file
+            self._container.start_streams(height, width, timestamp, extradata)
         self._shape = (height, width)
 
     def write(
@@ -488,9 +516,10 @@ class RecordingWriter(FrameInputs):
             attempt(lambda: container.write_packets(encoder.flush()))
         if container.broken is None:
             attempt(lambda: container.to_file(container.seal))
-        if container.broken is None:
+        if container.broken is None and self._owns_file:
             attempt(lambda: container.to_file(self._mcap.finish))
-        attempt(self._file.close)
+        if self._owns_file:
+            attempt(self._file.close)
         if errors:
             add_note = getattr(errors[0], "add_note", None)  # Python 3.11+
             if self._writing != self._target and add_note is not None:
@@ -506,7 +535,8 @@ class RecordingWriter(FrameInputs):
         """Stop without finishing: what was written stays readable, as after a crash."""
         self._closed = True
         self._pipeline.abort()
-        self._file.close()
+        if self._owns_file:
+            self._file.close()
 
     def __enter__(self) -> RecordingWriter:
         return self

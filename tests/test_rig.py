@@ -1,0 +1,417 @@
+"""Recordings of several cameras (format version 3): writing, reading, matching and fusing."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import pcdcodec
+from pcdcodec import CameraIntrinsics, DecodeError, InputError, Projector
+from pcdcodec.bench.sequences import SEQUENCES
+from pcdcodec.recording import CameraSpec, RigRecording, RigWriter
+from pcdcodec.recording.reader import Recording, SeveralCamerasError
+from pcdcodec.recording.rig_reader import match_times
+
+from .conftest import load_colors, load_depths
+
+_MS = 1_000_000
+
+
+def _rot(axis: int, degrees: float) -> np.ndarray[Any, Any]:
+    a = np.deg2rad(degrees)
+    c, s = np.cos(a), np.sin(a)
+    i, j = [k for k in range(3) if k != axis]
+    m = np.eye(4)
+    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+    return m
+
+
+@dataclass
+class Cam:
+    spec: CameraSpec
+    depths: list[np.ndarray[Any, Any]]
+    colors: list[np.ndarray[Any, Any]] | None
+    times: list[int]
+
+
+def _cameras() -> list[Cam]:
+    """Three cameras with different sizes, intrinsics, depth scales, rates and start times,
+    from the real sequences when they are present (else from the bundled sample)."""
+    tum = SEQUENCES["sample"].camera
+    head_d = load_depths("sample", 9)
+    head_c = load_colors("sample", 9)
+    pose_wrist = _rot(1, 30.0)
+    pose_wrist[:3, 3] = [0.25, -0.1, 0.05]
+    pose_side = _rot(0, -12.0) @ _rot(2, 90.0)
+    pose_side[:3, 3] = [-0.4, 0.3, 0.2]
+    if SEQUENCES["realsense_d435"].present:
+        seq = SEQUENCES["realsense_d435"]
+        wrist_d, wrist_c = load_depths(seq.name, 5), load_colors(seq.name, 5)
+        wrist_cam, wrist_scale = seq.camera, seq.depth_scale
+    else:  # a crop of the sample: other intrinsics and size, another declared scale
+        wrist_d = [d[100:340, 200:520].copy() for d in head_d[:5]]
+        wrist_c = [c[100:340, 200:520].copy() for c in head_c[:5]]
+        wrist_cam = CameraIntrinsics(320, 240, 525.0, 525.0, 119.5, 139.5)
+        wrist_scale = 1000.0
+    if SEQUENCES["7scenes_redkitchen"].present:
+        seq = SEQUENCES["7scenes_redkitchen"]
+        side_d = load_depths(seq.name, 4)
+        side_cam, side_scale = seq.camera, seq.depth_scale
+    else:
+        side_d = [d[::2, ::2].copy() for d in head_d[:4]]
+        side_cam = CameraIntrinsics(320, 240, 262.5, 262.5, 159.75, 119.75)
+        side_scale = 2500.0
+    return [
+        Cam(
+            CameraSpec("head", tum, 5000.0, fps=30.0),
+            head_d,
+            head_c,
+            [1_000 * _MS + k * 33_333_333 for k in range(len(head_d))],
+        ),
+        Cam(
+            CameraSpec(
+                "wrist", wrist_cam, wrist_scale, fps=15.0, depth="jpegxl", rig_pose=pose_wrist
+            ),
+            wrist_d,
+            wrist_c,
+            [1_013 * _MS + k * 66_666_667 for k in range(len(wrist_d))],
+        ),
+        Cam(
+            CameraSpec(
+                "side",
+                side_cam,
+                side_scale,
+                fps=10.0,
+                color=None,
+                depth="zstd",
+                rig_pose=pose_side,
+                frame_id="side_link",
+            ),
+            side_d,
+            None,
+            [960 * _MS + k * 100 * _MS for k in range(len(side_d))],
+        ),
+    ]
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Cam]]:
+    cams = _cameras()
+    path = tmp_path_factory.mktemp("rig") / "rig.pcdc"
+    # Frames of all cameras in the order they happened, as a live rig hands them in.
+    events = sorted((t, c, k) for c, cam in enumerate(cams) for k, t in enumerate(cam.times))
+    with pcdcodec.open(path, "w", cameras=[c.spec for c in cams], metadata={"site": "lab"}) as w:
+        assert isinstance(w, RigWriter)
+        for t, c, k in events:
+            cam = cams[c]
+            color = None if cam.colors is None else cam.colors[k]
+            w.write(cam.spec.name, color, cam.depths[k], t)
+    return path, cams
+
+
+def test_every_camera_reads_back_bit_exact(rig: tuple[Path, list[Cam]]) -> None:
+    path, cams = rig
+    with pcdcodec.open(path) as rec:
+        assert isinstance(rec, RigRecording)
+        assert rec.camera_names == ["head", "wrist", "side"]
+        assert rec.metadata == {"site": "lab"}
+        assert rec.format_version == 3
+        for cam in cams:
+            info = rec.cameras[cam.spec.name]
+            assert info.intrinsics == cam.spec.intrinsics
+            assert info.depth_scale == cam.spec.depth_scale
+            assert info.fps == cam.spec.fps
+            expected_pose = np.eye(4) if cam.spec.rig_pose is None else cam.spec.rig_pose
+            assert np.array_equal(info.rig_pose, expected_pose)
+            assert info.frame_id == (cam.spec.frame_id or cam.spec.name)
+            frames = rec.frames(camera=cam.spec.name)
+            assert len(frames) == len(cam.depths)
+            assert frames.timestamps.tolist() == cam.times
+            for k, frame in enumerate(frames):
+                assert frame.depth.dtype == np.uint16
+                assert np.array_equal(frame.depth, cam.depths[k])
+                if cam.colors is None:
+                    assert frame.color is None
+                else:
+                    assert frame.color is not None
+                    assert frame.color.shape == cam.colors[k].shape
+                    # h264 at its default quality: close, not exact.
+                    err = np.abs(frame.color.astype(int) - cam.colors[k].astype(int)).mean()
+                    assert err < 6.0
+        assert rec.verify().ok
+
+
+def test_random_access_per_camera(rig: tuple[Path, list[Cam]]) -> None:
+    path, cams = rig
+    with pcdcodec.open(path) as rec:
+        wrist = rec.frames("wrist")
+        for k in (3, 0, 4, 1):
+            assert np.array_equal(wrist[k].depth, cams[1].depths[k])
+
+
+def test_framesets_match_as_the_stamps_say(rig: tuple[Path, list[Cam]]) -> None:
+    path, cams = rig
+    with pcdcodec.open(path) as rec:
+        sets = rec.framesets()
+        ref = np.asarray(cams[0].times)
+        tol = round(0.5 / 30.0 * 1e9)
+        assert sets.tolerance_ns == tol
+        assert len(sets) == len(ref)
+        # Brute force: each set takes the frame nearest in time within the tolerance.
+        for c, cam in enumerate(cams[1:], start=1):
+            other = np.asarray(cam.times)
+            for k, t in enumerate(ref):
+                d = np.abs(other - t)
+                want = int(np.argmin(d)) if d.min() <= tol else -1
+                assert sets.matches[k, c] == want, (cam.spec.name, k)
+        assert sets.timestamps.tolist() == cams[0].times
+        missing = [s.missing for s in sets]
+        assert sets.incomplete == sum(1 for m in missing if m)
+        assert any("side" in m for m in missing)
+        first = sets[0]
+        assert first.timestamp_ns == cams[0].times[0]
+        for name, frame in first.frames.items():
+            if frame is not None:
+                col = rec.camera_names.index(name)
+                k = int(sets.matches[0, col])
+                assert frame.timestamp_ns == rec.frames(name).timestamps[k]
+        # A wider tolerance fills more sets; the wrist as the reference drives the sets.
+        wide = rec.framesets(tolerance=0.2)
+        assert wide.incomplete <= sets.incomplete
+        by_wrist = rec.framesets(reference="wrist")
+        assert len(by_wrist) == len(cams[1].times)
+        assert by_wrist.matches[:, 1].tolist() == list(range(len(cams[1].times)))
+
+
+def test_fused_cloud_is_each_camera_transformed(rig: tuple[Path, list[Cam]]) -> None:
+    path, cams = rig
+    with pcdcodec.open(path) as rec:
+        sets = rec.framesets(tolerance=0.1)
+        full = next(s for s in sets if s.complete)
+        points, colors, slices = full.to_points()
+        assert colors is not None
+        assert colors.shape == points.shape
+        total = 0
+        for cam in cams:
+            frame = full.frames[cam.spec.name]
+            assert frame is not None
+            projector = Projector(cam.spec.intrinsics, cam.spec.depth_scale)
+            own, own_colors = projector.to_points(frame.depth, frame.color)
+            pose = np.eye(4) if cam.spec.rig_pose is None else cam.spec.rig_pose
+            expected = own.astype(np.float64) @ pose[:3, :3].T + pose[:3, 3]
+            part = points[slices[cam.spec.name]]
+            assert part.shape == expected.shape
+            assert np.abs(part.astype(np.float64) - expected).max() <= 1e-6
+            if own_colors is None:
+                assert not colors[slices[cam.spec.name]].any()  # black
+            else:
+                assert np.array_equal(colors[slices[cam.spec.name]], own_colors)
+            total += len(expected)
+        assert len(points) == total
+        legacy = full.to_point_cloud()
+        assert np.allclose(np.asarray(legacy.points), points, atol=0)
+        assert np.allclose(np.asarray(legacy.colors) * 255.0, colors, atol=1e-9)
+        tensor = full.to_point_cloud(tensor=True)
+        assert np.array_equal(tensor.point.positions.numpy(), points)
+
+
+def test_a_one_camera_reader_refuses_a_rig_clearly(rig: tuple[Path, list[Cam]]) -> None:
+    path, _ = rig
+    with pytest.raises(SeveralCamerasError, match=r"holds 3 cameras \(head, wrist, side\)"):
+        Recording(path)
+    with pcdcodec.open(path) as rec, pytest.raises(InputError, match="pass camera="):
+        rec.frames()
+    with pcdcodec.open(path) as rec, pytest.raises(InputError, match="no camera 'tail'"):
+        rec.frames("tail")
+
+
+def test_changed_rig_pose_is_refused(rig: tuple[Path, list[Cam]], tmp_path: Path) -> None:
+    path, _ = rig
+    data = bytearray(path.read_bytes())
+    at = data.find(b"[[0.8660254037844387")  # the wrist's rotation, first entry
+    assert at > 0
+    data[at + 3] = ord("7")
+    bad = tmp_path / "bad.pcdc"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(DecodeError, match="does not match its digest"):
+        pcdcodec.open(bad)
+
+
+def test_cameras_write_in_any_order_and_a_killed_rig_keeps_its_frames(tmp_path: Path) -> None:
+    depths = load_depths("sample", 4)
+    cam = SEQUENCES["sample"].camera
+    specs = [CameraSpec("a", cam, 5000.0, color=None), CameraSpec("b", cam, 5000.0, color=None)]
+    path = tmp_path / "killed.pcdc"
+    w = RigWriter(path, specs)
+    # Each camera's times increase; across cameras any order.
+    w.write("b", None, depths[0], 50 * _MS)
+    w.write("a", None, depths[1], 10 * _MS)
+    w.write("a", None, depths[2], 20 * _MS)
+    w.write("b", None, depths[3], 60 * _MS)
+    with pytest.raises(InputError, match="does not increase"):
+        w.write("a", None, depths[0], 15 * _MS)
+    with pytest.raises(InputError, match="no camera 'c'"):
+        w.write("c", None, depths[0], 15 * _MS)
+    w.flush()
+    assert w.frames_complete == {"a": 2, "b": 2}
+    w.abort()  # as if the process died: no seals, no summary
+    with pcdcodec.open(path) as rec:
+        assert not rec.index.indexed
+        assert np.array_equal(rec.frames("a")[1].depth, depths[2])
+        assert rec.frames("b").timestamps.tolist() == [50 * _MS, 60 * _MS]
+        assert np.array_equal(rec.frames("b")[0].depth, depths[0])
+
+
+def test_bad_rigs_are_refused(tmp_path: Path) -> None:
+    cam = SEQUENCES["sample"].camera
+    path = tmp_path / "x.pcdc"
+    cases: list[tuple[Any, str]] = [
+        ([], "at least one camera"),
+        ([CameraSpec("a", cam), CameraSpec("a", cam)], "given more than once"),
+        ([CameraSpec("1cam", cam)], "is not a name"),
+        ([CameraSpec("a/b", cam)], "is not a name"),
+        ([CameraSpec("a", cam, frame_id="x"), CameraSpec("b", cam, frame_id="x")], "must all"),
+        ([CameraSpec("rig", cam)], "must all differ"),
+        ([CameraSpec("a", cam, rig_pose=np.ones((4, 4)))], "rig_pose"),
+        (CameraSpec("a", cam), "list of CameraSpec"),
+        (["a"], "expected a CameraSpec"),
+    ]
+    for cameras, message in cases:
+        with pytest.raises(InputError, match=message):
+            RigWriter(path, cameras)
+        assert not path.exists()  # nothing left behind
+
+
+def test_match_times_gives_each_frame_to_one_set() -> None:
+    ref = np.array([0, 100, 200, 300], np.int64)
+    other = np.array([40, 60, 310], np.int64)
+    # 40 is nearest to 0 (40) and 100 (60): set 0 takes it; 60 goes to set 1.
+    assert match_times(ref, other, 50).tolist() == [0, 1, -1, 2]
+    # A single frame wanted by two sets goes to the nearer one.
+    assert match_times(ref, np.array([90], np.int64), 200).tolist() == [-1, 0, -1, -1]
+    assert match_times(ref, np.zeros(0, np.int64), 50).tolist() == [-1] * 4
+
+
+def test_one_camera_recordings_are_as_before(tmp_path: Path) -> None:
+    depths = load_depths("sample", 2)
+    path = tmp_path / "one.pcdc"
+    with pcdcodec.open(path, "w", intrinsics=SEQUENCES["sample"].camera, color=None) as w:
+        for d in depths:
+            w.write(None, d)
+    with pcdcodec.open(path) as rec:
+        assert type(rec) is Recording
+        assert rec.format_version == 1
+        meta = rec.index.metadata["pcdcodec"]
+        assert "cameras" not in meta
+        assert json.loads(meta["metadata_records"]) == []
+        assert set(rec.index.times) >= {"/camera/depth", "/camera/frame_digest"}
+
+
+# -- a killed rig -------------------------------------------------------------------------------
+
+# Two cameras of the sample cut to 160x120, the second at half the rate and 5 ms later. Prints
+# "<camera> <k> <complete>" before handing in each frame (complete: that camera's frames whose
+# messages were all written by then); in "idle" mode, flushes after the last frame and prints
+# "idle", then waits to be killed.
+KILLED_RIG = """
+import sys, time, pcdcodec
+path, mode, count = sys.argv[1], sys.argv[2], int(sys.argv[3])
+seq = pcdcodec.load_sample()
+i0 = seq.intrinsics
+cam = pcdcodec.CameraIntrinsics(160, 120, i0.fx / 4, i0.fy / 4, i0.cx / 4, i0.cy / 4)
+frames = [(f.color[::4, ::4].copy(), f.depth[::4, ::4].copy()) for f in seq]
+specs = [pcdcodec.CameraSpec("a", cam, seq.depth_scale), pcdcodec.CameraSpec("b", cam, 1000.0)]
+with pcdcodec.open(path, "w", cameras=specs) as rig:
+    for k in range(count):
+        time.sleep(1 / 30)
+        color, depth = frames[k % len(frames)]
+        print("a", k, rig.frames_complete["a"], flush=True)
+        rig.write("a", color, depth, k * 33_000_000)
+        if k % 2 == 0:
+            print("b", k, rig.frames_complete["b"], flush=True)
+            rig.write("b", color, depth, k * 33_000_000 + 5_000_000)
+    rig.flush()
+    print("idle", flush=True)
+    time.sleep(60)
+"""
+
+
+def _kill_rig(
+    path: Path, mode: str, count: int, after: float
+) -> tuple[dict[str, int], dict[str, int], Any]:
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-c", KILLED_RIG, str(path), mode, str(count)],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout is not None
+    lines: list[str] = []
+    try:
+        lines.append(proc.stdout.readline())
+        assert lines[0].split()[0] == "a", lines
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:  # past the codecs' start-up
+            try:
+                with pcdcodec.open(path) as rec:
+                    if len(rec.frames("a")) >= 1:
+                        break
+            except pcdcodec.PcdcodecError:
+                pass  # not yet a readable file: its first records are still being written
+            time.sleep(0.05)
+        if mode == "idle":
+            while lines[-1].strip() not in ("idle", ""):
+                lines.append(proc.stdout.readline())
+        time.sleep(after)
+    finally:
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    lines += proc.stdout.read().splitlines()
+    proc.stdout.close()
+    handed = {"a": 0, "b": 0}
+    complete = {"a": 0, "b": 0}
+    for line in lines:
+        parts = line.split()
+        if len(parts) == 3:
+            handed[parts[0]] += 1
+            complete[parts[0]] = int(parts[2])
+    return handed, complete, pcdcodec.open(path)
+
+
+@pytest.mark.parametrize("after", [0.3, 0.7])
+def test_sigkill_of_a_recording_rig_loses_only_frames_still_in_flight(
+    tmp_path: Path, after: float
+) -> None:
+    handed, complete, rec = _kill_rig(tmp_path / "k.pcdc", "paced", 10_000, after)
+    with rec:
+        assert not rec.index.indexed
+        assert handed["a"] >= 5
+        for name in ("a", "b"):
+            readable = len(rec.frames(name))
+            # Every frame written before the last one handed in is there; at most the frame
+            # being handed in and the camera's queue (in_flight = 4) are lost. On a quiet
+            # machine the codecs keep up and that is the frame being handed in.
+            assert complete[name] <= readable <= handed[name], (name, handed, complete, readable)
+            assert handed[name] - readable <= 1 + 4
+        seq = pcdcodec.load_sample()
+        for name in ("a", "b"):
+            for k, frame in enumerate(rec.frames(name)):
+                step = 1 if name == "a" else 2
+                assert np.array_equal(frame.depth, seq[(k * step) % len(seq)].depth[::4, ::4])
+
+
+def test_sigkill_of_an_idle_rig_loses_nothing(tmp_path: Path) -> None:
+    handed, _, rec = _kill_rig(tmp_path / "k.pcdc", "idle", 7, 0.02)
+    with rec:
+        assert handed == {"a": 7, "b": 4}
+        assert {n: len(rec.frames(n)) for n in ("a", "b")} == handed
