@@ -94,7 +94,7 @@ class _Output:
     def __init__(self, args: argparse.Namespace, names: list[str], sources: list[Any]) -> None:
         import numpy as np
 
-        from .. import recording
+        from ..recording.rig import CameraSpec, RigWriter
         from ..recording.writer import RecordingWriter
 
         color = None if args.depth_only else parse_codec(args.color, "color")
@@ -117,15 +117,8 @@ class _Output:
             )
             self.rig = False
             return
-        rig_writer = getattr(recording, "RigWriter", None)
-        spec = getattr(recording, "CameraSpec", None)
-        if rig_writer is None or spec is None:
-            raise InputError(
-                f"{len(sources)} cameras need the multi-camera recording, which this pcdcodec "
-                "does not have; record one camera per file"
-            )
         specs = [
-            spec(
+            CameraSpec(
                 name=name,
                 intrinsics=s.intrinsics,
                 depth_scale=s.depth_scale,
@@ -141,7 +134,7 @@ class _Output:
         metadata = {"source": "realsense-live"}
         for name, s in zip(names, sources, strict=True):
             metadata.update({f"{name}.{k}": v for k, v in s.metadata.items()})
-        self.writer = rig_writer(self.path, specs, overwrite=args.overwrite, metadata=metadata)
+        self.writer = RigWriter(self.path, specs, overwrite=args.overwrite, metadata=metadata)
         self.rig = True
 
     def write(self, index: int, frame: Any) -> None:
@@ -151,11 +144,8 @@ class _Output:
             self.writer.write(frame.color, frame.depth, frame.timestamp_ns)
 
     def bytes_written(self) -> int:
-        """Bytes of encoded frames written so far (the file's size where not counted)."""
-        w = self.writer
-        if hasattr(w, "bytes_color") and hasattr(w, "bytes_depth"):
-            return int(w.bytes_color) + int(w.bytes_depth)
-        return file_bytes(self.path)
+        """Bytes of encoded frames written so far."""
+        return int(self.writer.bytes_color) + int(self.writer.bytes_depth)
 
     def close(self) -> None:
         self.writer.close()
