@@ -143,6 +143,19 @@ def test_looped_playback_keeps_time_increasing(bag: Path, reference: dict[int, F
         assert frame.color is None
 
 
+@pytest.mark.shared_data
+def test_encode_takes_the_live_source(
+    bag: Path, reference: dict[int, Frame], tmp_path: Path
+) -> None:
+    out = tmp_path / "enc.pcdc"
+    with pcdcodec.sources.realsense_live(playback=bag, max_frames=5) as live:
+        assert pcdcodec.encode(live, out).frames == 5
+    with pcdcodec.open(out) as rec:
+        assert rec.metadata["source"] == "realsense-live"
+        for frame in rec:
+            assert np.array_equal(frame.depth, reference[frame.timestamp_ns].depth)
+
+
 def test_options_are_checked(rs: Any, tmp_path: Path) -> None:
     with pytest.raises(InputError, match="loop=True repeats a playback file"):
         pcdcodec.sources.realsense_live(loop=True)
