@@ -43,6 +43,20 @@ def _rerun() -> Any:
     return rr
 
 
+def _log_camera(rr: Any, stream: Any, path: str, cam: Any) -> None:
+    """The pinhole camera ``cam`` at entity ``path`` (x right, y down, z forward)."""
+    stream.log(
+        path,
+        rr.Pinhole(
+            image_from_camera=cam.K,
+            resolution=[cam.width, cam.height],
+            camera_xyz=rr.ViewCoordinates.RDF,
+            image_plane_distance=0.3,
+        ),
+        static=True,
+    )
+
+
 def _log_frame(rr: Any, rec: Any, frame: Any, stride: int, jpeg_quality: int | None) -> None:
     projector = frame.projector
     if frame.pose is not None:
@@ -120,18 +134,8 @@ def view(
         else:
             stream.spawn()
         try:
-            cam = recording.intrinsics
             stream.log("world", rr.ViewCoordinates.RDF, static=True)
-            stream.log(
-                "world/camera",
-                rr.Pinhole(
-                    image_from_camera=cam.K,
-                    resolution=[cam.width, cam.height],
-                    camera_xyz=rr.ViewCoordinates.RDF,
-                    image_plane_distance=0.3,
-                ),
-                static=True,
-            )
+            _log_camera(rr, stream, "world/camera", recording.intrinsics)
             trajectory: list[np.ndarray[Any, Any]] = []
             for i, frame in _frames(recording, every, max_frames):
                 stream.set_time("frame", sequence=i)
@@ -232,17 +236,7 @@ class LiveView:
             self.stream.spawn()
         self.stream.log("world", rr.ViewCoordinates.RDF, static=True)
         for name, projector in cameras:
-            cam = projector.intrinsics
-            self.stream.log(
-                f"world/{name}",
-                rr.Pinhole(
-                    image_from_camera=cam.K,
-                    resolution=[cam.width, cam.height],
-                    camera_xyz=rr.ViewCoordinates.RDF,
-                    image_plane_distance=0.3,
-                ),
-                static=True,
-            )
+            _log_camera(rr, self.stream, f"world/{name}", projector.intrinsics)
 
     def log(self, index: int, frame: Any) -> bool:
         """Show ``frame`` of camera ``index``, unless one was shown less than a period ago."""

@@ -427,26 +427,7 @@ class RealSenseLiveSource(Source):
                 self._pipeline.stop()
 
 
-def realsense_live(
-    serial: str | None = None,
-    *,
-    playback: str | Path | None = None,
-    width: int | None = None,
-    height: int | None = None,
-    fps: int | None = None,
-    color_width: int | None = None,
-    color_height: int | None = None,
-    color_fps: int | None = None,
-    color: bool = True,
-    align: bool = False,
-    real_time: bool = False,
-    loop: bool = False,
-    max_frames: int | None = None,
-    duration: float | None = None,
-    global_time: bool | None = None,
-    sync: str | None = None,
-    timeout: float = 5.0,
-) -> RealSenseLiveSource:
+def realsense_live(serial: str | None = None, **options: Any) -> RealSenseLiveSource:
     """A RealSense camera as a :class:`~pcdcodec.sources.Source` whose frames arrive live.
 
     ``serial`` picks a connected device (default: the first one); ``playback`` plays a
@@ -454,8 +435,8 @@ def realsense_live(
     recorded pace, dropping what is not taken in time, as a camera does; ``loop=True``:
     again and again, with timestamps that keep increasing). ``width``, ``height`` and ``fps``
     choose the depth stream (default: the device's), ``color_width``, ``color_height`` and
-    ``color_fps`` the color stream (default: as depth); with a playback file they must match
-    what it holds. ``color=False`` records depth only. ``align=True`` gives color aligned to
+    ``color_fps`` the color stream (default: as depth); a playback file gives the streams it
+    holds, and a depth size or rate that differs from them is an error. ``color=False`` records depth only. ``align=True`` gives color aligned to
     depth by librealsense (``rs.align``), at the depth camera's size, instead of the color
     camera's own images with ``color_intrinsics`` and ``depth_to_color``.
 
@@ -467,24 +448,6 @@ def realsense_live(
     device's (``metadata["timestamp_domain"]`` says which clock), in nanoseconds; what the
     camera dropped is in ``camera_drops``. Raises :class:`~pcdcodec.PcdcodecError` when
     pyrealsense2 is not installed and :class:`~pcdcodec.InputError` when no device (or file)
-    starts with these settings.
+    starts with these settings, and ``TypeError`` for an option it does not take.
     """
-    return RealSenseLiveSource(
-        serial,
-        playback=playback,
-        width=width,
-        height=height,
-        fps=fps,
-        color_width=color_width,
-        color_height=color_height,
-        color_fps=color_fps,
-        color=color,
-        align=align,
-        real_time=real_time,
-        loop=loop,
-        max_frames=max_frames,
-        duration=duration,
-        global_time=global_time,
-        sync=sync,
-        timeout=timeout,
-    )
+    return RealSenseLiveSource(serial, **options)
