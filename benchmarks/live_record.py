@@ -4,7 +4,7 @@ Run (needs pyrealsense2 and the shared data)::
 
     python benchmarks/live_record.py bags --dir /tmp/live       # three 120-frame 640x480 bags
     python benchmarks/live_record.py speed --dir /tmp/live --rounds 3
-    python benchmarks/live_record.py realtime --dir /tmp/live --seconds 30 --rounds 2
+    python benchmarks/live_record.py realtime --dir /tmp/live --seconds 30 --rounds 2 [--queue N]
     python benchmarks/live_record.py memory --dir /tmp/live --seconds 600
 
 ``bags`` writes three librealsense ``.bag`` files of the real D435 office sequence (120 frames,
@@ -105,12 +105,14 @@ def speed(bags: list[Path], rounds: int, out: Path) -> None:
             )
 
 
-def realtime(bags: list[Path], seconds: float, rounds: int, out: Path) -> None:
+def realtime(bags: list[Path], seconds: float, rounds: int, out: Path, *extra: str) -> None:
     print("cameras  frames offered  written  dropped by camera  dropped by us (each round)")
     for n in (1, 2, 3):
         for _ in range(rounds):
             got = parse(
-                record(None, bags[:n], out, "--real-time", "--loop", "--duration", str(seconds))[0]
+                record(
+                    None, bags[:n], out, "--real-time", "--loop", "--duration", str(seconds), *extra
+                )[0]
             )
             offered = got["frames"] + got["camera_drops"] + got["our_drops"]
             print(
@@ -119,11 +121,12 @@ def realtime(bags: list[Path], seconds: float, rounds: int, out: Path) -> None:
             )
 
 
-def memory(bags: list[Path], seconds: float, out: Path) -> None:
+def memory(bags: list[Path], seconds: float, out: Path, *extra: str) -> None:
     cmd = [sys.executable, "-m", "pcdcodec", "record", "-o", str(out), "--overwrite"]
     for bag in bags:
         cmd += ["--playback", str(bag)]
     cmd = ["/usr/bin/time", "-v", *cmd, "--real-time", "--loop", "--duration", str(seconds)]
+    cmd += extra
     proc = subprocess.Popen(
         cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT
     )
@@ -164,15 +167,17 @@ def main() -> None:
     parser.add_argument("--dir", type=Path, default=Path("/tmp/pcdcodec-live"))
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--seconds", type=float, default=30.0)
+    parser.add_argument("--queue", type=int, help="pcdcodec record --queue (default: its own)")
     args = parser.parse_args()
+    extra = () if args.queue is None else ("--queue", str(args.queue))
     bags = make_bags(args.dir)
     out = args.dir / "out.pcdc"
     if args.what == "speed":
         speed(bags, args.rounds, out)
     elif args.what == "realtime":
-        realtime(bags, args.seconds, args.rounds, out)
+        realtime(bags, args.seconds, args.rounds, out, *extra)
     elif args.what == "memory":
-        memory(bags, args.seconds, args.dir / "memory.pcdc")
+        memory(bags, args.seconds, args.dir / "memory.pcdc", *extra)
 
 
 if __name__ == "__main__":

@@ -156,6 +156,19 @@ def test_encode_takes_the_live_source(
             assert np.array_equal(frame.depth, reference[frame.timestamp_ns].depth)
 
 
+def test_frame_counters_keep_time_increasing_and_count_gaps() -> None:
+    from pcdcodec.sources.live import _Counter
+
+    counter = _Counter()
+    assert counter.new(5, 100)
+    assert not counter.new(5, 100)  # the same frame in the next frameset
+    assert counter.new(8, 200)
+    assert counter.dropped == 2
+    assert not counter.new(9, 150)  # earlier than the last frame: never handed on
+    assert counter.new(0, 300)  # a looped file starts its numbers again: not a gap
+    assert counter.dropped == 2
+
+
 def test_options_are_checked(rs: Any, tmp_path: Path) -> None:
     with pytest.raises(InputError, match="loop=True repeats a playback file"):
         pcdcodec.sources.realsense_live(loop=True)

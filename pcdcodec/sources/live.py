@@ -108,9 +108,11 @@ class _Counter:
         self.dropped = 0
 
     def new(self, number: int, stamp: int) -> bool:
-        """Whether frame ``number`` at ``stamp`` is one not seen before; counts a gap."""
+        """Whether frame ``number`` at ``stamp`` is new: later than every frame before (a
+        repeat, or a frame from before the last one, is not); counts a gap in the numbers (a
+        number lower than the last one starts the count again: a looped playback)."""
         if self.last is not None:
-            if (number, stamp) == self.last or stamp <= self.last[1]:
+            if stamp <= self.last[1]:
                 return False
             if number > self.last[0] + 1:
                 self.dropped += number - self.last[0] - 1
@@ -299,7 +301,7 @@ class RealSenseLiveSource(Source):
         """Every frameset, through the loops of a looped playback; the time offset of each
         loop (so that timestamps keep increasing) is in ``self._offset``."""
         self._offset = 0
-        first: int | None = None  # the first depth stamp of the file, as the device gives it
+        first: int | None = None  # the earliest depth stamp of the file, as the device gives it
         while True:
             frames = self._first if self._first is not None else self._wait()
             self._first = None
@@ -309,14 +311,15 @@ class RealSenseLiveSource(Source):
                     return
                 self._pipeline.stop()
                 self._start()
-                # The next pass starts one frame period after the last frame of this one.
+                # The next pass starts one frame period after the last frame of this one; a
+                # frame that would still come earlier (the file's first frames, missed in the
+                # first pass) is left out, as the frame counters keep their last stamps.
                 self._offset = last[1] + round(1e9 / self.fps) - first
-                self._depth.last = self._color.last = None
                 continue
-            if first is None:
-                d = frames.get_depth_frame()
-                if d:
-                    first = self._stamp(d)
+            d = frames.get_depth_frame()
+            if d:
+                raw = self._stamp(d)
+                first = raw if first is None else min(first, raw)
             yield frames
 
     def _events(self) -> Iterator[tuple[bool, int, Any]]:
@@ -436,9 +439,10 @@ def realsense_live(serial: str | None = None, **options: Any) -> RealSenseLiveSo
     again and again, with timestamps that keep increasing). ``width``, ``height`` and ``fps``
     choose the depth stream (default: the device's), ``color_width``, ``color_height`` and
     ``color_fps`` the color stream (default: as depth); a playback file gives the streams it
-    holds, and a depth size or rate that differs from them is an error. ``color=False`` records depth only. ``align=True`` gives color aligned to
-    depth by librealsense (``rs.align``), at the depth camera's size, instead of the color
-    camera's own images with ``color_intrinsics`` and ``depth_to_color``.
+    holds, and a depth size or rate that differs from them is an error. ``color=False``
+    records depth only. ``align=True`` gives color aligned to depth by librealsense
+    (``rs.align``), at the depth camera's size, instead of the color camera's own images with
+    ``color_intrinsics`` and ``depth_to_color``.
 
     Iterating ends after ``max_frames`` frames, after ``duration`` seconds, at the end of a
     playback file, or after :meth:`~RealSenseLiveSource.stop`. ``global_time`` turns the
