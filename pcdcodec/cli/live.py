@@ -20,7 +20,11 @@ from ..errors import InputError
 from .capture import POINTCLOUD2_BYTES_PER_POINT, Camera, Capture, CaptureStats, file_bytes
 from .options import mib, parse_codec
 
-__all__ = ["camera_names", "cmd_record"]
+__all__ = ["QUEUE_PER_CAMERA", "camera_names", "cmd_record"]
+
+#: Frames of each camera that may wait for the encoder: half a second at 30 fps, which rides
+#: out the encoder's stalls on a busy machine (about 23 MB a camera at 640 x 480).
+QUEUE_PER_CAMERA = 15
 
 
 def camera_names(given: list[str] | None, serials: list[str | None]) -> list[str]:
@@ -230,7 +234,7 @@ def cmd_record(args: argparse.Namespace) -> int:
             cameras,
             output.write,
             output.bytes_written,
-            queue_size=args.queue or 4 * len(sources),
+            queue_size=args.queue or QUEUE_PER_CAMERA * len(sources),
             block=block,
             duration=args.duration,
             on_frame=None if view is None else view.log,

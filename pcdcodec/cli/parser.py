@@ -224,8 +224,8 @@ def _record_options(p: argparse.ArgumentParser) -> None:
         "--queue",
         type=int,
         metavar="N",
-        help="frames that may wait for the encoder before new ones are dropped (default: 4 "
-        "per camera)",
+        help="frames that may wait for the encoder before new ones are dropped, all cameras "
+        "together (default: 15 per camera, half a second at 30 fps)",
     )
     p.add_argument(
         "--view", action="store_true", help="show the frames in a Rerun viewer (pcdcodec[view])"
