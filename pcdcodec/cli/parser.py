@@ -143,10 +143,17 @@ def _demo_options(p: argparse.ArgumentParser) -> None:
 def _encode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "src",
+        nargs="*",
         help="an RGB-D folder, a ROS 1 bag, a ROS 2 bag folder or file, a RealSense .bag, an "
-        "Azure Kinect .mkv, ...",
+        "Azure Kinect .mkv, ...; several inputs, or a bag of several cameras, make one "
+        "recording of a rig",
     )
     p.add_argument("-o", "--output", required=True, help="the .pcdc file to write")
+    p.add_argument(
+        "--rig",
+        metavar="FILE",
+        help="a rig file (YAML): the cameras' names, sources and extrinsics (docs/rig.md)",
+    )
     p.add_argument(
         "--color", default=DEFAULT_COLOR_CODEC, help="color codec, e.g. h264 or h264:crf=20"
     )

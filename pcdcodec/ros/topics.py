@@ -30,6 +30,7 @@ __all__ = [
     "VIDEO_TYPES",
     "TopicCandidate",
     "affinity",
+    "camera_namespaces",
     "check_color",
     "check_depth",
     "choose_cloud",
@@ -38,6 +39,8 @@ __all__ = [
     "choose_info",
     "choose_mode",
     "classify",
+    "in_namespace",
+    "topic_namespace",
 ]
 
 IMAGE = "sensor_msgs/msg/Image"
@@ -240,3 +243,29 @@ def choose_info(cands: Sequence[TopicCandidate], anchor: str) -> str | None:
     if infos and (len(infos) == 1 or affinity(infos[0].topic, anchor) > (0, 0)):
         return infos[0].topic
     return None
+
+
+def topic_namespace(topic: str) -> str:
+    """The camera namespace of a depth (or cloud) topic: its parts before the first part that
+    names depth or points (``/cam_head/depth/image_raw`` and
+    ``/cam_head/aligned_depth_to_color/image_raw``: ``/cam_head``), else all but its last part
+    (``/cam_wrist/cloud``: ``/cam_wrist``)."""
+    parts = _parts(topic)
+    for k, part in enumerate(parts):
+        if k and ("depth" in part or part in ("points", "point_cloud", "cloud")):
+            return "/" + "/".join(parts[:k])
+    return "/" + "/".join(parts[:-1])
+
+
+def in_namespace(topic: str, namespace: str) -> bool:
+    """Whether ``topic`` lies under ``namespace`` (``"/"``: every topic)."""
+    prefix = namespace.rstrip("/").lower() + "/"
+    return ("/" + "/".join(_parts(topic)) + "/").startswith(prefix)
+
+
+def camera_namespaces(cands: Sequence[TopicCandidate]) -> list[str]:
+    """The namespaces holding a camera, in name order: one per namespace of a depth topic (or,
+    for a bag without depth images, of an organized cloud topic). A bag of one camera gives one
+    namespace, whatever depth topics it holds there."""
+    role = "depth" if any(c.role == "depth" for c in cands) else "cloud"
+    return sorted({topic_namespace(c.topic) for c in cands if c.role == role})
