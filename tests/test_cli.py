@@ -410,7 +410,7 @@ def test_options_go_anywhere_among_a_commands_arguments() -> None:
         "demo": (["--frames", "2", "-o", "out"], {"frames": 2, "output": "out"}),
         "encode": (
             ["--fps", "15", "in/", "-o", "x.pcdc", "--camera", "tum-ros"],
-            {"src": "in/", "fps": 15.0, "output": "x.pcdc", "camera": "tum-ros"},
+            {"src": ["in/"], "fps": 15.0, "output": "x.pcdc", "camera": "tum-ros"},
         ),
         "decode": (
             ["-q", "x.pcdc", "--ply", "-o", "out/", "--threads", "2"],

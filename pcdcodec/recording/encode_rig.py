@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,7 +23,11 @@ from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import InputError
 from ..sources.base import Source
 
-__all__ = ["CameraSummary", "ClockReport", "RigSummary", "encode_rig"]
+if TYPE_CHECKING:
+    from ..sources.rig import CameraInput
+    from .rig import CameraSpec
+
+__all__ = ["CameraSummary", "ClockReport", "RigSummary", "encode_rig", "rig_specs", "write_rig"]
 
 _NS = 1e9
 
@@ -197,16 +201,14 @@ def encode_rig(
     intact).
     """
     from .._atomic import atomic_output  # not loaded by `import pcdcodec`
-    from ..sources.rig import close_inputs, merge_by_time, open_inputs
+    from ..sources.rig import close_inputs, open_inputs
     from ..sources.rigfile import RigFile, open_rig, read_rig
-    from .rig import CameraSpec, RigWriter
 
     if out is None:
         raise InputError("encode_rig needs out=, the .pcdc file to write")
     if isinstance(inputs, (str, os.PathLike, Source)):
         inputs = [inputs]
     target = _check_target(Path(out), overwrite)
-    warnings: list[str] = []
     if rig is not None:
         parsed = rig if isinstance(rig, RigFile) else read_rig(rig)
         paths = [p for p in inputs if not isinstance(p, Source)]
@@ -220,74 +222,18 @@ def encode_rig(
         cams, root = open_inputs(inputs, **source_options)
         rig_frame = root or "rig"
     try:
-        specs = []
-        frame_ids = [c.frame_id for c in cams]
-        unique = len(set(frame_ids)) == len(frame_ids) and rig_frame not in frame_ids
-        for cam in cams:
-            src = cam.source
-            if src.intrinsics is None:
-                raise InputError(
-                    f"camera {cam.name} ({str(src.path)!r}) has no intrinsics: give them in a "
-                    "rig file (intrinsics:), or give the input a camera (CameraInfo, camera.json)"
-                )
-            if cam.rig_pose is None:
-                if len(cams) > 1:
-                    warnings.append(
-                        f"camera {cam.name}: nothing places it on the rig (no /tf_static, no "
-                        "rig file): recorded at the rig's origin"
-                    )
-                cam.rig_pose, cam.pose_from = np.eye(4), "none (identity)"
-            chosen = cam.overrides.get("color", color)
-            specs.append(
-                CameraSpec(
-                    cam.name,
-                    src.intrinsics,
-                    src.depth_scale,
-                    fps=float(cam.overrides.get("fps", fps)),
-                    color=chosen if src.has_color else None,
-                    depth=cam.overrides.get("depth", depth),
-                    color_intrinsics=src.color_intrinsics,
-                    depth_to_color=src.depth_to_color,
-                    rig_pose=cam.rig_pose,
-                    frame_id=cam.frame_id if unique and cam.frame_id else None,
-                )
-            )
+        specs, warnings = rig_specs(cams, rig_frame, color=color, depth=depth, fps=fps)
         meta: dict[str, Any] = {
             f"{cam.name}.{k}": v for cam in cams for k, v in cam.source.metadata.items()
         }
         meta.update(metadata or {})
-        summaries = [
-            CameraSummary(
-                c.name,
-                str(c.source.path),
-                rig_pose=np.asarray(c.rig_pose).tolist(),
-                pose_from=c.pose_from,
-            )
-            for c in cams
-        ]
         start = time.perf_counter()
         with atomic_output(target) as partial:
-            with RigWriter(partial, specs, metadata=meta, rig_frame_id=rig_frame) as writer:
-                writers = [writer.camera(c.name) for c in cams]
-                keep_color = [s.color is not None for s in specs]
-                count = 0
-                for k, frame in merge_by_time(cams):
-                    ts = int(frame.timestamp_ns)
-                    color_in = frame.color if keep_color[k] else None
-                    writers[k].write(color_in, frame.depth, ts, pose=frame.pose)
-                    done = summaries[k]
-                    done.frames += 1
-                    done.first_ns = ts if done.first_ns is None else done.first_ns
-                    done.last_ns = ts
-                    count += 1
-                    if progress is not None:
-                        progress(count)
-                if count == 0:
-                    raise InputError(
-                        f"the inputs gave no frames ({', '.join(repr(s.input) for s in summaries)})"
-                    )
-            for done, w in zip(summaries, writers, strict=True):
-                done.bytes_color, done.bytes_depth = w.bytes_color, w.bytes_depth
+            summaries = write_rig(partial, cams, specs, rig_frame, metadata=meta, progress=progress)
+            if not any(s.frames for s in summaries):
+                raise InputError(
+                    f"the inputs gave no frames ({', '.join(repr(s.input) for s in summaries)})"
+                )
         seconds = time.perf_counter() - start
         for done, cam in zip(summaries, cams, strict=True):
             done.source = cam.source.describe()
@@ -303,6 +249,95 @@ def encode_rig(
         )
     finally:
         close_inputs(cams)
+
+
+def rig_specs(
+    cams: Sequence[CameraInput], rig_frame: str, *, color: Any, depth: Any, fps: float
+) -> tuple[list[CameraSpec], list[str]]:
+    """The :class:`~pcdcodec.recording.CameraSpec` of each camera: its source's camera and
+    depth scale, the codecs and rate given (or the camera's own overrides; no color for a
+    source without it), its rig pose (the identity where none is known, with a warning when
+    the rig has several cameras) and its frame name (kept where the names differ). Raises
+    :class:`~pcdcodec.InputError` for a camera without intrinsics."""
+    from .rig import CameraSpec
+
+    specs, warnings = [], []
+    frame_ids = [c.frame_id for c in cams]
+    unique = len(set(frame_ids)) == len(frame_ids) and rig_frame not in frame_ids
+    for cam in cams:
+        src = cam.source
+        if src.intrinsics is None:
+            raise InputError(
+                f"camera {cam.name} ({str(src.path)!r}) has no intrinsics: give them in a "
+                "rig file (intrinsics:), or give the input a camera (CameraInfo, camera.json)"
+            )
+        if cam.rig_pose is None:
+            if len(cams) > 1:
+                warnings.append(
+                    f"camera {cam.name}: nothing places it on the rig (no /tf_static, no "
+                    "rig file): recorded at the rig's origin"
+                )
+            cam.rig_pose, cam.pose_from = np.eye(4), "none (identity)"
+        chosen = cam.overrides.get("color", color)
+        specs.append(
+            CameraSpec(
+                cam.name,
+                src.intrinsics,
+                src.depth_scale,
+                fps=float(cam.overrides.get("fps", fps)),
+                color=chosen if src.has_color else None,
+                depth=cam.overrides.get("depth", depth),
+                color_intrinsics=src.color_intrinsics,
+                depth_to_color=src.depth_to_color,
+                rig_pose=cam.rig_pose,
+                frame_id=cam.frame_id if unique and cam.frame_id else None,
+            )
+        )
+    return specs, warnings
+
+
+def write_rig(
+    path: Path,
+    cams: Sequence[CameraInput],
+    specs: Sequence[CameraSpec],
+    rig_frame: str,
+    *,
+    metadata: dict[str, Any] | None = None,
+    frames: Sequence[Iterable[Any]] | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> list[CameraSummary]:
+    """Write the cameras' frames into a new rig recording at ``path``, in timestamp order
+    across cameras: each camera's ``frames`` (default: its whole source). Returns each camera's
+    summary (frames, bytes, first and last stamps, pose)."""
+    from ..sources.rig import merge_by_time
+    from .rig import RigWriter
+
+    summaries = [
+        CameraSummary(
+            c.name,
+            str(c.source.path),
+            rig_pose=np.asarray(c.rig_pose if c.rig_pose is not None else np.eye(4)).tolist(),
+            pose_from=c.pose_from,
+        )
+        for c in cams
+    ]
+    with RigWriter(path, list(specs), metadata=metadata, rig_frame_id=rig_frame) as writer:
+        writers = [writer.camera(c.name) for c in cams]
+        keep_color = [s.color is not None for s in specs]
+        for count, (k, frame) in enumerate(merge_by_time(cams, frames), 1):
+            ts = int(frame.timestamp_ns)
+            writers[k].write(
+                frame.color if keep_color[k] else None, frame.depth, ts, pose=frame.pose
+            )
+            done = summaries[k]
+            done.frames += 1
+            done.first_ns = ts if done.first_ns is None else done.first_ns
+            done.last_ns = ts
+            if progress is not None:
+                progress(count)
+    for done, w in zip(summaries, writers, strict=True):
+        done.bytes_color, done.bytes_depth = w.bytes_color, w.bytes_depth
+    return summaries
 
 
 def _check_target(target: Path, overwrite: bool) -> Path:

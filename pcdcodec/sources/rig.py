@@ -215,16 +215,20 @@ def open_bag_cameras(
     return out
 
 
-def merge_by_time(cameras: Sequence[CameraInput]) -> Iterator[tuple[int, Any]]:
-    """The frames of every camera's source as ``(camera index, frame)``, in timestamp order
-    across cameras (ties in the cameras' order), each source read one frame ahead: memory is
-    one frame per camera, however long the inputs."""
+def merge_by_time(
+    cameras: Sequence[CameraInput], frames: Sequence[Iterable[Any]] | None = None
+) -> Iterator[tuple[int, Any]]:
+    """The frames of every camera as ``(camera index, frame)``, in timestamp order across
+    cameras (ties in the cameras' order), each camera read one frame ahead: memory is one frame
+    per camera, however long the inputs. ``frames`` gives each camera's frames (default: its
+    whole source)."""
+    streams_in = [cam.source for cam in cameras] if frames is None else list(frames)
 
-    def tagged(k: int, source: Source) -> Iterator[tuple[int, int, Any]]:
-        for frame in source:
+    def tagged(k: int, stream: Iterable[Any]) -> Iterator[tuple[int, int, Any]]:
+        for frame in stream:
             yield int(frame.timestamp_ns), k, frame
 
-    streams = [tagged(k, cam.source) for k, cam in enumerate(cameras)]
+    streams = [tagged(k, stream) for k, stream in enumerate(streams_in)]
     for _, k, frame in heapq.merge(*streams, key=lambda item: (item[0], item[1])):
         yield k, frame
 
