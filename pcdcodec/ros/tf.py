@@ -15,6 +15,9 @@ pose in its parent frame), at the frame's stamp.
 
 Only the chain's samples are kept (the transforms are read twice: once for the tree, once for
 the chain's samples), so memory grows with the chain's messages, not with the whole tree.
+
+A rig's mountings are read apart (:func:`static_placements`): each camera frame's chain of
+``/tf_static`` transforms up to the root of its tree, as one fixed transform into that root.
 """
 
 from __future__ import annotations

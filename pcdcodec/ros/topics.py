@@ -9,6 +9,10 @@ The rules (also in ``docs/ingest.md``, "How topics are chosen"):
    camera (:func:`affinity`), colour before mono8, raw before compressed;
 3. **camera info**: the ``CameraInfo`` topic closest in name to the depth (or cloud) topic.
 
+A bag whose depth topics lie in several namespaces holds several cameras
+(:func:`camera_namespaces`); each camera's topics are then chosen by these rules among its own
+namespace's topics (``docs/rig.md``).
+
 Nothing here reads a bag: the bag source hands in each connection and a way to read its first
 message, and gets roles and choices back, so the rules can be read (and tested) on their own.
 """
