@@ -468,3 +468,33 @@ def test_archive_of_a_rig_in_segments_verifies(tmp_path: Path, cams: list[Cam]) 
     assert item.segments in (1, 3)
     assert item.frames == 11
     _check_recording(out / "runs" / "robot.pcdc", cams, {c.ns: c.ns for c in cams})
+
+
+@pytest.mark.parametrize(
+    ("depth_topics", "namespaces"),
+    [
+        (["/cam_head/depth/image_raw", "/cam_wrist/depth/image_raw"], ["/cam_head", "/cam_wrist"]),
+        (
+            ["/camera/depth/image_rect_raw", "/camera/aligned_depth_to_color/image_raw"],
+            ["/camera"],
+        ),
+        (["/robot/left/depth/image", "/robot/right/depth/image"], ["/robot/left", "/robot/right"]),
+        (["/depth/image_raw"], ["/"]),
+        (["/camera/depth_registered/image_raw", "/camera/depth/image"], ["/camera"]),
+    ],
+)
+def test_namespaces_of_depth_topics(depth_topics: list[str], namespaces: list[str]) -> None:
+    from pcdcodec.ros.topics import TopicCandidate, camera_namespaces
+
+    cands = [TopicCandidate(t, "sensor_msgs/msg/Image", 3, "depth") for t in depth_topics]
+    cands.append(TopicCandidate("/other/color/image_raw", "sensor_msgs/msg/Image", 3, "color"))
+    assert camera_namespaces(cands) == namespaces
+
+
+def test_camera_names_from_namespaces_and_files() -> None:
+    from pcdcodec.sources.rig import camera_name
+
+    assert camera_name("/robot/cam_head") == "cam_head"
+    assert camera_name("2024-05 run.bag") == "cam_2024_05_run"
+    assert camera_name("head.bag", ["head"]) == "head_2"
+    assert camera_name("/") == "camera"

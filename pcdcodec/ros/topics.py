@@ -253,10 +253,11 @@ def topic_namespace(topic: str) -> str:
     """The camera namespace of a depth (or cloud) topic: its parts before the first part that
     names depth or points (``/cam_head/depth/image_raw`` and
     ``/cam_head/aligned_depth_to_color/image_raw``: ``/cam_head``), else all but its last part
-    (``/cam_wrist/cloud``: ``/cam_wrist``)."""
+    (``/cam_wrist/cloud``: ``/cam_wrist``). A topic that starts by naming depth
+    (``/depth/image_raw``) is in the root namespace ``/``."""
     parts = _parts(topic)
     for k, part in enumerate(parts):
-        if k and ("depth" in part or part in ("points", "point_cloud", "cloud")):
+        if "depth" in part or part in ("points", "point_cloud", "cloud"):
             return "/" + "/".join(parts[:k])
     return "/" + "/".join(parts[:-1])
 
