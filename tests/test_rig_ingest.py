@@ -348,6 +348,13 @@ def test_cli_reads_a_bag_of_several_cameras_as_a_rig(
         ("cameras:\n  - {name: a, colour: h264}", "camera a: unknown keys ['colour']"),
         ("cameras:\n  - {name: a}\n  - {name: a}", "given more than once: ['a']"),
         ("cameras: [", "is not YAML"),
+        ("cameras:\n  - {name: a, fps: 1" + "0" * 400 + "}", "camera a, key 'fps'"),
+        (
+            "cameras:\n  - {name: a, extrinsic: [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1"
+            + "0" * 400
+            + "]]}",
+            "camera a, key 'extrinsic'",
+        ),
     ],
 )
 def test_rig_file_errors_name_the_file_the_camera_and_the_key(
@@ -387,6 +394,14 @@ def test_rig_file_cameras_need_a_source_a_namespace_and_an_extrinsic(
     summary = encode_rig([bag], tmp_path / "o.pcdc", rig=ok)
     assert list(summary.cameras) == ["w"]
     assert summary.cameras["w"].frames == 3
+    bad_camera = _write_rig_file(
+        tmp_path / "e.yaml",
+        "cameras:\n  - {name: w, namespace: /cam_wrist, intrinsics: {fx: 1}, extrinsic: "
+        "[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}",
+    )
+    with pytest.raises(InputError, match=r"rig file .*e\.yaml', camera w: .*intrinsics"):
+        encode_rig([bag], tmp_path / "o2.pcdc", rig=bad_camera)
+    assert not (tmp_path / "o2.pcdc").exists()
 
 
 # -- archive ----------------------------------------------------------------------------------

@@ -190,13 +190,23 @@ def _entry(where: _Where, k: int, item: Any) -> RigCameraEntry:
     return entry
 
 
+def _finite(value: Any) -> float | None:
+    """``value`` as a finite float, or ``None`` (not a number, or none a float holds)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if np.isfinite(number) else None
+
+
 def _positive(where: _Where, name: str, key: str, item: Mapping[str, Any]) -> float:
     value = item[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    number = _finite(value)
+    if number is None or number <= 0:
         raise where.error(f"expected a positive number, got {_kind(value)}", name, key)
-    if not np.isfinite(value) or value <= 0:
-        raise where.error(f"expected a positive number, got {value!r}", name, key)
-    return float(value)
+    return number
 
 
 def _codec(where: _Where, name: str, key: str, value: Any) -> Any:
@@ -242,7 +252,7 @@ def _extrinsic(where: _Where, name: str, value: Any) -> npt.NDArray[np.float64]:
     rows = value if isinstance(value, Sequence) and not isinstance(value, str) else None
     try:
         matrix = np.asarray(rows, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         matrix = np.empty(0)
     if rows is None or matrix.shape not in ((4, 4), (3, 4)):
         raise where.error(
@@ -260,15 +270,11 @@ def _extrinsic(where: _Where, name: str, value: Any) -> npt.NDArray[np.float64]:
 
 
 def _numbers(where: _Where, name: str, key: str, value: Any, n: int) -> npt.NDArray[np.float64]:
-    ok = (
-        isinstance(value, Sequence)
-        and not isinstance(value, str)
-        and len(value) == n
-        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-    )
-    if not ok or not np.isfinite(np.asarray(value, dtype=np.float64)).all():
+    ok = isinstance(value, Sequence) and not isinstance(value, str) and len(value) == n
+    numbers = [_finite(v) for v in value] if ok else []
+    if not ok or any(v is None for v in numbers):
         raise where.error(f"expected {n} finite numbers, got {_kind(value)}", name, key)
-    return np.asarray(value, dtype=np.float64)
+    return np.asarray(numbers, dtype=np.float64)
 
 
 # -- opening the cameras --------------------------------------------------------------------
