@@ -513,3 +513,43 @@ def test_camera_names_from_namespaces_and_files() -> None:
     assert camera_name("2024-05 run.bag") == "cam_2024_05_run"
     assert camera_name("head.bag", ["head"]) == "head_2"
     assert camera_name("/") == "camera"
+
+
+def test_a_bag_of_two_cloud_cameras(tmp_path: Path, cams: list[Cam]) -> None:
+    """Organized PointCloud2 topics in two namespaces, with their CameraInfo: a camera each,
+    each cloud's z back as whole depth units, bit for bit."""
+    from pcdcodec import Projector
+    from pcdcodec.ros.clouds import cloud_array
+
+    head, wrist = cams[0], cams[1]
+    builders = {c.ns: MessageBuilder(False, c.frame) for c in (head, wrist)}
+    writer = BagWriter(tmp_path / "clouds.bag", "rosbag1", "mcap", builders["cam_head"])
+    messages = []
+    for cam in (head, wrist):
+        b = builders[cam.ns]
+        writer.add(f"/{cam.ns}/depth/points", "sensor_msgs/msg/PointCloud2")
+        writer.add(f"/{cam.ns}/depth/camera_info", "sensor_msgs/msg/CameraInfo")
+        projector = Projector(cam.intrinsics, depth_scale=1000.0)
+        for k, t in enumerate(cam.times[:2]):
+            assert cam.colors is not None
+            pts = cloud_array(projector, cam.depths[k], cam.colors[k])
+            messages.append((t, f"/{cam.ns}/depth/points", b.cloud(t, pts)))
+            info = b.camera_info(t, cam.intrinsics, "plumb_bob", [0.0] * 5)
+            messages.append((t, f"/{cam.ns}/depth/camera_info", info))
+    for t, topic, data in sorted(messages, key=lambda m: m[0]):
+        writer.write(topic, t, data)
+    writer.close()
+    found = bag_cameras(tmp_path / "clouds.bag")
+    assert found.namespaces == ["/cam_head", "/cam_wrist"]
+    assert found.topics["/cam_wrist"]["cloud_topic"] == "/cam_wrist/depth/points"
+    summary = encode_rig(tmp_path / "clouds.bag", tmp_path / "clouds.pcdc")
+    assert summary.rig_frame == "rig"  # no /tf_static: the cameras are not placed
+    assert len(summary.warnings) == 2
+    with pcdcodec.open(tmp_path / "clouds.pcdc") as rec:
+        assert isinstance(rec, RigRecording)
+        for cam in (head, wrist):
+            info = rec.cameras[cam.ns]
+            assert info.intrinsics == cam.intrinsics
+            assert info.depth_scale == 1000.0
+            got = [f.depth for f in rec.frames(camera=cam.ns)]
+            assert [g.tobytes() for g in got] == [d.tobytes() for d in cam.depths[:2]]
