@@ -1,0 +1,238 @@
+"""Recordings of several cameras going out: bags, folders, the viewer, joins, recovery, info."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import pcdcodec
+from pcdcodec import CameraIntrinsics
+from pcdcodec.bench.sequences import SEQUENCES
+from pcdcodec.cli import main
+from pcdcodec.recording import CameraSpec, RigRecording, RigWriter  # noqa: F401
+
+from .conftest import load_colors, load_depths, to_metres
+
+_MS = 1_000_000
+
+
+def _rot(axis: int, degrees: float) -> np.ndarray[Any, Any]:
+    a = np.deg2rad(degrees)
+    c, s = np.cos(a), np.sin(a)
+    i, j = [k for k in range(3) if k != axis]
+    m = np.eye(4)
+    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+    return m
+
+
+@dataclass
+class Cam:
+    spec: CameraSpec
+    depths: list[np.ndarray[Any, Any]]
+    colors: list[np.ndarray[Any, Any]] | None
+    times: list[int]
+
+    @property
+    def pose(self) -> np.ndarray[Any, Any]:
+        return np.eye(4) if self.spec.rig_pose is None else np.asarray(self.spec.rig_pose)
+
+
+#: The wrist camera's color camera, apart from its depth camera: 4 cm to the side.
+D2C = np.eye(4)
+D2C[0, 3] = -0.04
+
+
+def _cameras(first_ms: int = 1_000) -> list[Cam]:
+    """Three small cameras: other sizes, intrinsics, depth scales, rates and start times; the
+    wrist's color camera apart from its depth camera; the side camera depth only. From the
+    real sequences when present, else from the bundled sample."""
+    tum = SEQUENCES["sample"].camera
+    head_d, head_c = load_depths("sample", 4), load_colors("sample", 4)
+    pose_wrist = _rot(1, 30.0)
+    pose_wrist[:3, 3] = [0.25, -0.1, 0.05]
+    pose_side = _rot(0, -12.0) @ _rot(2, 90.0)
+    pose_side[:3, 3] = [-0.4, 0.3, 0.2]
+    if SEQUENCES["realsense_d435"].present:
+        seq = SEQUENCES["realsense_d435"]
+        wrist_d, wrist_c = load_depths(seq.name, 3), load_colors(seq.name, 3)
+        wrist_cam, wrist_scale = seq.camera, seq.depth_scale
+    else:
+        wrist_d = [d[100:340, 200:520].copy() for d in head_d[:3]]
+        wrist_c = [c[100:340, 200:520].copy() for c in head_c[:3]]
+        wrist_cam = CameraIntrinsics(320, 240, 525.0, 525.0, 119.5, 139.5)
+        wrist_scale = 1000.0
+    wrist_color_cam = CameraIntrinsics(
+        wrist_cam.width, wrist_cam.height, wrist_cam.fx * 1.02, wrist_cam.fy * 1.02,
+        wrist_cam.cx + 3.0, wrist_cam.cy - 2.0,
+    )  # fmt: skip
+    if SEQUENCES["7scenes_redkitchen"].present:
+        seq = SEQUENCES["7scenes_redkitchen"]
+        side_d = load_depths(seq.name, 3)
+        side_cam, side_scale = seq.camera, seq.depth_scale
+    else:
+        side_d = [d[::2, ::2].copy() for d in head_d[:3]]
+        side_cam = CameraIntrinsics(320, 240, 262.5, 262.5, 159.75, 119.75)
+        side_scale = 2500.0
+    t0 = first_ms * _MS
+    return [
+        Cam(
+            CameraSpec("head", tum, 5000.0, fps=30.0, depth="zstd"),
+            head_d,
+            head_c,
+            [t0 + k * 33_333_333 for k in range(len(head_d))],
+        ),
+        Cam(
+            CameraSpec(
+                "wrist",
+                wrist_cam,
+                wrist_scale,
+                fps=15.0,
+                rig_pose=pose_wrist,
+                color_intrinsics=wrist_color_cam,
+                depth_to_color=D2C,
+            ),
+            wrist_d,
+            wrist_c,
+            [t0 + 13 * _MS + k * 66_666_667 for k in range(len(wrist_d))],
+        ),
+        Cam(
+            CameraSpec(
+                "side",
+                side_cam,
+                side_scale,
+                fps=10.0,
+                color=None,
+                depth="zstd",
+                rig_pose=pose_side,
+                frame_id="side_link",
+            ),
+            side_d,
+            None,
+            [t0 - 40 * _MS + k * 100 * _MS for k in range(len(side_d))],
+        ),
+    ]
+
+
+def write_rig(path: Path, cams: list[Cam], *, finish: bool = True) -> RigWriter:
+    """The cameras' frames written in the order they happened, as a live rig hands them in."""
+    events = sorted((t, c, k) for c, cam in enumerate(cams) for k, t in enumerate(cam.times))
+    w = RigWriter(path, [c.spec for c in cams], metadata={"site": "lab"})
+    for t, c, k in events:
+        cam = cams[c]
+        w.write(cam.spec.name, None if cam.colors is None else cam.colors[k], cam.depths[k], t)
+    if finish:
+        w.close()
+    return w
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Cam]]:
+    cams = _cameras()
+    path = tmp_path_factory.mktemp("rig") / "rig.pcdc"
+    write_rig(path, cams)
+    return path, cams
+
+
+# -- export ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("to", ["rosbag1", "rosbag2"])
+def test_export_writes_every_camera_under_its_namespace_with_tf_static(
+    rig: tuple[Path, list[Cam]], tmp_path: Path, to: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path, cams = rig
+    out = tmp_path / ("rig.bag" if to == "rosbag1" else "rig_bag")
+    assert main(["export", str(path), str(out), "--to", to]) == 0
+    said = capsys.readouterr().out
+    for cam in cams:
+        assert f"camera {cam.spec.name}: {len(cam.times)} frames under /{cam.spec.name}" in said
+    # Each namespace reads back with pcdcodec's own bag reader: depth bit-exact.
+    for cam in cams:
+        ns = f"/{cam.spec.name}"
+        with pcdcodec.open_source(
+            out,
+            depth_topic=f"{ns}/depth/image_raw",
+            color_topic=f"{ns}/color/image_raw" if cam.colors is not None else "",
+            info_topic=f"{ns}/depth/camera_info",
+        ) as back:
+            assert back.intrinsics == cam.spec.intrinsics
+            frames = list(back)
+        assert [f.timestamp_ns for f in frames] == cam.times
+        for k, frame in enumerate(frames):
+            if cam.spec.depth_scale == 1000.0:  # 16UC1 millimetres
+                assert frame.depth.dtype == np.uint16
+                assert np.array_equal(frame.depth, cam.depths[k])
+            else:  # 32FC1 metres
+                expected = to_metres(cam.depths[k], cam.spec.depth_scale)
+                assert np.array_equal(frame.depth, expected, equal_nan=True)
+            assert frame.pose is None  # /tf_static places the cameras, it is no trajectory
+            if cam.colors is not None:
+                assert frame.color is not None
+                assert frame.color.shape == cam.colors[k].shape
+    # /tf_static holds the rig poses (and the wrist's color camera in the wrist's frame).
+    edges, frame_ids, latched = _read_tf_static(out, to)
+    expected = {("rig", c.spec.frame_id or c.spec.name): c.pose for c in cams}
+    expected[("wrist", "wrist_color")] = np.linalg.inv(D2C)
+    assert set(edges) == set(expected)
+    for key, pose in expected.items():
+        assert np.allclose(edges[key], pose, atol=1e-9), key
+    assert latched
+    # Each camera's messages are in its own frame; the wrist's color images in its color frame.
+    assert frame_ids["/head/depth/image_raw"] == {"head"}
+    assert frame_ids["/side/depth/image_raw"] == {"side_link"}
+    assert frame_ids["/wrist/depth/image_raw"] == {"wrist"}
+    assert frame_ids["/wrist/color/image_raw"] == {"wrist_color"}
+    assert frame_ids["/wrist/color/camera_info"] == {"wrist_color"}
+    assert "/side/color/image_raw" not in frame_ids
+
+
+def _read_tf_static(
+    bag: Path, to: str
+) -> tuple[dict[tuple[str, str], np.ndarray[Any, Any]], dict[str, set[str]], bool]:
+    """With rosbags: /tf_static's transforms as matrices, each topic's frame ids, and whether
+    /tf_static is latched."""
+    from rosbags.highlevel import AnyReader
+
+    from pcdcodec.geometry.transform import quaternion_to_matrix
+
+    edges: dict[tuple[str, str], np.ndarray[Any, Any]] = {}
+    frame_ids: dict[str, set[str]] = {}
+    with AnyReader([bag]) as reader:
+        static = [c for c in reader.connections if c.topic == "/tf_static"]
+        assert len(static) == 1
+        ext = static[0].ext
+        if to == "rosbag1":
+            latched = bool(getattr(ext, "latching", 0))
+        else:
+            latched = any(q.durability.name == "TRANSIENT_LOCAL" for q in ext.offered_qos_profiles)
+        for conn, _, raw in reader.messages():
+            msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == "/tf_static":
+                for tf in msg.transforms:
+                    r, t = tf.transform.rotation, tf.transform.translation
+                    m = np.eye(4)
+                    m[:3, :3] = quaternion_to_matrix((r.x, r.y, r.z, r.w))
+                    m[:3, 3] = [t.x, t.y, t.z]
+                    edges[(tf.header.frame_id, tf.child_frame_id)] = m
+            else:
+                frame_ids.setdefault(conn.topic, set()).add(msg.header.frame_id)
+    return edges, frame_ids, latched
+
+
+def test_export_of_a_rig_through_the_api(rig: tuple[Path, list[Cam]], tmp_path: Path) -> None:
+    path, _ = rig
+    with pcdcodec.open(path) as rec:
+        summary = pcdcodec.export_bag(rec, tmp_path / "a.bag", namespace="robot", max_frames=4)
+    assert summary["frames"] == 4
+    assert sum(summary["cameras"].values()) == 4
+    assert "/robot/head/depth/image_raw" in summary["topics"]
+    assert summary["topics"][0] == "/tf_static"
+    with pytest.raises(pcdcodec.InputError, match="frame_id cannot be given"):
+        pcdcodec.export_bag(path, tmp_path / "b.bag", frame_id="x")
+    with pytest.raises(pcdcodec.InputError, match="camera 'head': compressedDepth"):
+        pcdcodec.export_bag(path, tmp_path / "c.bag", compressed_depth=True)
+    assert not (tmp_path / "c.bag").exists()
