@@ -236,3 +236,92 @@ def test_export_of_a_rig_through_the_api(rig: tuple[Path, list[Cam]], tmp_path: 
     with pytest.raises(pcdcodec.InputError, match="camera 'head': compressedDepth"):
         pcdcodec.export_bag(path, tmp_path / "c.bag", compressed_depth=True)
     assert not (tmp_path / "c.bag").exists()
+
+
+# -- info, verify, decode ------------------------------------------------------------------
+
+
+def test_info_lists_every_camera(
+    rig: tuple[Path, list[Cam]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    import json
+
+    path, cams = rig
+    assert main(["info", str(path)]) == 0
+    said = capsys.readouterr().out
+    assert "recording of 3 cameras, format version 3" in said
+    assert "camera side (frame side_link)" in said
+    assert "rotation 30.00 deg" in said  # the wrist's
+    assert said.count("    depth      ") == 3
+    assert main(["info", str(path), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["rig_frame_id"] == "rig"
+    assert info["frames"] == sum(len(c.times) for c in cams)
+    for cam, got in zip(cams, info["cameras"], strict=True):
+        assert got["name"] == cam.spec.name
+        assert got["frames"] == len(cam.times)
+        assert got["intrinsics"] == cam.spec.intrinsics.to_dict()
+        assert got["depth_scale"] == cam.spec.depth_scale
+        assert got["fps"] == cam.spec.fps
+        assert got["first_timestamp_ns"] == cam.times[0]
+        assert np.array_equal(np.asarray(got["rig_pose"]), cam.pose)
+        assert got["codecs"]["depth"]["id"] == cam.spec.depth
+        assert (got["codecs"]["color"] is None) == (cam.spec.color is None)
+    assert info["cameras"][1]["depth_to_color"] == D2C.tolist()
+
+
+def test_verify_checks_every_camera(
+    rig: tuple[Path, list[Cam]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path, cams = rig
+    assert main(["verify", str(path)]) == 0
+    said = capsys.readouterr().out
+    for cam in cams:
+        assert f"camera {cam.spec.name}: {len(cam.times)} frames, OK" in said
+    assert f"{sum(len(c.times) for c in cams)} frames checked, OK" in said
+    # A flipped byte in the side camera's last depth frame (zstd, uncompressed chunks) is found
+    # and named by its camera.
+    data = bytearray(path.read_bytes())
+    with pcdcodec.open(path) as rec:
+        side = rec.frames("side")
+        offset = int(side.index.offsets["/camera/depth"][-1])
+    assert offset > 0
+    bad = tmp_path / "bad.pcdc"
+    data[offset + 200] ^= 0xFF
+    bad.write_bytes(bytes(data))
+    assert main(["verify", str(bad)]) == 1
+    said = capsys.readouterr().out
+    assert "camera side: 3 frames, 1 problem(s)" in said
+    assert f"camera 'side': {str(bad)!r}: frame 2 " in said
+    assert "problem(s)" in said.splitlines()[-1]
+
+
+def test_decode_writes_one_folder_per_camera(
+    rig: tuple[Path, list[Cam]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import json
+
+    path, cams = rig
+    out = tmp_path / "out"
+    assert main(["decode", str(path), "-o", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "of 3 cameras" in said
+    layout = json.loads((out / "rig.json").read_text())
+    assert layout["rig_frame_id"] == "rig"
+    for cam, entry in zip(cams, layout["cameras"], strict=True):
+        name = cam.spec.name
+        assert f"camera {name}, {len(cam.times)} frames" in said
+        assert entry["folder"] == name
+        assert np.array_equal(np.asarray(entry["rig_pose"]), cam.pose)
+        with pcdcodec.open_source(out / name, depth_scale=cam.spec.depth_scale) as back:
+            assert back.intrinsics == cam.spec.intrinsics
+            assert (back.color_intrinsics is not None) == (cam.spec.color_intrinsics is not None)
+            frames = list(back)
+        assert [f.timestamp_ns for f in frames] == cam.times
+        for k, frame in enumerate(frames):
+            assert np.array_equal(frame.depth, cam.depths[k])
+            assert (frame.color is None) == (cam.colors is None)
+    assert not (out / "side" / "rgb").exists() or not any((out / "side" / "rgb").iterdir())
+    # Into a folder that is not empty: only with --overwrite.
+    assert main(["decode", str(path), "-o", str(out)]) == 1
+    assert main(["decode", str(path), "-o", str(out), "--overwrite", "-q"]) == 0

@@ -6,7 +6,10 @@ Each takes the parsed command line and returns the exit status.
 from __future__ import annotations
 
 import argparse
+import json
 import operator
+from pathlib import Path
+from typing import Any
 
 from .._progress import Progress
 from ..errors import InputError
@@ -81,37 +84,96 @@ def cmd_encode(args: argparse.Namespace) -> int:
 
 
 def cmd_decode(args: argparse.Namespace) -> int:
-    """``pcdcodec decode REC -o FOLDER``: a TUM-layout folder, with point clouds if asked."""
+    """``pcdcodec decode REC -o FOLDER``: a TUM-layout folder, with point clouds if asked; of a
+    recording of several cameras, one such folder per camera and ``rig.json``."""
     from ..datasets import write_folder
     from ..recording import open as open_recording
+    from ..recording.rig_reader import RigRecording
 
     clouds = tuple(ext for ext, on in (("ply", args.ply), ("pcd", args.pcd)) if on)
-    with (
-        open_recording(args.input, threads=args.threads) as rec,
-        Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar,
-    ):
-        count = write_folder(
-            rec,
-            args.output,
-            intrinsics=rec.intrinsics,
-            depth_scale=rec.depth_scale,
-            color_intrinsics=rec.color_intrinsics,
-            depth_to_color=rec.depth_to_color,
-            clouds=clouds,
-            overwrite=args.overwrite,
-            progress=bar.update,
-        )
+    with open_recording(args.input, threads=args.threads) as rec:
+        if isinstance(rec, RigRecording):
+            return _decode_rig(rec, args, clouds)
+        with Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar:
+            count = write_folder(
+                rec,
+                args.output,
+                intrinsics=rec.intrinsics,
+                depth_scale=rec.depth_scale,
+                color_intrinsics=rec.color_intrinsics,
+                depth_to_color=rec.depth_to_color,
+                clouds=clouds,
+                overwrite=args.overwrite,
+                progress=bar.update,
+            )
     if not args.quiet:
         print(f"wrote {count} frames to {args.output}")
+    return 0
+
+
+def _decode_rig(rig: Any, args: argparse.Namespace, clouds: tuple[str, ...]) -> int:
+    """One folder per camera (``OUT/<name>/``, as ``decode`` writes one camera's) and
+    ``OUT/rig.json``: the rig frame and each camera's folder, frame and rig pose."""
+    from ..datasets import write_folder
+
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{str(out)!r} is a file, not a folder")
+    if out.is_dir() and any(out.iterdir()) and not args.overwrite:
+        raise InputError(f"{str(out)!r} is not empty; pass --overwrite to write into it")
+    total = sum(len(rig.frames(name)) for name in rig.camera_names)
+    counts: dict[str, int] = {}
+    with Progress(total, "decoding", enabled=None if not args.quiet else False) as bar:
+        for name, cam in rig.cameras.items():
+            done = sum(counts.values())
+            counts[name] = write_folder(
+                rig.frames(name),
+                out / name,
+                intrinsics=cam.intrinsics,
+                depth_scale=cam.depth_scale,
+                color_intrinsics=cam.color_intrinsics,
+                depth_to_color=cam.depth_to_color,
+                clouds=clouds,
+                overwrite=args.overwrite,
+                progress=lambda n, done=done: bar.update(done + n),
+            )
+    layout = {
+        "rig_frame_id": rig.rig_frame_id,
+        "cameras": [
+            {
+                "name": name,
+                "folder": name,
+                "frame_id": cam.frame_id,
+                "frames": counts[name],
+                "rig_pose": cam.rig_pose.tolist(),
+            }
+            for name, cam in rig.cameras.items()
+        ],
+    }
+    (out / "rig.json").write_text(json.dumps(layout, indent=2) + "\n")
+    if not args.quiet:
+        print(f"wrote {sum(counts.values())} frames of {len(counts)} cameras to {args.output}:")
+        for name, count in counts.items():
+            print(f"  {out / name}: camera {name}, {count} frames")
+        print(f"  {out / 'rig.json'}: each camera's pose in the rig frame {rig.rig_frame_id!r}")
     return 0
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
     """``pcdcodec verify REC``: every frame decoded and checked; 1 on any problem."""
     from ..recording import open as open_recording
+    from ..recording.rig_reader import RigRecording
 
     with open_recording(args.input) as rec:
         report = rec.verify()
+        per_camera: dict[str, int] = (
+            {name: len(rec.frames(name)) for name in rec.camera_names}
+            if isinstance(rec, RigRecording)
+            else {}
+        )
+    for name, frames in per_camera.items():
+        bad = sum(1 for e in report.errors if e.startswith(f"camera {name!r}:"))
+        print(f"  camera {name}: {frames} frames, " + (f"{bad} problem(s)" if bad else "OK"))
     for error in report.errors:
         print(f"  {error}")
     if not report.indexed:
