@@ -13,7 +13,7 @@ import pcdcodec
 from pcdcodec import CameraIntrinsics
 from pcdcodec.bench.sequences import SEQUENCES
 from pcdcodec.cli import main
-from pcdcodec.recording import CameraSpec, RigRecording, RigWriter  # noqa: F401
+from pcdcodec.recording import CameraSpec, RigRecording, RigWriter
 
 from .conftest import load_colors, load_depths, to_metres
 
@@ -325,3 +325,111 @@ def test_decode_writes_one_folder_per_camera(
     # Into a folder that is not empty: only with --overwrite.
     assert main(["decode", str(path), "-o", str(out)]) == 1
     assert main(["decode", str(path), "-o", str(out), "--overwrite", "-q"]) == 0
+
+
+# -- join ----------------------------------------------------------------------------------
+
+
+def _split(cams: list[Cam], at: int) -> tuple[list[Cam], list[Cam]]:
+    """Each camera's frames before and from ``at`` ms after the first frame."""
+    cut = min(t for c in cams for t in c.times) + at * _MS
+
+    def part(keep: Any) -> list[Cam]:
+        out = []
+        for c in cams:
+            ks = [k for k, t in enumerate(c.times) if keep(t)]
+            out.append(
+                Cam(
+                    c.spec,
+                    [c.depths[k] for k in ks],
+                    None if c.colors is None else [c.colors[k] for k in ks],
+                    [c.times[k] for k in ks],
+                )
+            )
+        return out
+
+    return part(lambda t: t < cut), part(lambda t: t >= cut)
+
+
+def test_join_keeps_every_camera(
+    rig: tuple[Path, list[Cam]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _, cams = rig
+    first, second = _split(cams, 100)
+    a, b = tmp_path / "a.pcdc", tmp_path / "b.pcdc"
+    write_rig(a, first)
+    write_rig(b, second)
+    joined = tmp_path / "ab.pcdc"
+    assert main(["join", str(a), str(b), "-o", str(joined)]) == 0
+    said = capsys.readouterr().out
+    assert f"joined {sum(len(c.times) for c in cams)} frames of 2 recordings" in said
+    for cam in cams:
+        assert f"camera {cam.spec.name}: {len(cam.times)} frames" in said
+    with pcdcodec.open(joined) as rec:
+        assert isinstance(rec, RigRecording)
+        assert rec.index.indexed
+        assert rec.metadata == {"site": "lab"}
+        for cam in cams:
+            frames = rec.frames(cam.spec.name)
+            assert frames.timestamps.tolist() == cam.times
+            assert np.array_equal(rec.cameras[cam.spec.name].rig_pose, cam.pose)
+            for k, frame in enumerate(frames):
+                assert np.array_equal(frame.depth, cam.depths[k])
+                assert (frame.color is None) == (cam.colors is None)
+        assert rec.verify().ok
+    # Each camera's sequence numbers run on across the parts, as from one writer.
+    from mcap.reader import make_reader
+
+    with joined.open("rb") as f:
+        seqs: dict[str, list[int]] = {}
+        for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            if channel.topic.endswith("/depth"):
+                seqs.setdefault(channel.topic, []).append(message.sequence)
+    assert {t: sorted(s) for t, s in seqs.items()} == {
+        f"/{c.spec.name}/depth": list(range(len(c.times))) for c in cams
+    }
+
+
+def test_join_refuses_parts_of_other_cameras_or_overlapping_times(
+    rig: tuple[Path, list[Cam]], tmp_path: Path
+) -> None:
+    from pcdcodec.recording.join import join
+
+    path, cams = rig
+    first, second = _split(cams, 100)
+    a, b = tmp_path / "a.pcdc", tmp_path / "b.pcdc"
+    write_rig(a, first)
+    write_rig(b, second)
+    out = tmp_path / "out.pcdc"
+    with pytest.raises(pcdcodec.InputError, match=r"camera 'head' of .* starts at"):
+        join([b, a], out)
+    with pytest.raises(pcdcodec.InputError, match="starts at"):
+        join([path, b], out)
+    # Another camera set, or a camera with other settings, cannot follow.
+    fewer = tmp_path / "fewer.pcdc"
+    write_rig(fewer, second[:2])
+    with pytest.raises(pcdcodec.InputError, match="metadata differs"):
+        join([a, fewer], out)
+    moved = [Cam(c.spec, c.depths, c.colors, c.times) for c in second]
+    spec = moved[2].spec
+    moved[2] = Cam(
+        CameraSpec(spec.name, spec.intrinsics, spec.depth_scale, fps=spec.fps, color=None,
+                   depth="zstd", rig_pose=np.eye(4), frame_id=spec.frame_id),
+        moved[2].depths, None, moved[2].times,
+    )  # fmt: skip
+    other = tmp_path / "other.pcdc"
+    write_rig(other, moved)
+    with pytest.raises(pcdcodec.InputError, match=r"pcdcodec\.camera\.side"):
+        join([a, other], out)
+    # A one-camera recording cannot follow a rig either.
+    one = tmp_path / "one.pcdc"
+    with pcdcodec.open(one, "w", intrinsics=cams[2].spec.intrinsics, color=None) as w:
+        w.write(None, cams[2].depths[0], 5 * 10**9)
+    with pytest.raises(pcdcodec.InputError, match="metadata differs"):
+        join([a, one], out)
+    assert not out.exists()
+    # A killed rig must be recovered first.
+    killed = tmp_path / "killed.pcdc"
+    write_rig(killed, second, finish=False).abort()
+    with pytest.raises(pcdcodec.DecodeError, match="recover"):
+        join([a, killed], out)

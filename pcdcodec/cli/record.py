@@ -1,4 +1,5 @@
-"""The commands that write and check recordings: ``encode``, ``decode``, ``verify``, ``recover``.
+"""The commands that write and check recordings: ``encode``, ``decode``, ``verify``, ``recover``,
+``join``.
 
 Each takes the parsed command line and returns the exit status.
 """
@@ -189,4 +190,26 @@ def cmd_recover(args: argparse.Namespace) -> int:
 
     count = recover(args.input, args.output, overwrite=args.overwrite)
     print(f"recovered {count} frames into {args.output}")
+    _per_camera(args.output)
     return 0
+
+
+def cmd_join(args: argparse.Namespace) -> int:
+    """``pcdcodec join A B ... -o OUT``: recordings written one after another, as one."""
+    from ..recording.join import join
+
+    count = join(args.parts, args.output, overwrite=args.overwrite)
+    print(f"joined {count} frames of {len(args.parts)} recordings into {args.output}")
+    _per_camera(args.output)
+    return 0
+
+
+def _per_camera(path: str) -> None:
+    """Each camera's frames, for a recording of several cameras."""
+    from ..recording import open as open_recording
+    from ..recording.rig_reader import RigRecording
+
+    with open_recording(path) as rec:
+        if isinstance(rec, RigRecording):
+            for name in rec.camera_names:
+                print(f"  camera {name}: {len(rec.frames(name))} frames")
