@@ -433,3 +433,104 @@ def test_join_refuses_parts_of_other_cameras_or_overlapping_times(
     write_rig(killed, second, finish=False).abort()
     with pytest.raises(pcdcodec.DecodeError, match="recover"):
         join([a, killed], out)
+
+
+# -- recover -------------------------------------------------------------------------------
+
+
+def _check_prefix(path: Path, cams: list[Cam], *, decode: bool = True) -> dict[str, int]:
+    """Each camera's frames in the recording at ``path`` are the first of its own, bit-exact
+    (decoded when ``decode``); returns how many each has."""
+    counts = {}
+    with pcdcodec.open(path) as rec:
+        assert isinstance(rec, RigRecording)
+        assert rec.index.indexed
+        assert rec.camera_names == [c.spec.name for c in cams]
+        for cam in cams:
+            frames = rec.frames(cam.spec.name)
+            n = len(frames)
+            assert frames.timestamps.tolist() == cam.times[:n]
+            if decode:
+                for k, frame in enumerate(frames):
+                    assert np.array_equal(frame.depth, cam.depths[k])
+            counts[cam.spec.name] = n
+        if decode:
+            assert rec.verify().ok
+    return counts
+
+
+def test_recover_a_killed_rig_keeps_every_cameras_complete_frames(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cams = _cameras()
+    killed = tmp_path / "killed.pcdc"
+    w = write_rig(killed, cams, finish=False)
+    w.flush()
+    complete = w.frames_complete
+    w.abort()  # as after SIGKILL: no seals, no index
+    assert complete["side"] == len(cams[2].times)  # depth only: nothing held back
+    out = tmp_path / "recovered.pcdc"
+    assert main(["recover", str(killed), "-o", str(out)]) == 0
+    said = capsys.readouterr().out
+    counts = _check_prefix(out, cams)
+    assert counts == complete
+    assert f"recovered {sum(counts.values())} frames" in said
+    for name, n in counts.items():
+        assert f"camera {name}: {n} frames" in said
+    with pcdcodec.open(out) as rec:
+        seals = [k for k in rec.index.metadata if k.startswith("pcdcodec.seal")]
+        assert sorted(seals) == sorted(f"pcdcodec.seal.{c.spec.name}" for c in cams)
+        assert rec.metadata == {"site": "lab"}
+        assert np.array_equal(rec.cameras["wrist"].rig_pose, cams[1].pose)
+    # The recovered rig joins like any other.
+    from pcdcodec.recording.join import join
+
+    later = [Cam(c.spec, c.depths, c.colors, [t + 10**10 for t in c.times]) for c in cams]
+    more = tmp_path / "more.pcdc"
+    write_rig(more, later)
+    assert join([out, more], tmp_path / "j.pcdc") == sum(counts.values()) + sum(
+        len(c.times) for c in cams
+    )
+
+
+def test_recover_a_rig_cut_short_at_any_byte(rig: tuple[Path, list[Cam]], tmp_path: Path) -> None:
+    path, cams = rig
+    data = path.read_bytes()
+    with pcdcodec.open(path) as rec:
+        first_message = min(
+            int(o)
+            for name in rec.camera_names
+            for o in rec.frames(name).index.offsets["/camera/depth"]
+        )
+        end = rec.index.size
+    # Every few bytes of the records before the first message, and spread over the rest.
+    cuts = sorted(
+        {
+            *range(0, first_message + 64, 7),
+            *np.linspace(first_message, len(data), 25).astype(int).tolist(),
+        }
+    )
+    previous: dict[str, int] | None = None
+    recovered = 0
+    for cut in cuts:
+        cut_file = tmp_path / "cut.pcdc"
+        cut_file.write_bytes(data[:cut])
+        out = tmp_path / "out.pcdc"
+        try:
+            pcdcodec.recover(cut_file, out, overwrite=True)
+        except pcdcodec.PcdcodecError as exc:
+            failed = exc
+        else:
+            failed = None
+        if failed is not None:
+            assert str(cut_file) in str(failed)
+            assert cut < first_message, cut  # only a cut in the records loses it all
+            continue
+        recovered += 1
+        counts = _check_prefix(out, cams, decode=cut % 3 == 0)
+        if previous is not None:  # more of the file never gives fewer frames
+            assert all(counts[n] >= previous[n] for n in counts), cut
+        previous = counts
+    assert recovered >= 20
+    assert previous == {c.spec.name: len(c.times) for c in cams}  # the last cut: only the index
+    assert end <= len(data)
