@@ -534,3 +534,66 @@ def test_recover_a_rig_cut_short_at_any_byte(rig: tuple[Path, list[Cam]], tmp_pa
     assert recovered >= 20
     assert previous == {c.spec.name: len(c.times) for c in cams}  # the last cut: only the index
     assert end <= len(data)
+
+
+# -- view ----------------------------------------------------------------------------------
+
+
+def test_view_shows_every_camera_in_its_place_and_the_fused_cloud(
+    rig: tuple[Path, list[Cam]], tmp_path: Path
+) -> None:
+    pytest.importorskip("rerun")
+    from .test_viewer import _contents
+
+    path, cams = rig
+    out = tmp_path / "rig.rrd"
+    assert main(["view", str(path), "--save", str(out), "--stride", "4"]) == 0
+    got = _contents(out)
+    with pcdcodec.open(path) as rec:
+        sets = rec.framesets()
+        for cam in cams:
+            base = f"/world/{cam.spec.name}"
+            assert "Pinhole:image_from_camera" in got[base]["columns"]
+            transform = got[base]["batches"]
+            translations = [
+                b.column("Transform3D:translation").to_pylist()
+                for b in transform
+                if "Transform3D:translation" in b.schema.names
+            ]
+            assert np.allclose(np.asarray(translations[0][0]).reshape(-1), cam.pose[:3, 3])
+            col = rec.camera_names.index(cam.spec.name)
+            in_sets = [i for i in range(len(sets)) if sets.matches[i, col] >= 0]
+            assert sorted(got[f"{base}/image/depth"]["frames"]) == in_sets
+            assert sorted(got[f"{base}/points"]["frames"]) == in_sets
+            assert (f"{base}/image/rgb" in got) == (cam.colors is not None)
+        # The fused cloud of each set: every camera's thinned points moved by its rig pose.
+        fused = got["/world/fused"]
+        assert sorted(fused["frames"]) == list(range(len(sets)))
+        k = next(i for i in range(len(sets)) if len(sets[i].missing) < len(cams) - 1)
+        frameset = sets[k]
+        expected = []
+        for cam in cams:
+            frame = frameset.frames[cam.spec.name]
+            if frame is None:
+                continue
+            depth = frame.depth[::4, ::4]
+            v, u = np.nonzero(depth > 0)
+            z = depth[v, u] / cam.spec.depth_scale
+            intr = cam.spec.intrinsics
+            x = (u * 4 - intr.cx) * z / intr.fx
+            y = (v * 4 - intr.cy) * z / intr.fy
+            own = np.stack([x, y, z], axis=1).astype(np.float32).astype(np.float64)
+            expected.append(own @ cam.pose[:3, :3].T + cam.pose[:3, 3])
+        rows = [
+            (f, p)
+            for b in fused["batches"]
+            for f, p in zip(
+                b.column("frame").to_pylist(),
+                b.column("Points3D:positions").to_pylist(),
+                strict=True,
+            )
+        ]
+        logged = np.asarray(next(p for f, p in rows if f == k), np.float64)
+        want = np.concatenate(expected)
+        assert logged.shape == want.shape
+        assert np.abs(logged - want).max() < 1e-5  # float32 in Rerun's store
