@@ -597,3 +597,23 @@ def test_view_shows_every_camera_in_its_place_and_the_fused_cloud(
         want = np.concatenate(expected)
         assert logged.shape == want.shape
         assert np.abs(logged - want).max() < 1e-5  # float32 in Rerun's store
+
+
+def test_write_rig_folder_and_write_folder_of_a_rig(
+    rig: tuple[Path, list[Cam]], tmp_path: Path
+) -> None:
+    from pcdcodec.datasets import write_folder, write_rig_folder
+
+    path, cams = rig
+    seen: list[int] = []
+    with pcdcodec.open(path) as rec:
+        counts = write_rig_folder(rec, tmp_path / "f", progress=seen.append)
+        with pytest.raises(pcdcodec.InputError, match="write_rig_folder"):
+            write_folder(rec, tmp_path / "g")
+        with pytest.raises(pcdcodec.InputError, match="not empty"):
+            write_rig_folder(rec, tmp_path / "f")
+    assert counts == {c.spec.name: len(c.times) for c in cams}
+    assert seen == list(range(1, sum(counts.values()) + 1))
+    assert sorted(p.name for p in (tmp_path / "f").iterdir()) == [
+        "head", "rig.json", "side", "wrist",
+    ]  # fmt: skip

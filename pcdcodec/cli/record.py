@@ -7,7 +7,6 @@ Each takes the parsed command line and returns the exit status.
 from __future__ import annotations
 
 import argparse
-import json
 import operator
 from pathlib import Path
 from typing import Any
@@ -114,44 +113,15 @@ def cmd_decode(args: argparse.Namespace) -> int:
 
 def _decode_rig(rig: Any, args: argparse.Namespace, clouds: tuple[str, ...]) -> int:
     """One folder per camera (``OUT/<name>/``, as ``decode`` writes one camera's) and
-    ``OUT/rig.json``: the rig frame and each camera's folder, frame and rig pose."""
-    from ..datasets import write_folder
+    ``OUT/rig.json`` (:func:`pcdcodec.datasets.write_rig_folder`)."""
+    from ..datasets import write_rig_folder
 
     out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{str(out)!r} is a file, not a folder")
-    if out.is_dir() and any(out.iterdir()) and not args.overwrite:
-        raise InputError(f"{str(out)!r} is not empty; pass --overwrite to write into it")
     total = sum(len(rig.frames(name)) for name in rig.camera_names)
-    counts: dict[str, int] = {}
     with Progress(total, "decoding", enabled=None if not args.quiet else False) as bar:
-        for name, cam in rig.cameras.items():
-            done = sum(counts.values())
-            counts[name] = write_folder(
-                rig.frames(name),
-                out / name,
-                intrinsics=cam.intrinsics,
-                depth_scale=cam.depth_scale,
-                color_intrinsics=cam.color_intrinsics,
-                depth_to_color=cam.depth_to_color,
-                clouds=clouds,
-                overwrite=args.overwrite,
-                progress=lambda n, done=done: bar.update(done + n),
-            )
-    layout = {
-        "rig_frame_id": rig.rig_frame_id,
-        "cameras": [
-            {
-                "name": name,
-                "folder": name,
-                "frame_id": cam.frame_id,
-                "frames": counts[name],
-                "rig_pose": cam.rig_pose.tolist(),
-            }
-            for name, cam in rig.cameras.items()
-        ],
-    }
-    (out / "rig.json").write_text(json.dumps(layout, indent=2) + "\n")
+        counts = write_rig_folder(
+            rig, out, clouds=clouds, overwrite=args.overwrite, progress=bar.update
+        )
     if not args.quiet:
         print(f"wrote {sum(counts.values())} frames of {len(counts)} cameras to {args.output}:")
         for name, count in counts.items():
