@@ -233,13 +233,15 @@ def view_open3d(
     threads: int | None = None,
 ) -> None:
     """Play the recording's point clouds in Open3D's window (needs a display); ``threads`` as
-    for :func:`view`. Raises :class:`~pcdcodec.InputError` for bad options and a recording that
-    cannot be read before any window opens."""
+    for :func:`view`. Of a recording of several cameras, each frame set's fused cloud. Raises
+    :class:`~pcdcodec.InputError` for bad options and a recording that cannot be read before
+    any window opens."""
     import time
 
     import open3d as o3d
 
     from .recording import open as open_recording
+    from .recording.rig_reader import RigRecording
 
     if isinstance(every, bool) or not isinstance(every, int) or every < 1:
         raise InputError(f"every must be a positive int, got {every!r}")
@@ -250,10 +252,17 @@ def view_open3d(
         if not vis.create_window(window_name=f"pcdcodec {Path(path).name}"):
             raise PcdcodecError("Open3D could not open a window (no display?); use --save out.rrd")
         try:
-            delay = 1.0 / (fps or recording.fps)
+            if isinstance(recording, RigRecording):  # each frame set's fused cloud
+                sets = recording.framesets()
+                rate = recording.cameras[sets.reference].fps
+                shown: Iterator[Any] = (sets[i] for i in range(0, len(sets), every))
+            else:
+                rate = recording.fps
+                shown = (frame for _, frame in _frames(recording, every, None))
+            delay = 1.0 / (fps or rate)
             cloud = None
-            for _, frame in _frames(recording, every, None):
-                new = frame.to_point_cloud()
+            for item in shown:
+                new = item.to_point_cloud()
                 if cloud is None:
                     cloud = new
                     vis.add_geometry(cloud)

@@ -617,3 +617,40 @@ def test_write_rig_folder_and_write_folder_of_a_rig(
     assert sorted(p.name for p in (tmp_path / "f").iterdir()) == [
         "head", "rig.json", "side", "wrist",
     ]  # fmt: skip
+
+
+def test_view_open3d_plays_each_frame_sets_fused_cloud(
+    rig: tuple[Path, list[Cam]], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import open3d as o3d
+
+    from pcdcodec.viewer import view_open3d
+
+    path, _ = rig
+    shown: list[int] = []
+
+    class Visualizer:
+        def create_window(self, **_: Any) -> bool:
+            return True
+
+        def add_geometry(self, cloud: Any) -> None:
+            self.cloud = cloud
+            shown.append(len(cloud.points))
+
+        def update_geometry(self, cloud: Any) -> None:
+            shown.append(len(cloud.points))
+
+        def poll_events(self) -> bool:
+            return True
+
+        def update_renderer(self) -> None:
+            pass
+
+        def destroy_window(self) -> None:
+            pass
+
+    monkeypatch.setattr(o3d.visualization, "Visualizer", Visualizer)
+    view_open3d(path, fps=1000.0, every=2)
+    with pcdcodec.open(path) as rec:
+        sets = rec.framesets()
+        assert shown == [len(sets[i].to_points()[0]) for i in range(0, len(sets), 2)]
