@@ -291,6 +291,9 @@ def test_verify_checks_every_camera(
     bad.write_bytes(bytes(data))
     assert main(["verify", str(bad)]) == 1
     said = capsys.readouterr().out
+    # Only the camera whose chunk it is has the problem.
+    assert "camera head: 4 frames, OK" in said
+    assert "camera wrist: 3 frames, OK" in said
     assert "camera side: 3 frames, 1 problem(s)" in said
     assert f"camera 'side': {str(bad)!r}: frame 2 " in said
     assert "problem(s)" in said.splitlines()[-1]
