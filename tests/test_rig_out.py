@@ -657,3 +657,50 @@ def test_view_open3d_plays_each_frame_sets_fused_cloud(
     with pcdcodec.open(path) as rec:
         sets = rec.framesets()
         assert shown == [len(sets[i].to_points()[0]) for i in range(0, len(sets), 2)]
+
+
+def test_export_of_a_rig_with_poses_and_clouds(tmp_path: Path) -> None:
+    """Frames with a pose place the rig in world on /tf (one tree: world -> rig -> camera);
+    clouds go under each camera's namespace, in its frame."""
+    from rosbags.highlevel import AnyReader
+
+    from pcdcodec.geometry.transform import quaternion_to_matrix
+
+    cams = _cameras()[::2]  # head and side
+    path = tmp_path / "posed.pcdc"
+    rig_in_world = [np.eye(4) for _ in range(3)]
+    for k, m in enumerate(rig_in_world):
+        m[:3, :3] = _rot(2, 10.0 * k)[:3, :3]
+        m[:3, 3] = [0.5 * k, 0.0, 1.0]
+    with RigWriter(path, [c.spec for c in cams]) as w:
+        for k in range(3):
+            for cam in cams:
+                color = None if cam.colors is None else cam.colors[k]
+                pose = rig_in_world[k] @ cam.pose  # the camera's pose in world
+                w.write(cam.spec.name, color, cam.depths[k], cam.times[k], pose=pose)
+    bag = tmp_path / "posed.bag"
+    summary = pcdcodec.export_bag(path, bag, cloud=True, images=False, camera_info=False)
+    assert set(summary["topics"]) == {
+        "/tf_static", "/tf", "/head/depth_registered/points", "/side/depth_registered/points",
+    }  # fmt: skip
+    tf: list[tuple[int, str, str, np.ndarray[Any, Any]]] = []
+    clouds: dict[str, list[tuple[str, int]]] = {}
+    with AnyReader([bag]) as reader:
+        for conn, stamp, raw in reader.messages():
+            msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == "/tf":
+                for t in msg.transforms:
+                    r, v = t.transform.rotation, t.transform.translation
+                    m = np.eye(4)
+                    m[:3, :3] = quaternion_to_matrix((r.x, r.y, r.z, r.w))
+                    m[:3, 3] = [v.x, v.y, v.z]
+                    tf.append((stamp, t.header.frame_id, t.child_frame_id, m))
+            elif conn.topic.endswith("/points"):
+                clouds.setdefault(conn.topic, []).append((msg.header.frame_id, msg.width))
+    assert len(tf) == 6  # a sample per frame of each camera
+    times = {t: k for cam in cams for k, t in enumerate(cam.times)}
+    for stamp, parent, child, m in tf:
+        assert (parent, child) == ("world", "rig")
+        assert np.allclose(m, rig_in_world[times[stamp]], atol=1e-9)
+    assert clouds["/head/depth_registered/points"] == [("head", 640)] * 3
+    assert [f for f, _ in clouds["/side/depth_registered/points"]] == ["side_link"] * 3
