@@ -66,6 +66,28 @@ def _lanes(index: fmt.FileIndex, name: str) -> dict[str | None, fmt.FileIndex]:
 
 
 def _check_same(first: fmt.FileIndex, other: fmt.FileIndex, name: str, first_name: str) -> None:
+    ours, theirs = fmt.rig_cameras(first, repr(first_name)), fmt.rig_cameras(other, repr(name))
+    if ours != theirs:
+
+        def holds(cameras: list[str] | None) -> str:
+            return "one camera" if cameras is None else f"the cameras {cameras}"
+
+        raise InputError(
+            f"{name!r} cannot follow {first_name!r}: it holds {holds(theirs)}, "
+            f"{first_name!r} {holds(ours)}; every part must hold the same cameras"
+        )
+    if ours is not None:
+        for camera in ours:
+            a = first.metadata.get(fmt.camera_record(camera), {})
+            b = other.metadata.get(fmt.camera_record(camera), {})
+            fields = sorted(
+                k for k in set(a) | set(b) if k != fmt.DIGEST_KEY and a.get(k) != b.get(k)
+            )
+            if fields:
+                raise InputError(
+                    f"{name!r} cannot follow {first_name!r}: camera {camera!r} has other "
+                    f"settings ({', '.join(fields)}); every part must record each camera alike"
+                )
     if _settings(other) != _settings(first):
         keys = sorted(
             k
