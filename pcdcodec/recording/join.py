@@ -77,15 +77,15 @@ def _check_same(first: fmt.FileIndex, other: fmt.FileIndex, name: str, first_nam
             f"{first_name!r} {holds(ours)}; every part must hold the same cameras"
         )
     if ours is not None:
-        for camera in ours:
-            a = first.metadata.get(fmt.camera_record(camera), {})
-            b = other.metadata.get(fmt.camera_record(camera), {})
+        for cam in ours:
+            a = first.metadata.get(fmt.camera_record(cam), {})
+            b = other.metadata.get(fmt.camera_record(cam), {})
             fields = sorted(
                 k for k in set(a) | set(b) if k != fmt.DIGEST_KEY and a.get(k) != b.get(k)
             )
             if fields:
                 raise InputError(
-                    f"{name!r} cannot follow {first_name!r}: camera {camera!r} has other "
+                    f"{name!r} cannot follow {first_name!r}: camera {cam!r} has other "
                     f"settings ({', '.join(fields)}); every part must record each camera alike"
                 )
     if _settings(other) != _settings(first):
