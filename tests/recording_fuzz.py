@@ -42,6 +42,8 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "ffv1+zstd": {"color": "ffv1", "depth": "zstd"},
     "mjpeg+lz4": {"color": "mjpeg", "depth": "lz4"},
     "png16": {"color": None, "depth": "png16"},
+    # Two cameras in one file (format version 3): each camera's frames checked on their own.
+    "rig": {"color": "h264", "depth": "jpegxl", "rig": True},
 }
 FRAMES = 8
 STEP = 10  # 640x480 sample frames, every 10th pixel: 64x48
@@ -55,7 +57,7 @@ class Clean:
     name: str
     path: Path
     data: bytes
-    frames: dict[int, tuple[Any, Any]]  # timestamp -> (color, depth)
+    frames: dict[tuple[str, int], tuple[Any, Any]]  # (camera, timestamp) -> (color, depth)
     settings: dict[str, Any]
     regions: list[tuple[int, int, str]]
     #: the records of the data section, for the structural mutations
@@ -71,13 +73,18 @@ class Result:
 
 
 def settings_of(rec: Any) -> dict[str, Any]:
-    return {
-        "intrinsics": rec.intrinsics,
-        "depth_scale": rec.depth_scale,
-        "fps": rec.fps,
-        "codecs": rec.codecs,
-        "metadata": rec.metadata,
-    }
+    """Every camera's settings (a one-camera recording has one camera) and the metadata."""
+    out: dict[str, Any] = {"metadata": rec.metadata}
+    for name in rec.camera_names:
+        cam = rec.frames(name)
+        out[name] = {
+            "intrinsics": cam.intrinsics,
+            "depth_scale": cam.depth_scale,
+            "fps": cam.fps,
+            "codecs": cam.codecs,
+            "rig_pose": rec.rig_poses[name].tolist(),
+        }
+    return out
 
 
 def make_clean(name: str, folder: Path) -> Clean:
@@ -94,6 +101,22 @@ def make_clean(name: str, folder: Path) -> Clean:
     )
     path = folder / f"clean-{name.replace('+', '-')}.pcdc"
     options = dict(CONFIGS[name])
+    if options.pop("rig", False):
+        pose = np.eye(4)
+        pose[:3, 3] = [0.1, -0.2, 0.3]
+        specs = [
+            pcdcodec.CameraSpec("a", intrinsics, sample.depth_scale, **options),
+            pcdcodec.CameraSpec(
+                "b", intrinsics, 1000.0, color=None, depth="zstd", fps=15.0, rig_pose=pose
+            ),
+        ]
+        with pcdcodec.RigWriter(path, specs, metadata={"site": "lab"}) as rig:
+            for k, f in enumerate(sample):
+                depth = np.ascontiguousarray(f.depth[::STEP, ::STEP])
+                rig.write("a", np.ascontiguousarray(f.color[::STEP, ::STEP]), depth, f.timestamp_ns)
+                if k % 2 == 0:
+                    rig.write("b", None, depth, f.timestamp_ns + 5_000_000)
+        return load_clean(name, path)
     with pcdcodec.open(
         path,
         "w",
@@ -112,10 +135,15 @@ def make_clean(name: str, folder: Path) -> Clean:
 def load_clean(name: str, path: Path) -> Clean:
     """A clean recording written before (by :func:`make_clean`), decoded."""
     with pcdcodec.open(path) as rec:
-        frames = {f.timestamp_ns: (f.color, f.depth) for f in rec}
+        frames = {
+            (name, f.timestamp_ns): (f.color, f.depth)
+            for name in rec.camera_names
+            for f in rec.frames(name)
+        }
         settings = settings_of(rec)
-        if len(frames) != FRAMES or not rec.verify().ok:
-            raise RuntimeError(f"{path} is not a clean {FRAMES}-frame recording")
+        expected = FRAMES + (FRAMES + 1) // 2 if len(rec.camera_names) == 2 else FRAMES
+        if len(frames) != expected or not rec.verify().ok:
+            raise RuntimeError(f"{path} is not a clean {expected}-frame recording")
     data = path.read_bytes()
     return Clean(name, path, data, frames, settings, regions(data), read(path))
 
@@ -298,35 +326,43 @@ def check(clean: Clean, path: Path) -> Result:
                 return Result("WRONG-SETTINGS", f"{settings_of(rec)} != {clean.settings}")
             result = Result("identical")
             failed = 0
-            for i in range(len(rec)):
-                try:
-                    frame = rec[i]
-                except pcdcodec.PcdcodecError as exc:
-                    failed += 1
-                    result.errors.append(str(exc))
-                    continue
-                expected = clean.frames.get(frame.timestamp_ns)
-                if expected is None:
-                    return Result("WRONG-TIMESTAMP", f"frame {i} at t={frame.timestamp_ns}")
-                color, depth = expected
-                same_color = (color is None and frame.color is None) or (
-                    color is not None
-                    and frame.color is not None
-                    and np.array_equal(color, frame.color)
-                )
-                if not same_color or not (
-                    depth.dtype == frame.depth.dtype and np.array_equal(depth, frame.depth)
-                ):
-                    return Result("WRONG-FRAME", f"frame {i} at t={frame.timestamp_ns} differs")
-                result.frames_read += 1
+            total = 0
+            for name in rec.camera_names:
+                cam = rec.frames(name)
+                total += len(cam)
+                for i in range(len(cam)):
+                    try:
+                        frame = cam[i]
+                    except pcdcodec.PcdcodecError as exc:
+                        failed += 1
+                        result.errors.append(str(exc))
+                        continue
+                    expected = clean.frames.get((name, frame.timestamp_ns))
+                    if expected is None:
+                        return Result(
+                            "WRONG-TIMESTAMP", f"{name} frame {i} at t={frame.timestamp_ns}"
+                        )
+                    color, depth = expected
+                    same_color = (color is None and frame.color is None) or (
+                        color is not None
+                        and frame.color is not None
+                        and np.array_equal(color, frame.color)
+                    )
+                    if not same_color or not (
+                        depth.dtype == frame.depth.dtype and np.array_equal(depth, frame.depth)
+                    ):
+                        return Result(
+                            "WRONG-FRAME", f"{name} frame {i} at t={frame.timestamp_ns} differs"
+                        )
+                    result.frames_read += 1
             report = rec.verify()
             if failed and report.ok:
                 return Result("VERIFY-MISSED-ERRORS", f"{failed} frames failed, verify says OK")
-            if len(rec) > len(clean.frames):
-                return Result("EXTRA-FRAMES", f"{len(rec)} frames, the clean file has fewer")
-            if report.ok and len(rec) < len(clean.frames):
-                if rec.indexed:
-                    return Result("SILENT-LOSS", f"{len(rec)} of {len(clean.frames)} frames")
+            if total > len(clean.frames):
+                return Result("EXTRA-FRAMES", f"{total} frames, the clean file has fewer")
+            if report.ok and total < len(clean.frames):
+                if rec.index.indexed:
+                    return Result("SILENT-LOSS", f"{total} of {len(clean.frames)} frames")
                 result.outcome = "read-as-unfinished"
             elif not report.ok or failed:
                 result.outcome = "detected"

@@ -79,3 +79,13 @@ def test_tsdf_fusion(tmp_path: Path) -> None:
     assert "largest vertex distance between the meshes: 0.000 mm" in out.stdout
     mean = float(out.stdout.split("mean ", 1)[1].split(",", 1)[0])
     assert mean < 5.0  # colors differ by the video coding only
+
+
+def test_rig_recording(tmp_path: Path) -> None:
+    target = tmp_path / "rig.pcdc"
+    out = run("rig_recording.py", str(target), cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "camera wrist: 320x240 at 15 fps, 8 frames" in out.stdout
+    assert "15 frame sets, 7 without a wrist frame" in out.stdout
+    assert "(missing: wrist)" in out.stdout
+    assert "rig verified" in out.stdout

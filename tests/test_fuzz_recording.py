@@ -52,7 +52,8 @@ def test_cli_never_shows_a_traceback_for_a_mutant(
 ) -> None:
     statuses: Counter[int] = Counter()
     for case in range(40):
-        clean = cleans[list(CONFIGS)[case % len(CONFIGS)]]
+        one_camera = [name for name in CONFIGS if not CONFIGS[name].get("rig")]
+        clean = cleans[one_camera[case % len(one_camera)]]
         data, what = mutate(clean, SEED + 1, case)
         path = tmp_path / "m.pcdc"
         path.write_bytes(data)
