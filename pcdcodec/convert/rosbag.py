@@ -368,15 +368,41 @@ def _write(
     progress: Callable[[int], None] | None,
 ) -> dict[str, Any]:
     export = _Export(inp, opts)
+    frames = (("", color, depth, ts, pose) for color, depth, ts, pose in inp.frames)
+    summary, _ = _to_bag(frames, {"": export}, target, opts, max_frames, progress)
+    return summary
+
+
+#: What :func:`_to_bag` starts a bag with, at the first frame's stamp (``/tf_static``).
+_Start = Callable[[BagWriter, int], None]
+
+
+def _to_bag(
+    frames: Iterator[tuple[str, Any, Any, int, Any]],
+    exports: dict[str, _Export],
+    target: Path,
+    opts: _Options,
+    max_frames: int | None,
+    progress: Callable[[int], None] | None,
+    start: _Start | None = None,
+) -> tuple[dict[str, Any], dict[str, int]]:
+    """Write ``frames`` (``(camera, color, depth, stamp, pose)``, each camera's through its
+    export) into a bag at ``target``; the summary, and the frames written per camera."""
+    counts = dict.fromkeys(exports, 0)
     count = 0
     with atomic_output(target, place=_swap_in) as staging:
         staging.mkdir(parents=True)
-        bag = BagWriter(staging / target.name, opts.to, opts.storage, export.msgs)
+        first = next(iter(exports.values()))
+        bag = BagWriter(staging / target.name, opts.to, opts.storage, first.msgs)
         try:
-            for color, depth, ts, pose in inp.frames:
-                if count == 0:
+            for camera, color, depth, ts, pose in frames:
+                if count == 0 and start is not None:
+                    start(bag, ts)
+                export = exports[camera]
+                if counts[camera] == 0:
                     export.add_topics(bag, color is not None)
                 export.write_frame(bag, color, depth, ts, pose)
+                counts[camera] += 1
                 count += 1
                 if progress is not None:
                     progress(count)
@@ -394,13 +420,14 @@ def _write(
         if target.is_dir()
         else target.stat().st_size
     )
-    return {
+    summary = {
         "frames": count,
         "path": str(target),
-        "topics": export.topics,
+        "topics": list(bag.conns),
         "bytes": size,
         "format": opts.to,
     }
+    return summary, counts
 
 
 def _in_time_order(rig: RigRecording) -> Iterator[tuple[int, str, Any]]:
@@ -462,47 +489,17 @@ def _write_rig(
     progress: Callable[[int], None] | None,
 ) -> dict[str, Any]:
     exports = {name: _camera_export(rig, name, opts) for name in rig.camera_names}
-    counts = dict.fromkeys(rig.camera_names, 0)
-    count = 0
-    with atomic_output(target, place=_swap_in) as staging:
-        staging.mkdir(parents=True)
-        tf_msgs = MessageBuilder(opts.to == "rosbag2", rig.rig_frame_id)
-        bag = BagWriter(staging / target.name, opts.to, opts.storage, tf_msgs)
-        try:
-            for ts, name, frame in _in_time_order(rig):
-                if count == 0:
-                    bag.add("/tf_static", "tf2_msgs/msg/TFMessage", latched=True)
-                    bag.write("/tf_static", ts, tf_msgs.transforms(ts, rig_transforms(rig)))
-                export = exports[name]
-                if counts[name] == 0:
-                    export.add_topics(bag, frame.color is not None)
-                export.write_frame(bag, frame.color, frame.depth, ts, frame.pose)
-                counts[name] += 1
-                count += 1
-                if progress is not None:
-                    progress(count)
-                if max_frames is not None and count >= max_frames:
-                    break
-            if count == 0:
-                raise InputError("the recording has no frames to write")
-        except BaseException:
-            with contextlib.suppress(Exception):
-                bag.abort()
-            raise
-        bag.close()
-    size = (
-        sum(f.stat().st_size for f in target.rglob("*") if f.is_file())
-        if target.is_dir()
-        else target.stat().st_size
+    tf_msgs = MessageBuilder(opts.to == "rosbag2", rig.rig_frame_id)
+
+    def start(bag: BagWriter, ts: int) -> None:
+        bag.add("/tf_static", "tf2_msgs/msg/TFMessage", latched=True)
+        bag.write("/tf_static", ts, tf_msgs.transforms(ts, rig_transforms(rig)))
+
+    frames = (
+        (name, frame.color, frame.depth, ts, frame.pose) for ts, name, frame in _in_time_order(rig)
     )
-    return {
-        "frames": count,
-        "cameras": counts,
-        "path": str(target),
-        "topics": list(bag.conns),
-        "bytes": size,
-        "format": opts.to,
-    }
+    summary, counts = _to_bag(frames, exports, target, opts, max_frames, progress, start)
+    return {**summary, "cameras": counts}
 
 
 def _swap_in(staging: Path, target: Path) -> None:
