@@ -348,16 +348,17 @@ class _Export:
                 bag.write(self.t_cinfo, ts, info)
         if self.projector is not None:
             bag.write(self.t_cloud, ts, msgs.cloud(ts, cloud_array(self.projector, depth, color)))
-        if pose is not None and self.rig_pose is None:
+        if pose is not None:
             if "/tf" not in bag.conns:
                 self._add(bag, "/tf", "tf2_msgs/msg/TFMessage")
-            bag.write("/tf", ts, msgs.tf(ts, pose, "world"))
-        elif pose is not None and self.rig_pose is not None:
-            # One tree: world -> rig (this frame's pose, through the camera's rig pose) -> camera.
-            if "/tf" not in bag.conns:
-                self._add(bag, "/tf", "tf2_msgs/msg/TFMessage")
-            rig_in_world = np.asarray(pose, np.float64) @ np.linalg.inv(self.rig_pose[1])
-            bag.write("/tf", ts, msgs.transforms(ts, [("world", self.rig_pose[0], rig_in_world)]))
+            if self.rig_pose is None:
+                bag.write("/tf", ts, msgs.tf(ts, pose, "world"))
+            else:
+                # One tree, world -> rig -> camera: the rig's pose through the camera's.
+                rig_frame, rig_pose = self.rig_pose
+                rig_in_world = np.asarray(pose, np.float64) @ np.linalg.inv(rig_pose)
+                edge = ("world", rig_frame, rig_in_world)
+                bag.write("/tf", ts, msgs.transforms(ts, [edge]))
 
 
 def _write(
