@@ -425,6 +425,10 @@ def test_options_go_anywhere_among_a_commands_arguments() -> None:
             ["--overwrite", "x.pcdc", "-o", "y.pcdc"],
             {"input": "x.pcdc", "output": "y.pcdc", "overwrite": True},
         ),
+        "join": (
+            ["a.pcdc", "--overwrite", "b.pcdc", "-o", "c.pcdc", "d.pcdc"],
+            {"parts": ["a.pcdc", "b.pcdc", "d.pcdc"], "output": "c.pcdc", "overwrite": True},
+        ),
         "export": (
             ["--to", "rosbag2", "x.pcdc", "--cloud", "out/", "-q"],
             {"input": "x.pcdc", "output_pos": "out/", "to": "rosbag2", "cloud": True},

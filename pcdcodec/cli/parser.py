@@ -21,7 +21,7 @@ from ..depth import DEFAULT_DEPTH_CODEC
 from .archive import cmd_archive
 from .bench import cmd_bench, cmd_demo
 from .convert import cmd_export, cmd_import
-from .record import cmd_decode, cmd_encode, cmd_recover, cmd_verify
+from .record import cmd_decode, cmd_encode, cmd_join, cmd_recover, cmd_verify
 from .show import cmd_codecs, cmd_info, cmd_view
 
 # -- option groups shared by several commands --------------------------------------------------
@@ -210,6 +210,12 @@ def _recover_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--overwrite", action="store_true")
 
 
+def _join_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("parts", nargs="+", metavar="PART", help="closed recordings, in time order")
+    p.add_argument("-o", "--output", required=True, help="the joined .pcdc file")
+    p.add_argument("--overwrite", action="store_true")
+
+
 def _export_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("input")
     p.add_argument(
@@ -364,6 +370,7 @@ _COMMANDS: tuple[_Command, ...] = (
     ),
     ("verify", "decode every frame and check every checksum", _verify_options, cmd_verify),
     ("recover", "rewrite a damaged or unfinished recording", _recover_options, cmd_recover),
+    ("join", "join recordings written one after another into one", _join_options, cmd_join),
     (
         "export",
         "write a recording as a ROS bag or in the paper's layout",

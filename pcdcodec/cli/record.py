@@ -1,4 +1,5 @@
-"""The commands that write and check recordings: ``encode``, ``decode``, ``verify``, ``recover``.
+"""The commands that write and check recordings: ``encode``, ``decode``, ``verify``, ``recover``,
+``join``.
 
 Each takes the parsed command line and returns the exit status.
 """
@@ -7,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import operator
+from pathlib import Path
 from typing import Any
 
 from .._progress import Progress
@@ -190,37 +192,67 @@ def print_rig_summary(summary: Any, output: str) -> None:
 
 
 def cmd_decode(args: argparse.Namespace) -> int:
-    """``pcdcodec decode REC -o FOLDER``: a TUM-layout folder, with point clouds if asked."""
+    """``pcdcodec decode REC -o FOLDER``: a TUM-layout folder, with point clouds if asked; of a
+    recording of several cameras, one such folder per camera and ``rig.json``."""
     from ..datasets import write_folder
     from ..recording import open as open_recording
+    from ..recording.rig_reader import RigRecording
 
     clouds = tuple(ext for ext, on in (("ply", args.ply), ("pcd", args.pcd)) if on)
-    with (
-        open_recording(args.input, threads=args.threads) as rec,
-        Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar,
-    ):
-        count = write_folder(
-            rec,
-            args.output,
-            intrinsics=rec.intrinsics,
-            depth_scale=rec.depth_scale,
-            color_intrinsics=rec.color_intrinsics,
-            depth_to_color=rec.depth_to_color,
-            clouds=clouds,
-            overwrite=args.overwrite,
-            progress=bar.update,
-        )
+    with open_recording(args.input, threads=args.threads) as rec:
+        if isinstance(rec, RigRecording):
+            return _decode_rig(rec, args, clouds)
+        with Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar:
+            count = write_folder(
+                rec,
+                args.output,
+                intrinsics=rec.intrinsics,
+                depth_scale=rec.depth_scale,
+                color_intrinsics=rec.color_intrinsics,
+                depth_to_color=rec.depth_to_color,
+                clouds=clouds,
+                overwrite=args.overwrite,
+                progress=bar.update,
+            )
     if not args.quiet:
         print(f"wrote {count} frames to {args.output}")
+    return 0
+
+
+def _decode_rig(rig: Any, args: argparse.Namespace, clouds: tuple[str, ...]) -> int:
+    """One folder per camera (``OUT/<name>/``, as ``decode`` writes one camera's) and
+    ``OUT/rig.json`` (:func:`pcdcodec.datasets.write_rig_folder`)."""
+    from ..datasets import write_rig_folder
+
+    out = Path(args.output)
+    total = sum(len(rig.frames(name)) for name in rig.camera_names)
+    with Progress(total, "decoding", enabled=None if not args.quiet else False) as bar:
+        counts = write_rig_folder(
+            rig, out, clouds=clouds, overwrite=args.overwrite, progress=bar.update
+        )
+    if not args.quiet:
+        print(f"wrote {sum(counts.values())} frames of {len(counts)} cameras to {args.output}:")
+        for name, count in counts.items():
+            print(f"  {out / name}: camera {name}, {count} frames")
+        print(f"  {out / 'rig.json'}: each camera's pose in the rig frame {rig.rig_frame_id!r}")
     return 0
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
     """``pcdcodec verify REC``: every frame decoded and checked; 1 on any problem."""
     from ..recording import open as open_recording
+    from ..recording.rig_reader import RigRecording
 
     with open_recording(args.input) as rec:
         report = rec.verify()
+        per_camera: dict[str, int] = (
+            {name: len(rec.frames(name)) for name in rec.camera_names}
+            if isinstance(rec, RigRecording)
+            else {}
+        )
+    for name, frames in per_camera.items():
+        bad = sum(1 for e in report.errors if e.startswith(f"camera {name!r}:"))
+        print(f"  camera {name}: {frames} frames, " + (f"{bad} problem(s)" if bad else "OK"))
     for error in report.errors:
         print(f"  {error}")
     if not report.indexed:
@@ -236,4 +268,26 @@ def cmd_recover(args: argparse.Namespace) -> int:
 
     count = recover(args.input, args.output, overwrite=args.overwrite)
     print(f"recovered {count} frames into {args.output}")
+    _per_camera(args.output)
     return 0
+
+
+def cmd_join(args: argparse.Namespace) -> int:
+    """``pcdcodec join A B ... -o OUT``: recordings written one after another, as one."""
+    from ..recording.join import join
+
+    count = join(args.parts, args.output, overwrite=args.overwrite)
+    print(f"joined {count} frames of {len(args.parts)} recordings into {args.output}")
+    _per_camera(args.output)
+    return 0
+
+
+def _per_camera(path: str) -> None:
+    """Each camera's frames, for a recording of several cameras."""
+    from ..recording import open as open_recording
+    from ..recording.rig_reader import RigRecording
+
+    with open_recording(path) as rec:
+        if isinstance(rec, RigRecording):
+            for name in rec.camera_names:
+                print(f"  camera {name}: {len(rec.frames(name))} frames")
