@@ -99,7 +99,12 @@ def _check_same(first: fmt.FileIndex, other: fmt.FileIndex, name: str, first_nam
         )
     lanes = _lanes(other, name)
     for camera, view in _lanes(first, first_name).items():
-        _check_channels(view, lanes[camera], name, first_name, camera)
+        theirs_ = lanes[camera]
+        if camera is not None and (
+            view.channel(fmt.TOPIC_DEPTH) is None or theirs_.channel(fmt.TOPIC_DEPTH) is None
+        ):
+            continue  # a camera of a rig without frames in one part: nothing to compare
+        _check_channels(view, theirs_, name, first_name, camera)
 
 
 def _check_channels(
@@ -132,6 +137,8 @@ class _Lane:
         self.check = fmt.Sealer()  # the part being copied, against its own digests
         self.keyframes: set[int] = set()
         self.last_time: int | None = None
+        #: the messages written once per camera (calibration) that the joined file has
+        self.once: set[str] = set()
 
 
 def join(
@@ -186,11 +193,15 @@ def join(
             writer = header.start_mcap(out, header.library_of(paths[0]))
             for name, data in _settings(first).items():
                 writer.add_metadata(name, data)
-            ids = header.copy_channels(writer, first)
-            topic_ids = {ch.topic: ids[cid] for cid, ch in first.channels.items()}
+            # Each channel as the first part that has it registered it: a camera of a rig may
+            # start recording in a later part.
+            topic_ids: dict[str, int] = {}
+            schemas: dict[tuple[str, str, bytes], int] = {}
+            for index in indexes:
+                _register(writer, index, topic_ids, schemas)
             integrity = fmt.integrity_version(first, repr(str(paths[0])))
-            for n, (path, index) in enumerate(zip(paths, indexes, strict=True)):
-                frames += _copy_part(writer, path, index, n, lanes, topic_ids)
+            for path, index in zip(paths, indexes, strict=True):
+                frames += _copy_part(writer, path, index, lanes, topic_ids)
             if integrity:
                 for camera, lane in lanes.items():
                     seal_name = fmt.SEAL_NAME if camera is None else fmt.camera_seal(camera)
@@ -209,11 +220,10 @@ def _copy_part(
     writer: Any,
     path: Path,
     index: fmt.FileIndex,
-    n: int,
     lanes: dict[str | None, _Lane],
     topic_ids: dict[str, int],
 ) -> int:
-    """Copy part ``n`` (at ``path``) into ``writer``; returns its frames.
+    """Copy the part at ``path`` into ``writer``; returns its frames.
 
     Sequence numbers continue across parts: the color packets (and the keyframe markers,
     which share their packet's number), the depth frames and the frame digests count apart.
@@ -238,9 +248,11 @@ def _copy_part(
                 if found is None:
                     continue
                 camera, topic, real = found
-                if topic in _ONCE and n > 0:
-                    continue
                 lane = lanes[camera]
+                if topic in _ONCE:
+                    if topic in lane.once:
+                        continue
+                    lane.once.add(topic)
                 counter = fmt.TOPIC_COLOR if topic == fmt.TOPIC_KEYFRAMES else topic
                 sequence = m.sequence + lane.base.get(counter, 0)
                 payload = m.data
@@ -267,6 +279,25 @@ def _copy_part(
             lane.base[topic] += len(view.times.get(topic, []))
         frames += len(view.times.get(fmt.TOPIC_DEPTH, []))
     return frames
+
+
+def _register(
+    writer: Any,
+    index: fmt.FileIndex,
+    topic_ids: dict[str, int],
+    schemas: dict[tuple[str, str, bytes], int],
+) -> None:
+    """Register the channels of ``index`` that ``writer`` lacks (and their schemas)."""
+    for cid, ch in index.channels.items():
+        if ch.topic in topic_ids:
+            continue
+        sid = 0
+        schema = index.schemas.get(index.channel_schema.get(cid, 0))
+        if schema is not None:
+            if schema not in schemas:
+                schemas[schema] = writer.register_schema(*schema)
+            sid = schemas[schema]
+        topic_ids[ch.topic] = writer.register_channel(ch.topic, ch.encoding, sid, ch.metadata)
 
 
 def _rejoin(data: bytes, check: fmt.Sealer, sealer: fmt.Sealer, path: Path, offset: int) -> bytes:
