@@ -22,7 +22,7 @@ from .archive import cmd_archive
 from .bench import cmd_bench, cmd_demo
 from .convert import cmd_export, cmd_import
 from .live import cmd_record
-from .record import cmd_decode, cmd_encode, cmd_recover, cmd_verify
+from .record import cmd_decode, cmd_encode, cmd_join, cmd_recover, cmd_verify
 from .show import cmd_codecs, cmd_info, cmd_view
 
 # -- option groups shared by several commands --------------------------------------------------
@@ -144,10 +144,17 @@ def _demo_options(p: argparse.ArgumentParser) -> None:
 def _encode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "src",
+        nargs="*",
         help="an RGB-D folder, a ROS 1 bag, a ROS 2 bag folder or file, a RealSense .bag, an "
-        "Azure Kinect .mkv, ...",
+        "Azure Kinect .mkv, ...; several inputs, or a bag of several cameras, make one "
+        "recording of a rig",
     )
     p.add_argument("-o", "--output", required=True, help="the .pcdc file to write")
+    p.add_argument(
+        "--rig",
+        metavar="FILE",
+        help="a rig file (YAML): the cameras' names, sources and extrinsics (docs/rig.md)",
+    )
     p.add_argument(
         "--color", default=DEFAULT_COLOR_CODEC, help="color codec, e.g. h264 or h264:crf=20"
     )
@@ -274,6 +281,12 @@ def _verify_options(p: argparse.ArgumentParser) -> None:
 def _recover_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("input")
     p.add_argument("-o", "--output", required=True)
+    p.add_argument("--overwrite", action="store_true")
+
+
+def _join_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("parts", nargs="+", metavar="PART", help="closed recordings, in time order")
+    p.add_argument("-o", "--output", required=True, help="the joined .pcdc file")
     p.add_argument("--overwrite", action="store_true")
 
 
@@ -437,6 +450,7 @@ _COMMANDS: tuple[_Command, ...] = (
     ),
     ("verify", "decode every frame and check every checksum", _verify_options, cmd_verify),
     ("recover", "rewrite a damaged or unfinished recording", _recover_options, cmd_recover),
+    ("join", "join recordings written one after another into one", _join_options, cmd_join),
     (
         "export",
         "write a recording as a ROS bag or in the paper's layout",
