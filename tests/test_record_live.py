@@ -386,3 +386,37 @@ def test_several_cameras_in_one_recording(rs: Any, tmp_path: Path) -> None:
             assert len(frames) == 6
             for frame in frames:
                 assert np.array_equal(frame.depth, ref[frame.timestamp_ns])
+
+
+@pytest.mark.shared_data
+def test_a_rig_file_names_and_places_the_cameras(
+    rs: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a = _made_bag(tmp_path / "a.bag", "111", count=4)
+    b = _made_bag(tmp_path / "b.bag", "222", count=4)
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(
+        "frame: base_link\n"
+        "cameras:\n"
+        "  - name: head\n"
+        "    extrinsic: {translation: [0.1, 0.0, 0.5], rotation: [0.0, 0.0, 0.0, 1.0]}\n"
+        "  - name: wrist\n"
+        "    color: none\n"
+        "    depth: zstd\n"
+    )
+    out = tmp_path / "rig.pcdc"
+    args = ["record", "-o", str(out), "--playback", str(a), "--playback", str(b), "-q"]
+    assert main([*args, "--rig", str(rig)]) == 0
+    with pcdcodec.open(out) as rec:
+        assert list(rec.cameras) == ["head", "wrist"]
+        assert rec.rig_frame_id == "base_link"
+        np.testing.assert_allclose(rec.rig_poses["head"][:3, 3], [0.1, 0.0, 0.5])
+        np.testing.assert_allclose(rec.rig_poses["wrist"], np.eye(4))
+        wrist = rec.frames(camera="wrist")
+        assert len(wrist) == 4
+        assert wrist[0].color is None
+    rig.write_text("cameras:\n  - name: head\n    source: a.bag\n  - name: wrist\n")
+    assert main([*args, "--rig", str(rig), "--overwrite"]) == 1
+    assert "source cannot be set for a live camera" in capsys.readouterr().err
+    assert main([*args, "--rig", str(rig), "--name", "x", "--name", "y", "--overwrite"]) == 1
+    assert "--name or in the --rig file, not both" in capsys.readouterr().err

@@ -42,6 +42,30 @@ def camera_names(given: list[str] | None, serials: list[str | None]) -> list[str
     return [f"cam{i}" for i in range(n)]
 
 
+def read_rig_file(path: str, count: int) -> Any:
+    """The rig file ``path`` for ``count`` live cameras: its cameras name them in order, place
+    them on the rig (``extrinsic``; the identity where it has none) and may set their codecs and
+    rate. A live camera is its own source and calibration, so ``source``, ``namespace``,
+    ``intrinsics`` and ``depth_scale`` are errors."""
+    from ..sources.rigfile import read_rig
+
+    rig = read_rig(path)
+    if len(rig.cameras) != count:
+        raise InputError(
+            f"rig file {path!r} has {len(rig.cameras)} cameras for {count} live cameras; give "
+            "one entry per --serial or --playback, in the same order"
+        )
+    for entry in rig.cameras:
+        given = [k for k in ("source", "namespace") if getattr(entry, k) is not None]
+        given += sorted(entry.source_options)
+        if given:
+            raise InputError(
+                f"rig file {path!r}, camera {entry.name}: {', '.join(given)} cannot be set for a "
+                "live camera (it is its own source and calibration)"
+            )
+    return rig
+
+
 def _open_sources(args: argparse.Namespace) -> list[Any]:
     """One live source per ``--playback`` file or ``--serial`` (or per connected camera)."""
     from ..sources.live import connected_serials, realsense_live
@@ -95,9 +119,9 @@ def _open_sources(args: argparse.Namespace) -> list[Any]:
 class _Output:
     """The recording: one camera's writer, or the multi-camera writer, behind ``write``."""
 
-    def __init__(self, args: argparse.Namespace, names: list[str], sources: list[Any]) -> None:
-        import numpy as np
-
+    def __init__(
+        self, args: argparse.Namespace, names: list[str], sources: list[Any], rig: Any
+    ) -> None:
         from ..recording.rig import CameraSpec, RigWriter
         from ..recording.writer import RecordingWriter
 
@@ -105,7 +129,7 @@ class _Output:
         depth = parse_codec(args.depth, "depth")
         self.path = Path(args.output)
         self.names = names
-        if len(sources) == 1:
+        if len(sources) == 1 and rig is None:
             s = sources[0]
             self.writer: Any = RecordingWriter(
                 self.path,
@@ -121,29 +145,41 @@ class _Output:
             )
             self.rig = False
             return
-        specs = [
-            CameraSpec(
-                name=name,
-                intrinsics=s.intrinsics,
-                depth_scale=s.depth_scale,
-                fps=s.fps,
-                color=color,
-                depth=depth,
-                color_intrinsics=s.color_intrinsics,
-                depth_to_color=s.depth_to_color,
-                rig_pose=np.eye(4),
+        entries = rig.cameras if rig is not None else [None] * len(sources)
+        specs = []
+        for name, s, entry in zip(names, sources, entries, strict=True):
+            own = entry.overrides if entry is not None else {}
+            specs.append(
+                CameraSpec(
+                    name=name,
+                    intrinsics=s.intrinsics,
+                    depth_scale=s.depth_scale,
+                    fps=own.get("fps", s.fps),
+                    color=None if args.depth_only else own.get("color", color),
+                    depth=own.get("depth", depth),
+                    color_intrinsics=s.color_intrinsics,
+                    depth_to_color=s.depth_to_color,
+                    rig_pose=entry.extrinsic if entry is not None else None,
+                    frame_id=entry.frame_id if entry is not None else None,
+                )
             )
-            for name, s in zip(names, sources, strict=True)
-        ]
         metadata = {"source": "realsense-live"}
         for name, s in zip(names, sources, strict=True):
             metadata.update({f"{name}.{k}": v for k, v in s.metadata.items()})
-        self.writer = RigWriter(self.path, specs, overwrite=args.overwrite, metadata=metadata)
+        self._color = [spec.color is not None for spec in specs]
+        self.writer = RigWriter(
+            self.path,
+            specs,
+            overwrite=args.overwrite,
+            metadata=metadata,
+            rig_frame_id=rig.frame if rig is not None else "rig",
+        )
         self.rig = True
 
     def write(self, index: int, frame: Any) -> None:
         if self.rig:
-            self.writer.write(self.names[index], frame.color, frame.depth, frame.timestamp_ns)
+            color = frame.color if self._color[index] else None  # a camera recorded depth only
+            self.writer.write(self.names[index], color, frame.depth, frame.timestamp_ns)
         else:
             self.writer.write(frame.color, frame.depth, frame.timestamp_ns)
 
@@ -224,9 +260,16 @@ def cmd_record(args: argparse.Namespace) -> int:
             raise InputError(f"--{name} must be positive, got {value}")
     sources = _open_sources(args)
     try:
-        names = camera_names(args.name, [s.serial for s in sources])
+        rig = None
+        if args.rig is not None:
+            if args.name:
+                raise InputError("give camera names with --name or in the --rig file, not both")
+            rig = read_rig_file(args.rig, len(sources))
+            names = [entry.name for entry in rig.cameras]
+        else:
+            names = camera_names(args.name, [s.serial for s in sources])
         view = _viewer(args, names, sources)
-        output = _Output(args, names, sources)
+        output = _Output(args, names, sources, rig)
         cameras = [Camera(n, s) for n, s in zip(names, sources, strict=True)]
         # Played back at full speed, a file waits for the encoder; a camera never does.
         block = all(s.playback and not s.real_time for s in sources)

@@ -188,6 +188,12 @@ def _record_options(p: argparse.ArgumentParser) -> None:
         help="the cameras' names in the recording, in order (default: rs_<serial>, else cam0, "
         "cam1, ...); repeatable",
     )
+    g.add_argument(
+        "--rig",
+        metavar="FILE",
+        help="rig file (docs/rig.md): the cameras' names, poses on the rig, codecs and rates, "
+        "one entry per camera in order",
+    )
     g.add_argument("--width", type=int, help="depth width (default: the camera's)")
     g.add_argument("--height", type=int, help="depth height")
     g.add_argument("--fps", type=int, help="depth frame rate")
