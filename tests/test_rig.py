@@ -443,3 +443,29 @@ def test_join_takes_parts_where_a_camera_has_no_frames(tmp_path: Path) -> None:
         for name in "ab":
             for frame, k in zip(rec.frames(name), got[name], strict=True):
                 assert np.array_equal(frame.depth, depths[k])
+
+
+def test_the_writers_chunk_index_is_packed_and_writes_the_same_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from pcdcodec.recording import _header
+
+    depths = [d[::4, ::4].copy() for d in load_depths("sample", 10)]
+    cam = SEQUENCES["sample"].camera
+    small = CameraIntrinsics(160, 120, cam.fx / 4, cam.fy / 4, cam.cx / 4, cam.cy / 4)
+
+    def record(path: Path) -> Any:
+        with pcdcodec.open(path, "w", intrinsics=small, color="ffv1", depth="zstd") as w:
+            for k in range(40):
+                w.write(np.zeros((120, 160, 3), np.uint8) + k, depths[k % 10], k * 33 * _MS)
+            store = getattr(w._mcap, "_Writer__chunk_indices")
+        return store
+
+    store = record(tmp_path / "packed.pcdc")
+    assert isinstance(store, _header.PackedChunkIndexes)
+    assert len(store) >= 3 * 40  # a chunk per message: color, depth and digest per frame
+    assert store.nbytes == 72 * len(store)  # was about 600 bytes per entry
+    monkeypatch.setattr(_header, "_CHUNK_INDEXES", "_not_the_writers")
+    plain = record(tmp_path / "plain.pcdc")
+    assert not isinstance(plain, _header.PackedChunkIndexes)
+    assert (tmp_path / "packed.pcdc").read_bytes() == (tmp_path / "plain.pcdc").read_bytes()
