@@ -79,12 +79,12 @@ class DepthSerializer(ArrayBytesCodec):
     codec: FrameCodec
 
     def __init__(self, codec: str | Mapping[str, Any] | FrameCodec = "depthac", **params: Any):
-        if isinstance(codec, str) and not params and ":" not in codec:
-            codec = codec.removeprefix(PREFIX)
-        elif isinstance(codec, str) and params:
+        if params:
+            if not isinstance(codec, str) or ":" in codec:
+                raise InputError("pass parameters either in the codec or as keywords, not both")
             codec = {"id": codec.removeprefix(PREFIX), **params}
-        elif params:
-            raise InputError("pass parameters either in the codec or as keywords, not both")
+        elif isinstance(codec, str):
+            codec = codec.removeprefix(PREFIX)
         built = as_codec(dict(codec) if isinstance(codec, Mapping) else codec, "depth")
         if not isinstance(built, FrameCodec):
             raise InputTypeError(f"Zarr codec needs a depth frame codec, got {built!r}")
