@@ -370,3 +370,25 @@ def test_zarr_v2_array_takes_the_numcodec_as_compressor() -> None:
         "max_rel_error": 0.0,
     }
     assert_bit_exact(reopened[:], data)
+
+
+def test_docs_example_runs(tmp_path: Path) -> None:
+    """The example of docs/zarr.md, and its numcodecs one, run as written."""
+    _zarr()
+    text = (REPO / "docs" / "zarr.md").read_text()
+    blocks = [b.split("```", 1)[0] for b in text.split("```python\n")[1:]]
+    assert len(blocks) >= 3
+    script = (
+        blocks[0] + blocks[-1] + "\nassert (zarr.open_array('depth_v2.zarr')[:] == depth).all()\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", script],
+        env={"PYTHONPATH": f"{entry_point_path(tmp_path)}:{REPO}", "PATH": ""},
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert out.returncode == 0, out.stderr
+    assert "'name': 'pcdcodec.depthac'" in out.stdout
+    assert (tmp_path / "depth.zarr" / "zarr.json").is_file()
