@@ -392,3 +392,19 @@ def test_docs_example_runs(tmp_path: Path) -> None:
     assert out.returncode == 0, out.stderr
     assert "'name': 'pcdcodec.depthac'" in out.stdout
     assert (tmp_path / "depth.zarr" / "zarr.json").is_file()
+
+
+def test_zarr_shards_hold_several_depth_frames() -> None:
+    """With sharding, each frame is still one chunk, and one file holds several."""
+    zarr = _zarr()
+    from pcdcodec.zarr import serializer
+
+    data = frames("sample", "uint16", 6)
+    shards = (3, *data.shape[1:])
+    array = depth_array(zarr, zarr.storage.MemoryStore(), data, serializer(), shards=shards)
+    inner = array.metadata.to_dict()["codecs"][0]["configuration"]["codecs"]
+    assert inner == ({"name": "pcdcodec.depthac", "configuration": {}},)
+    assert len([k for k in array.store._store_dict if k.startswith("c/")]) == 2
+    reopened = zarr.open_array(array.store)
+    assert_bit_exact(reopened[:], data)
+    assert_bit_exact(reopened[4], data[4])
