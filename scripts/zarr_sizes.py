@@ -9,7 +9,8 @@ checked bit-exact. Columns:
   depth codec as serializer (:mod:`pcdcodec.zarr`);
 * Blosc-zstd: Zarr v3's ``blosc`` codec (numcodecs' Blosc) with zstd, byte shuffle and
   ``--level`` (Zarr's default 5), and at level 9 without shuffle, Blosc's smallest on depth
-  (byte and bit shuffle gave larger arrays on the bundled sample); zstd: Zarr v3's ``zstd`` codec at level 3;
+  (byte and bit shuffle gave larger arrays on the bundled sample); zstd: Zarr v3's ``zstd``
+  codec at level 3;
 * imagecodecs PNG and JPEG XL: ``imagecodecs.numcodecs``'s ``Png`` (16-bit, its default
   level) and ``Jpegxl`` (lossless, its default effort), numcodecs codecs used as the compressor
   of Zarr v2 arrays, since Zarr v3 has no wrapper for them.
