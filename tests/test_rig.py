@@ -415,3 +415,31 @@ def test_sigkill_of_an_idle_rig_loses_nothing(tmp_path: Path) -> None:
     with rec:
         assert handed == {"a": 7, "b": 4}
         assert {n: len(rec.frames(n)) for n in ("a", "b")} == handed
+
+
+def test_join_takes_parts_where_a_camera_has_no_frames(tmp_path: Path) -> None:
+    from pcdcodec.recording.join import join
+
+    depths = load_depths("sample", 6)
+    cam = SEQUENCES["sample"].camera
+    specs = [CameraSpec("a", cam, 5000.0), CameraSpec("b", cam, 1000.0, color=None)]
+    colors = load_colors("sample", 6)
+    # Part 1: camera "b" has not started; part 3: "a" has stopped.
+    plan = [[("a", 0)], [("a", 1), ("b", 2), ("a", 3)], [("b", 4), ("b", 5)]]
+    parts = []
+    for p, frames in enumerate(plan):
+        path = tmp_path / f"part{p}.pcdc"
+        with RigWriter(path, specs) as w:
+            for name, k in frames:
+                color = colors[k] if name == "a" else None
+                w.write(name, color, depths[k], (k + 1) * 33 * _MS)
+        parts.append(path)
+    out = tmp_path / "joined.pcdc"
+    assert join(parts, out) == 6
+    with pcdcodec.open(out) as rec:
+        assert rec.verify().ok
+        got = {n: [int(t) // (33 * _MS) - 1 for t in rec.frames(n).timestamps] for n in "ab"}
+        assert got == {"a": [0, 1, 3], "b": [2, 4, 5]}
+        for name in "ab":
+            for frame, k in zip(rec.frames(name), got[name], strict=True):
+                assert np.array_equal(frame.depth, depths[k])

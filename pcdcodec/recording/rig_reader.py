@@ -42,10 +42,17 @@ class CameraRecording(Recording):
     :meth:`RigRecording.frames`."""
 
     def __init__(
-        self, path: Path, view: fmt.FileIndex, camera: str, *, threads: int | None = None
+        self,
+        path: Path,
+        view: fmt.FileIndex,
+        camera: str,
+        *,
+        threads: int | None = None,
+        other_chunks: frozenset[int] = frozenset(),
     ) -> None:
         self._view = view
         self.camera = camera
+        self.other_chunks = other_chunks
         super().__init__(path, threads=threads)
 
     def _read_index(self, name: str) -> fmt.FileIndex:
@@ -92,6 +99,7 @@ class RigRecording:
         self._recordings: dict[str, CameraRecording] = {}
         self.cameras: dict[str, RigCamera] = {}
         self.rig_poses: dict[str, npt.NDArray[np.float64]] = {}
+        everything = {o for offsets in index.offsets.values() for o in offsets}
         try:
             for cam in names:
                 record = index.metadata.get(fmt.camera_record(cam))
@@ -103,7 +111,15 @@ class RigRecording:
                     raise DecodeError(
                         f"{name!r}: camera {cam!r} has no valid rig pose ({exc})"
                     ) from None
-                rec = CameraRecording(self.path, fmt.camera_view(index, cam), cam, threads=threads)
+                view = fmt.camera_view(index, cam)
+                own = {o for offsets in view.offsets.values() for o in offsets}
+                rec = CameraRecording(
+                    self.path,
+                    view,
+                    cam,
+                    threads=threads,
+                    other_chunks=frozenset(everything - own),
+                )
                 self._recordings[cam] = rec
                 self.rig_poses[cam] = pose
                 self.cameras[cam] = RigCamera(
