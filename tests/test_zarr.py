@@ -408,3 +408,22 @@ def test_zarr_shards_hold_several_depth_frames() -> None:
     reopened = zarr.open_array(array.store)
     assert_bit_exact(reopened[:], data)
     assert_bit_exact(reopened[4], data[4])
+
+
+def test_pcdcodec_imports_neither_numcodecs_nor_zarr() -> None:
+    script = (
+        "import sys, pcdcodec, pcdcodec.zarr\n"
+        "pcdcodec.list_codecs()\n"
+        "print(','.join(m for m in ('numcodecs', 'zarr', 'pcdcodec.zarr.v3',"
+        " 'pcdcodec.zarr.numcodecs') if m in sys.modules))\n"
+        "pcdcodec.zarr.numcodec('depthac')\n"
+        "print('zarr' in sys.modules)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", script],
+        env={"PYTHONPATH": str(REPO), "PATH": ""},
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert out.stdout.split() == ["False"]  # nothing listed; numcodecs alone loads no zarr

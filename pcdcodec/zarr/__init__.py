@@ -18,7 +18,11 @@ This package imports neither numcodecs nor zarr until one of its names is used, 
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # the names below load on first use (__getattr__)
+    from .numcodecs import DepthNumcodec, numcodec, numcodec_class
+    from .v3 import DepthSerializer, serializer
 
 __all__ = ["DepthNumcodec", "DepthSerializer", "numcodec", "numcodec_class", "serializer"]
 
