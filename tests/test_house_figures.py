@@ -78,7 +78,7 @@ ROOM_ORDER = [
     ["ros"],
     ["sources"],
     ["datasets", "recording"],
-    ["convert", "viewer", "archive", "bench"],
+    ["convert", "viewer", "archive", "bench", "zarr"],
     ["cli", "testing"],
     ["__main__"],
 ]
