@@ -454,11 +454,13 @@ def test_the_writers_chunk_index_is_packed_and_writes_the_same_file(
     cam = SEQUENCES["sample"].camera
     small = CameraIntrinsics(160, 120, cam.fx / 4, cam.fy / 4, cam.cx / 4, cam.cy / 4)
 
+    chunks = _header._CHUNK_INDEXES  # where mcap's writer keeps them
+
     def record(path: Path) -> Any:
         with pcdcodec.open(path, "w", intrinsics=small, color="ffv1", depth="zstd") as w:
             for k in range(40):
                 w.write(np.zeros((120, 160, 3), np.uint8) + k, depths[k % 10], k * 33 * _MS)
-            store = getattr(w._mcap, "_Writer__chunk_indices")
+            store = getattr(w._mcap, chunks)
         return store
 
     store = record(tmp_path / "packed.pcdc")
