@@ -52,7 +52,16 @@ from .sources import Source, open_source
 if TYPE_CHECKING:
     from .bench.evaluation import Evaluation, evaluate
     from .convert.rosbag import export_bag
-    from .recording import CameraSpec, FrameSet, Recording, RecordingWriter, RigRecording, RigWriter
+    from .recording import (
+        CameraSpec,
+        FrameSet,
+        Recording,
+        RecordingWriter,
+        RigRecording,
+        RigSummary,
+        RigWriter,
+        encode_rig,
+    )
 
 #: Public names whose modules load on first use, so that ``import pcdcodec`` stays light.
 _LAZY = {
@@ -65,6 +74,8 @@ _LAZY = {
     "RigWriter": "pcdcodec.recording.rig",
     "RigRecording": "pcdcodec.recording.rig_reader",
     "FrameSet": "pcdcodec.recording.framesets",
+    "RigSummary": "pcdcodec.recording.encode_rig",
+    "encode_rig": "pcdcodec.recording.encode_rig",
 }
 
 #: Module paths of earlier releases, and where their contents live now. Importing an old path
@@ -158,6 +169,7 @@ __all__ = [
     "RecordingWriter",
     "Reprojection",
     "RigRecording",
+    "RigSummary",
     "RigWriter",
     "Source",
     "UnknownCodecError",
@@ -167,6 +179,7 @@ __all__ = [
     "codec_class",
     "decode_depth",
     "encode",
+    "encode_rig",
     "evaluate",
     "export_bag",
     "get_codec",

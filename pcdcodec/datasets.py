@@ -2,9 +2,10 @@
 
 :class:`RGBDSequence` holds frames with their camera; :func:`load_sample` gives the bundled
 sample, :func:`load_folder` reads a folder into a sequence and :func:`write_folder` writes frames
-as a TUM RGB-D folder that it reads back. The folder reader itself (its layouts, ``camera.json``,
-:func:`open_folder` and :class:`FolderSource`) is :mod:`pcdcodec.sources.folder`; its names still
-import from here, and load on first use so that ``import pcdcodec`` does not load the reader.
+as a TUM RGB-D folder that it reads back (:func:`write_rig_folder`: one per camera of a rig).
+The folder reader itself (its layouts, ``camera.json``, :func:`open_folder` and
+:class:`FolderSource`) is :mod:`pcdcodec.sources.folder`; its names still import from here, and
+load on first use so that ``import pcdcodec`` does not load the reader.
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ __all__ = [
     "read_camera_json",
     "sample_dir",
     "write_folder",
+    "write_rig_folder",
 ]
 
 _NS_PER_S = 1_000_000_000
@@ -228,6 +230,11 @@ def write_folder(
     from .sources.folder import as_transform
 
     out = Path(path)
+    if hasattr(frames, "rig_frame_id"):  # a RigRecording: its frames are per camera
+        raise InputError(
+            "write_folder writes one camera's frames; for a recording of several cameras use "
+            "write_rig_folder (a folder per camera) or pass rec.frames(camera)"
+        )
     for fmt_name in clouds:
         if fmt_name not in ("ply", "pcd"):
             raise InputError(f"point cloud format must be 'ply' or 'pcd', got {fmt_name!r}")
@@ -283,6 +290,58 @@ def write_folder(
                     ).tolist()
             (tmp / "camera.json").write_text(json.dumps(camera, indent=2) + "\n")
     return count
+
+
+def write_rig_folder(
+    rig: Any,
+    path: str | os.PathLike[str],
+    *,
+    clouds: tuple[str, ...] = (),
+    overwrite: bool = False,
+    progress: Any = None,
+) -> dict[str, int]:
+    """Write each camera of a recording of several cameras (:class:`~pcdcodec.RigRecording`)
+    as :func:`write_folder` writes one, into ``path/<name>/`` (with its ``camera.json``), and
+    ``path/rig.json``: the rig frame and, per camera, its folder, frame id, frames and rig
+    pose (the 4 × 4 transform from the camera's depth frame to the rig frame, metres).
+
+    ``progress`` is called with the number of frames written, all cameras. An existing
+    non-empty ``path`` needs ``overwrite``. Returns the frames written per camera.
+    """
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{str(out)!r} is a file, not a folder")
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
+        raise InputError(f"{str(out)!r} is not empty; pass overwrite=True to write into it")
+    counts: dict[str, int] = {}
+    for name, cam in rig.cameras.items():
+        done = sum(counts.values())
+        counts[name] = write_folder(
+            rig.frames(name),
+            out / name,
+            intrinsics=cam.intrinsics,
+            depth_scale=cam.depth_scale,
+            color_intrinsics=cam.color_intrinsics,
+            depth_to_color=cam.depth_to_color,
+            clouds=clouds,
+            overwrite=overwrite,
+            progress=None if progress is None else (lambda n, done=done: progress(done + n)),
+        )
+    layout = {
+        "rig_frame_id": rig.rig_frame_id,
+        "cameras": [
+            {
+                "name": name,
+                "folder": name,
+                "frame_id": cam.frame_id,
+                "frames": counts[name],
+                "rig_pose": np.asarray(cam.rig_pose, np.float64).tolist(),
+            }
+            for name, cam in rig.cameras.items()
+        ],
+    }
+    (out / "rig.json").write_text(json.dumps(layout, indent=2) + "\n")
+    return counts
 
 
 def _place_folder(tmp: Path, out: Path) -> None:

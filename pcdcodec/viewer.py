@@ -11,8 +11,17 @@ at its recorded time (timeline ``time``) and by number (timeline ``frame``):
 * ``world/camera/points``: the colored point cloud (every ``stride``-th pixel in each direction);
 * ``world/trajectory``: the camera positions as a line, where poses exist.
 
+A recording of several cameras is shown by frame sets (``RigRecording.framesets()``: one frame
+per camera, matched by time; timeline ``frame`` is the set's number, and each camera's frame is
+logged at its own time): ``world`` is the rig frame, and each camera is ``world/<name>``, placed
+by its rig pose, with its pinhole, ``image/rgb``, ``image/depth`` and ``points`` as above;
+``world/fused`` is the set's fused cloud in the rig frame (each camera's thinned points moved by
+its rig pose). Frames that no set took are not shown.
+
 :func:`view_open3d` plays the point clouds in Open3D's own window, for machines with a display
-and without Rerun. rerun and open3d are imported only here, when called.
+and without Rerun. :class:`LiveView` streams frames to a Rerun viewer as they are recorded
+(``pcdcodec record --view``), one entity tree per camera (``world/<name>/...``). rerun and open3d
+are imported only here, when called.
 """
 
 from __future__ import annotations
@@ -28,7 +37,7 @@ import numpy as np
 from ._atomic import partial_path
 from .errors import InputError, PcdcodecError
 
-__all__ = ["view", "view_open3d"]
+__all__ = ["LiveView", "view", "view_open3d"]
 
 _INSTALL = 'pip install "pcdcodec[view]"'
 
@@ -41,23 +50,85 @@ def _rerun() -> Any:
     return rr
 
 
-def _log_frame(rr: Any, rec: Any, frame: Any, stride: int, jpeg_quality: int | None) -> None:
+def _log_frame(
+    rr: Any,
+    rec: Any,
+    frame: Any,
+    stride: int,
+    jpeg_quality: int | None,
+    base: str = "world/camera",
+    place: bool = True,
+) -> tuple[np.ndarray[Any, Any], np.ndarray[Any, Any] | None]:
+    """Log one frame's images and thinned points under ``base`` (placed by the frame's pose
+    when ``place``); returns the points and their colors, in the camera frame."""
     projector = frame.projector
-    if frame.pose is not None:
+    if place and frame.pose is not None:
         pose = np.asarray(frame.pose, dtype=np.float64)
-        rec.log("world/camera", rr.Transform3D(translation=pose[:3, 3], mat3x3=pose[:3, :3]))
+        rec.log(base, rr.Transform3D(translation=pose[:3, 3], mat3x3=pose[:3, :3]))
     if frame.color is not None:
         image = rr.Image(frame.color)
         rec.log(
-            "world/camera/image/rgb",
+            f"{base}/image/rgb",
             image.compress(jpeg_quality=jpeg_quality) if jpeg_quality is not None else image,
         )
     meter = 1.0 if frame.depth.dtype == np.float32 else projector.depth_scale
-    rec.log("world/camera/image/depth", rr.DepthImage(frame.depth, meter=meter))
+    rec.log(f"{base}/image/depth", rr.DepthImage(frame.depth, meter=meter))
     depth = frame.depth[::stride, ::stride]
     color = frame.color[::stride, ::stride] if frame.color is not None else None
     points, colors = _subsampled_points(projector, depth, color, stride)
-    rec.log("world/camera/points", rr.Points3D(points, colors=colors, radii=0.004 * stride))
+    rec.log(f"{base}/points", rr.Points3D(points, colors=colors, radii=0.004 * stride))
+    return points, colors
+
+
+def _log_camera(rr: Any, rec: Any, base: str, cam: Any, pose: Any = None) -> None:
+    """The pinhole of camera ``cam`` at ``base`` (and where it sits, if ``pose`` is given)."""
+    if pose is not None:
+        pose = np.asarray(pose, dtype=np.float64)
+        rec.log(base, rr.Transform3D(translation=pose[:3, 3], mat3x3=pose[:3, :3]), static=True)
+    rec.log(
+        base,
+        rr.Pinhole(
+            image_from_camera=cam.K,
+            resolution=[cam.width, cam.height],
+            camera_xyz=rr.ViewCoordinates.RDF,
+            image_plane_distance=0.3,
+        ),
+        static=True,
+    )
+
+
+def _log_rig(
+    rr: Any, rec: Any, rig: Any, every: int, max_frames: int | None, stride: int, jpeg: int | None
+) -> None:
+    """Every camera of ``rig`` in its place, and each frame set with its fused cloud."""
+    for name, cam in rig.cameras.items():
+        _log_camera(rr, rec, f"world/{name}", cam.intrinsics, cam.rig_pose)
+    sets = rig.framesets()
+    for i in range(0, len(sets), every)[:max_frames]:
+        frameset = sets[i]
+        rec.set_time("frame", sequence=i)
+        points: list[np.ndarray[Any, Any]] = []
+        colors: list[np.ndarray[Any, Any]] = []
+        for name, frame in frameset.frames.items():
+            if frame is None:
+                continue
+            rec.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
+            own, own_colors = _log_frame(
+                rr, rec, frame, stride, jpeg, base=f"world/{name}", place=False
+            )
+            pose = rig.rig_poses[name]
+            points.append(own.astype(np.float64) @ pose[:3, :3].T + pose[:3, 3])
+            colors.append(
+                own_colors if own_colors is not None else np.zeros((len(own), 3), np.uint8)
+            )
+        rec.set_time("time", timestamp=np.datetime64(frameset.timestamp_ns, "ns"))
+        fused = np.concatenate(points) if points else np.zeros((0, 3))
+        rec.log(
+            "world/fused",
+            rr.Points3D(
+                fused, colors=np.concatenate(colors) if colors else None, radii=0.004 * stride
+            ),
+        )
 
 
 def _subsampled_points(
@@ -99,6 +170,7 @@ def view(
     rerun-sdk is not installed.
     """
     from .recording import open as open_recording
+    from .recording.rig_reader import RigRecording
 
     for name, value in (("every", every), ("stride", stride)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -118,32 +190,33 @@ def view(
         else:
             stream.spawn()
         try:
-            cam = recording.intrinsics
             stream.log("world", rr.ViewCoordinates.RDF, static=True)
-            stream.log(
-                "world/camera",
-                rr.Pinhole(
-                    image_from_camera=cam.K,
-                    resolution=[cam.width, cam.height],
-                    camera_xyz=rr.ViewCoordinates.RDF,
-                    image_plane_distance=0.3,
-                ),
-                static=True,
-            )
-            trajectory: list[np.ndarray[Any, Any]] = []
-            for i, frame in _frames(recording, every, max_frames):
-                stream.set_time("frame", sequence=i)
-                stream.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
-                _log_frame(rr, stream, frame, stride, jpeg_quality)
-                if frame.pose is not None:
-                    trajectory.append(np.asarray(frame.pose, dtype=np.float64)[:3, 3])
-                    stream.log("world/trajectory", rr.LineStrips3D([np.array(trajectory)]))
+            if isinstance(recording, RigRecording):
+                _log_rig(rr, stream, recording, every, max_frames, stride, jpeg_quality)
+            else:
+                _log_recording(rr, stream, recording, every, max_frames, stride, jpeg_quality)
             stream.flush()
         finally:
             stream.disconnect()
         if partial is not None and target is not None:
             os.replace(partial, target)
     return target
+
+
+def _log_recording(
+    rr: Any, rec: Any, recording: Any, every: int, max_frames: int | None, stride: int,
+    jpeg: int | None,
+) -> None:  # fmt: skip
+    """The camera of a one-camera recording, each frame, and the trajectory."""
+    _log_camera(rr, rec, "world/camera", recording.intrinsics)
+    trajectory: list[np.ndarray[Any, Any]] = []
+    for i, frame in _frames(recording, every, max_frames):
+        rec.set_time("frame", sequence=i)
+        rec.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
+        _log_frame(rr, rec, frame, stride, jpeg)
+        if frame.pose is not None:
+            trajectory.append(np.asarray(frame.pose, dtype=np.float64)[:3, 3])
+            rec.log("world/trajectory", rr.LineStrips3D([np.array(trajectory)]))
 
 
 def _frames(recording: Any, every: int, max_frames: int | None) -> Iterator[tuple[int, Any]]:
@@ -162,13 +235,15 @@ def view_open3d(
     threads: int | None = None,
 ) -> None:
     """Play the recording's point clouds in Open3D's window (needs a display); ``threads`` as
-    for :func:`view`. Raises :class:`~pcdcodec.InputError` for bad options and a recording that
-    cannot be read before any window opens."""
+    for :func:`view`. Of a recording of several cameras, each frame set's fused cloud. Raises
+    :class:`~pcdcodec.InputError` for bad options and a recording that cannot be read before
+    any window opens."""
     import time
 
     import open3d as o3d
 
     from .recording import open as open_recording
+    from .recording.rig_reader import RigRecording
 
     if isinstance(every, bool) or not isinstance(every, int) or every < 1:
         raise InputError(f"every must be a positive int, got {every!r}")
@@ -179,10 +254,17 @@ def view_open3d(
         if not vis.create_window(window_name=f"pcdcodec {Path(path).name}"):
             raise PcdcodecError("Open3D could not open a window (no display?); use --save out.rrd")
         try:
-            delay = 1.0 / (fps or recording.fps)
+            if isinstance(recording, RigRecording):  # each frame set's fused cloud
+                sets = recording.framesets()
+                rate = recording.cameras[sets.reference].fps
+                shown: Iterator[Any] = (sets[i] for i in range(0, len(sets), every))
+            else:
+                rate = recording.fps
+                shown = (frame for _, frame in _frames(recording, every, None))
+            delay = 1.0 / (fps or rate)
             cloud = None
-            for _, frame in _frames(recording, every, None):
-                new = frame.to_point_cloud()
+            for item in shown:
+                new = item.to_point_cloud()
                 if cloud is None:
                     cloud = new
                     vis.add_geometry(cloud)
@@ -195,3 +277,65 @@ def view_open3d(
                 time.sleep(delay)
         finally:
             vis.destroy_window()
+
+
+class LiveView:
+    """Frames streamed to a Rerun viewer while they are recorded, at most ``max_fps`` a camera.
+
+    ``cameras`` is one ``(name, projector)`` per camera (a
+    :class:`~pcdcodec.geometry.projector.Projector` with the camera's intrinsics, depth scale and
+    color camera). :meth:`log` shows the color image, the depth image and every ``stride``-th
+    point of the cloud under ``world/<name>``; frames coming faster than ``max_fps`` are
+    skipped, so the viewer never slows the recording much. ``spawn=False`` with ``save`` writes
+    a ``.rrd`` file instead of opening a window. Raises :class:`~pcdcodec.PcdcodecError`
+    naming ``pip install "pcdcodec[view]"`` when rerun-sdk is not installed.
+    """
+
+    def __init__(
+        self,
+        cameras: list[tuple[str, Any]],
+        *,
+        max_fps: float = 5.0,
+        stride: int = 4,
+        save: str | os.PathLike[str] | None = None,
+    ) -> None:
+        import time
+
+        rr = _rerun()
+        self._rr, self._time = rr, time.monotonic
+        self.cameras, self.stride, self.period = cameras, stride, 1.0 / max_fps
+        self._last = [float("-inf")] * len(cameras)
+        self.stream = rr.RecordingStream("pcdcodec-record")
+        if save is not None:
+            self.stream.save(str(save))
+        else:
+            self.stream.spawn()
+        self.stream.log("world", rr.ViewCoordinates.RDF, static=True)
+        for name, projector in cameras:
+            _log_camera(rr, self.stream, f"world/{name}", projector.intrinsics)
+
+    def log(self, index: int, frame: Any) -> bool:
+        """Show ``frame`` of camera ``index``, unless one was shown less than a period ago."""
+        now = self._time()
+        if now - self._last[index] < self.period:
+            return False
+        self._last[index] = now
+        rr, stream = self._rr, self.stream
+        name, projector = self.cameras[index]
+        stream.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
+        if frame.color is not None:
+            stream.log(f"world/{name}/color", rr.Image(frame.color).compress(jpeg_quality=80))
+        meter = 1.0 if frame.depth.dtype == np.float32 else projector.depth_scale
+        stream.log(f"world/{name}/depth", rr.DepthImage(frame.depth, meter=meter))
+        points, colors = projector.to_points(frame.depth, frame.color)
+        step = self.stride * self.stride
+        stream.log(
+            f"world/{name}/points",
+            rr.Points3D(points[::step], colors=None if colors is None else colors[::step]),
+        )
+        return True
+
+    def close(self) -> None:
+        """Send what is left and let the viewer go."""
+        self.stream.flush()
+        self.stream.disconnect()

@@ -410,7 +410,7 @@ def test_options_go_anywhere_among_a_commands_arguments() -> None:
         "demo": (["--frames", "2", "-o", "out"], {"frames": 2, "output": "out"}),
         "encode": (
             ["--fps", "15", "in/", "-o", "x.pcdc", "--camera", "tum-ros"],
-            {"src": "in/", "fps": 15.0, "output": "x.pcdc", "camera": "tum-ros"},
+            {"src": ["in/"], "fps": 15.0, "output": "x.pcdc", "camera": "tum-ros"},
         ),
         "decode": (
             ["-q", "x.pcdc", "--ply", "-o", "out/", "--threads", "2"],
@@ -424,6 +424,10 @@ def test_options_go_anywhere_among_a_commands_arguments() -> None:
         "recover": (
             ["--overwrite", "x.pcdc", "-o", "y.pcdc"],
             {"input": "x.pcdc", "output": "y.pcdc", "overwrite": True},
+        ),
+        "join": (
+            ["a.pcdc", "--overwrite", "b.pcdc", "-o", "c.pcdc", "d.pcdc"],
+            {"parts": ["a.pcdc", "b.pcdc", "d.pcdc"], "output": "c.pcdc", "overwrite": True},
         ),
         "export": (
             ["--to", "rosbag2", "x.pcdc", "--cloud", "out/", "-q"],
@@ -446,6 +450,10 @@ def test_options_go_anywhere_among_a_commands_arguments() -> None:
             {"input": "x.pcdc", "every": 2, "max_frames": 5, "threads": 3},
         ),
         "codecs": (["--kind", "depth"], {"kind": "depth"}),
+        "record": (
+            ["--serial", "1", "-o", "x.pcdc", "--serial", "2", "--fps", "30"],
+            {"serial": ["1", "2"], "output": "x.pcdc", "fps": 30},
+        ),
     }
     assert sorted(intermixed) == sorted(commands)
     for name, (words, want) in intermixed.items():

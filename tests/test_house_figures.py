@@ -78,7 +78,7 @@ ROOM_ORDER = [
     ["ros"],
     ["sources"],
     ["datasets", "recording"],
-    ["convert", "viewer", "archive", "bench", "torch"],
+    ["convert", "viewer", "archive", "bench", "zarr", "torch"],
     ["cli", "testing"],
     ["__main__"],
 ]

@@ -390,7 +390,7 @@ class _Run:
             # Segments whose codec set-up differs cannot be joined: encode the input whole.
             job.retried_whole = True
             shutil.rmtree(s.out / PARTS / job.rel, ignore_errors=True)
-            job.plan, job.remaining, job.colors = [(0, None)], 1, {}
+            job.plan, job.remaining, job.colors, job.frames = [(0, None)], 1, {}, 0
             job.parts = [s.out / PARTS / job.rel / "whole.pcdc"]
             self.submit(
                 job.rel,

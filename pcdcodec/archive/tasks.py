@@ -7,17 +7,28 @@ them and the client can keep their results in the manifest.
 
 from __future__ import annotations
 
-import hashlib
 import os
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from .._atomic import partial_path
 from ..errors import InputError, VerificationError
+from .checks import check_frames
+from .checks import depth_bound as _depth_bound
+from .checks import depth_mismatch as _depth_mismatch  # noqa: F401 - its name here before
+from .checks import digest as _digest
 from .discover import _hash, _stat
 from .manifest import _disk_full
 from .plan import segment_plan
+from .rig_tasks import (
+    RigIndex,
+    count_frames,
+    encode_rig_segment,
+    is_rig_input,
+    probe_rig,
+    rig_colors,
+    verify_rig,
+)
 
 #: What an input without a camera needs, in the library's words (the CLI says its flags).
 NO_CAMERA_HINT = "pass camera= (for every input that lacks one) or input_options= (for this input)"
@@ -34,6 +45,13 @@ def _probe(
     path = Path(src)
     size, mtime = _stat(path)
     digest = _hash(path)
+    if is_rig_input(path, options):
+
+        def cut(most: int) -> bool:
+            return most < 0 or len(segment_plan(most, size or 0, segment_frames, keyframes)) > 1
+
+        rig = probe_rig(src, options, cut)
+        return {"size": size, "mtime_ns": mtime, "hash": digest, **rig}
     index = None
     with open_source(path, **options) as source:
         if source.intrinsics is None:
@@ -85,6 +103,13 @@ def _encode_segment(
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = partial_path(target, unique=True)
     try:
+        if isinstance(index, RigIndex) or (index is None and is_rig_input(src, options)):
+            count = encode_rig_segment(src, options, tmp, writer_options, index)
+            if count == 0:
+                raise InputError(f"{src!r} has no frames in {start}:{stop}")
+            digested = rig_colors(tmp) if digests else []
+            os.replace(tmp, target)
+            return {"frames": count, "bytes": target.stat().st_size, "colors": digested}
         with open_source(src, **options) as source:
             frames = source.frames_at(index) if index is not None else source.frames(start, stop)
             meta = dict(source.metadata)
@@ -122,25 +147,19 @@ def _encode_segment(
 
 def _existing_segment(part: str, digests: bool) -> dict[str, Any]:
     """What :func:`_encode_segment` returns, for a segment an earlier run wrote."""
-    from ..recording import Recording
+    from ..recording import Recording, RigRecording
+    from ..recording import open as open_recording
 
+    with open_recording(part) as any_rec:
+        rig = isinstance(any_rec, RigRecording)
+    if rig:
+        colors = rig_colors(Path(part)) if digests else []
+        size = Path(part).stat().st_size
+        return {"frames": count_frames(Path(part)), "bytes": size, "colors": colors}
     with Recording(part) as rec:
         count = len(rec)
         colors = [_digest(f.color) for f in rec] if digests else []
     return {"frames": count, "bytes": Path(part).stat().st_size, "colors": colors}
-
-
-def _digest(array: Any) -> str:
-    """A digest of an image's values, shape and dtype, whatever its memory layout ("" for
-    ``None``)."""
-    import numpy as np
-
-    if array is None:
-        return ""
-    a = np.ascontiguousarray(array)
-    h = hashlib.blake2b(f"{a.dtype.str}{a.shape}".encode(), digest_size=16)
-    h.update(a.data)
-    return h.hexdigest()
 
 
 def _join_parts(parts: list[str], output: str) -> dict[str, Any]:
@@ -171,8 +190,9 @@ def _verify(
     from ..recording import Recording
     from ..sources import open_source
 
+    if is_rig_input(src, options):
+        return verify_rig(src, options, output, colors)
     name = Path(output).name
-    n = 0
     with open_source(src, **options) as source, Recording(output) as rec:
         if not rec.indexed:
             raise VerificationError(f"{name}: the output has no index")
@@ -181,63 +201,5 @@ def _verify(
                 f"{name}: {len(rec)} frames, but its segments decoded {len(colors)}"
             )
         bound = _depth_bound(rec.codecs.get("depth") or {})
-        decoded: Iterator[Any] = iter(rec)
-        for original in source:
-            frame = next(decoded, None)
-            if frame is None:
-                raise VerificationError(f"{name}: frame {n} of the source is missing")
-            if frame.timestamp_ns != original.timestamp_ns:
-                raise VerificationError(
-                    f"{name}: frame {n} is at {frame.timestamp_ns} ns, the source's at "
-                    f"{original.timestamp_ns} ns"
-                )
-            problem = _depth_mismatch(frame.depth, original.depth, bound)
-            if problem:
-                raise VerificationError(f"{name}: frame {n} depth {problem}")
-            if colors is not None and _digest(frame.color) != colors[n]:
-                raise VerificationError(
-                    f"{name}: frame {n} color differs from the codec's decode of its segment"
-                )
-            n += 1
-        if next(decoded, None) is not None:
-            raise VerificationError(f"{name}: more frames than the source ({n})")
+        n = check_frames(name, iter(rec), source, bound, colors)
     return {"frames": n}
-
-
-def _depth_bound(config: dict[str, Any]) -> Any:
-    """The error bound a depth codec config states, or ``None`` for lossless coding."""
-    from ..depth import FrameCodec
-    from ..registry import get_codec
-
-    codec = get_codec(config)
-    return codec.error_bound if isinstance(codec, FrameCodec) else None
-
-
-def _depth_mismatch(decoded: Any, original: Any, bound: Any) -> str:
-    """Why decoded depth does not stand for the source's ('' when it does).
-
-    Lossless codecs must give the same bits (NaN, float32 "no measurement", equals itself);
-    a codec with an error bound must keep every hole, and every valid pixel within its bound.
-    """
-    if decoded.dtype != original.dtype or decoded.shape != original.shape:
-        return f"is {decoded.dtype} {decoded.shape}, the source's {original.dtype} {original.shape}"
-    import numpy as np
-
-    floats = decoded.dtype.kind == "f"
-    if bound is None:
-        same = np.array_equal(decoded, original, equal_nan=floats)
-        return "" if same else "differs from the source"
-    holes = ~np.isfinite(original) if floats else original == 0
-    kept = ~np.isfinite(decoded) if floats else decoded == 0
-    if not np.array_equal(holes, kept):
-        return "has holes where the source has none, or the other way round"
-    ref = original[~holes].astype(np.float64)
-    err = np.abs(decoded[~holes].astype(np.float64) - ref)
-    over = err > bound.of(ref)
-    if over.any():
-        i = int(np.argmax(over))
-        return (
-            f"is off by {err[i]:g} at a value of {ref[i]:g}, more than the codec's bound "
-            f"(max_error={bound.abs_error:g}, max_rel_error={bound.rel_error:g})"
-        )
-    return ""

@@ -4,8 +4,9 @@ Each command parses its arguments, calls the library, and on a pcdcodec error pr
 ``error: …`` to stderr and exits with status 1 (2 for bad command-line arguments).
 
 The parser is in :mod:`.parser`; the commands are grouped by what they touch in :mod:`.record`,
-:mod:`.show`, :mod:`.convert`, :mod:`.bench` and :mod:`.archive`; :mod:`.options` turns the
-parsed options into the library's arguments.
+:mod:`.live` (``record``, with its capture loop in :mod:`.capture`), :mod:`.show`,
+:mod:`.convert`, :mod:`.bench` and :mod:`.archive`; :mod:`.options` turns the parsed options
+into the library's arguments.
 """
 
 from __future__ import annotations

@@ -39,6 +39,8 @@ def cmd_export(args: argparse.Namespace) -> int:
             + (f", {args.storage}" if args.to == "rosbag2" else "")
             + f", {mib(summary['bytes'])}): {', '.join(summary['topics'])}"
         )
+        for name, frames in summary.get("cameras", {}).items():
+            print(f"  camera {name}: {frames} frames under /{name}")
         return 0
     from ..convert.paper import export_paper
 

@@ -3,8 +3,8 @@
 The option groups that several commands share (the camera and RGB-D folder flags, the bag
 topics) are built once here. :func:`parse_args` lets every command take its options anywhere
 among its positional arguments. The commands themselves live beside this module: ``record``
-(encode, decode, verify, recover), ``show`` (info, codecs, view), ``convert`` (export, import),
-``bench`` (demo, bench) and ``archive``.
+(encode, decode, verify, recover), ``live`` (record: live cameras), ``show`` (info, codecs,
+view), ``convert`` (export, import), ``bench`` (demo, bench) and ``archive``.
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from ..depth import DEFAULT_DEPTH_CODEC
 from .archive import cmd_archive
 from .bench import cmd_bench, cmd_demo
 from .convert import cmd_export, cmd_import
-from .record import cmd_decode, cmd_encode, cmd_recover, cmd_verify
+from .live import cmd_record
+from .record import cmd_decode, cmd_encode, cmd_join, cmd_recover, cmd_verify
 from .show import cmd_codecs, cmd_info, cmd_view
 
 # -- option groups shared by several commands --------------------------------------------------
@@ -143,10 +144,17 @@ def _demo_options(p: argparse.ArgumentParser) -> None:
 def _encode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "src",
+        nargs="*",
         help="an RGB-D folder, a ROS 1 bag, a ROS 2 bag folder or file, a RealSense .bag, an "
-        "Azure Kinect .mkv, ...",
+        "Azure Kinect .mkv, ...; several inputs, or a bag of several cameras, make one "
+        "recording of a rig",
     )
     p.add_argument("-o", "--output", required=True, help="the .pcdc file to write")
+    p.add_argument(
+        "--rig",
+        metavar="FILE",
+        help="a rig file (YAML): the cameras' names, sources and extrinsics (docs/rig.md)",
+    )
     p.add_argument(
         "--color", default=DEFAULT_COLOR_CODEC, help="color codec, e.g. h264 or h264:crf=20"
     )
@@ -159,6 +167,85 @@ def _encode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     _add_camera_options(p)
     _add_topic_options(p)
+
+
+def _record_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-o", "--output", required=True, help="the .pcdc file to write")
+    g = p.add_argument_group("cameras (default: every RealSense camera connected)")
+    g.add_argument(
+        "--serial", action="append", metavar="SERIAL", help="a camera's serial number; repeatable"
+    )
+    g.add_argument(
+        "--playback",
+        action="append",
+        metavar="FILE",
+        help="play a RealSense .bag back as a camera (instead of --serial); repeatable",
+    )
+    g.add_argument(
+        "--name",
+        action="append",
+        metavar="NAME",
+        help="the cameras' names in the recording, in order (default: rs_<serial>, else cam0, "
+        "cam1, ...); repeatable",
+    )
+    g.add_argument(
+        "--rig",
+        metavar="FILE",
+        help="rig file (docs/rig.md): the cameras' names, poses on the rig, codecs and rates, "
+        "one entry per camera in order",
+    )
+    g.add_argument("--width", type=int, help="depth width (default: the camera's)")
+    g.add_argument("--height", type=int, help="depth height")
+    g.add_argument("--fps", type=int, help="depth frame rate")
+    g.add_argument("--color-width", type=int, help="color width (default: as depth)")
+    g.add_argument("--color-height", type=int, help="color height (default: as depth)")
+    g.add_argument("--color-fps", type=int, help="color frame rate (default: as depth)")
+    g.add_argument(
+        "--align",
+        action="store_true",
+        help="color aligned to depth by librealsense (default: as the camera gives it, with "
+        "both cameras and the extrinsic)",
+    )
+    g.add_argument("--depth-only", action="store_true", help="record depth, leave color out")
+    g.add_argument(
+        "--global-time",
+        action="store_true",
+        help="the devices' global timestamps (on by default with several cameras)",
+    )
+    g.add_argument(
+        "--sync",
+        action="store_true",
+        help="hardware sync of cameras wired together: the first is the master, the others slaves",
+    )
+    g.add_argument(
+        "--real-time",
+        action="store_true",
+        help="play --playback files at their recorded pace, dropping frames as a camera does "
+        "(default: as fast as the encoder takes them)",
+    )
+    g.add_argument("--loop", action="store_true", help="play --playback files again and again")
+    s = p.add_argument_group("when to stop (default: Ctrl-C, or the end of the playback files)")
+    s.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    s.add_argument("--frames", type=int, metavar="N", help="stop after N frames of each camera")
+    p.add_argument(
+        "--color", default=DEFAULT_COLOR_CODEC, help="color codec, e.g. h264 or h264:crf=20"
+    )
+    p.add_argument(
+        "--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec, e.g. depthac or zstd:level=9"
+    )
+    p.add_argument(
+        "--queue",
+        type=int,
+        metavar="N",
+        help="frames that may wait for the encoder before new ones are dropped, all cameras "
+        "together (default: 15 per camera, half a second at 30 fps)",
+    )
+    p.add_argument(
+        "--view", action="store_true", help="show the frames in a Rerun viewer (pcdcodec[view])"
+    )
+    p.add_argument("--view-save", metavar="OUT.rrd", help="write what --view shows to a file")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    p.add_argument("-q", "--quiet", action="store_true", help="no status line")
 
 
 def _add_threads_option(p: argparse.ArgumentParser) -> None:
@@ -200,6 +287,12 @@ def _verify_options(p: argparse.ArgumentParser) -> None:
 def _recover_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("input")
     p.add_argument("-o", "--output", required=True)
+    p.add_argument("--overwrite", action="store_true")
+
+
+def _join_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("parts", nargs="+", metavar="PART", help="closed recordings, in time order")
+    p.add_argument("-o", "--output", required=True, help="the joined .pcdc file")
     p.add_argument("--overwrite", action="store_true")
 
 
@@ -348,6 +441,12 @@ _COMMANDS: tuple[_Command, ...] = (
         _encode_options,
         cmd_encode,
     ),
+    (
+        "record",
+        "record live RealSense cameras (pcdcodec[realsense]), compressing as frames arrive",
+        _record_options,
+        cmd_record,
+    ),
     ("decode", "write PNG color, 16-bit PNG depth and point clouds", _decode_options, cmd_decode),
     (
         "info",
@@ -357,6 +456,7 @@ _COMMANDS: tuple[_Command, ...] = (
     ),
     ("verify", "decode every frame and check every checksum", _verify_options, cmd_verify),
     ("recover", "rewrite a damaged or unfinished recording", _recover_options, cmd_recover),
+    ("join", "join recordings written one after another into one", _join_options, cmd_join),
     (
         "export",
         "write a recording as a ROS bag or in the paper's layout",

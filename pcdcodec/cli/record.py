@@ -1,4 +1,5 @@
-"""The commands that write and check recordings: ``encode``, ``decode``, ``verify``, ``recover``.
+"""The commands that write and check recordings: ``encode``, ``decode``, ``verify``, ``recover``,
+``join``.
 
 Each takes the parsed command line and returns the exit status.
 """
@@ -7,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 import operator
+from pathlib import Path
+from typing import Any
 
 from .._progress import Progress
 from ..errors import InputError
@@ -14,10 +17,17 @@ from .options import camera_from_args, mib, parse_codec, source_options
 
 
 def cmd_encode(args: argparse.Namespace) -> int:
-    """``pcdcodec encode SRC -o REC``: any input into a recording; says what camera it used."""
+    """``pcdcodec encode SRC -o REC``: any input into a recording; says what camera it used.
+    Several inputs, a rig file or a bag of several cameras make a recording of a rig."""
     from ..recording import encode
     from ..sources import open_source
 
+    sources = list(args.src)
+    if args.rig is not None or len(sources) > 1 or _several_cameras(args):
+        return _cmd_encode_rig(args)
+    if not sources:
+        raise InputError("encode needs an input (or --rig FILE naming the inputs)")
+    args.src = sources[0]
     camera, depth_scale = camera_from_args(args)
     options = source_options(args)
     if depth_scale is not None:
@@ -80,38 +90,169 @@ def cmd_encode(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_decode(args: argparse.Namespace) -> int:
-    """``pcdcodec decode REC -o FOLDER``: a TUM-layout folder, with point clouds if asked."""
-    from ..datasets import write_folder
-    from ..recording import open as open_recording
+def _several_cameras(args: argparse.Namespace) -> bool:
+    """Whether the one input is a bag of several cameras, read as a rig (unless a topic flag
+    or pass-through picks what to read of it)."""
+    from ..errors import PcdcodecError
+    from ..sources.base import detect_kind
+    from ..sources.rig import bag_cameras
 
-    clouds = tuple(ext for ext, on in (("ply", args.ply), ("pcd", args.pcd)) if on)
-    with (
-        open_recording(args.input, threads=args.threads) as rec,
-        Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar,
-    ):
-        count = write_folder(
-            rec,
+    picked = [args.depth_topic, args.color_topic, args.info_topic, args.cloud_topic]
+    if len(args.src) != 1 or args.passthrough or any(t is not None for t in picked):
+        return False
+    if detect_kind(args.src[0]) != "rosbag":
+        return False
+    try:
+        return len(bag_cameras(args.src[0])) > 1
+    except PcdcodecError:
+        return False  # read as one camera, which says what is wrong
+
+
+def _cmd_encode_rig(args: argparse.Namespace) -> int:
+    """Several cameras into one recording: the inputs, a rig file or a bag's cameras."""
+    from ..recording import encode_rig
+
+    flags = {
+        "--intrinsics": args.intrinsics,
+        "--camera": args.camera,
+        "--fx": args.fx,
+        "--fy": args.fy,
+        "--cx": args.cx,
+        "--cy": args.cy,
+        "--depth-scale": args.depth_scale,
+        "--depth-topic": args.depth_topic,
+        "--color-topic": args.color_topic,
+        "--info-topic": args.info_topic,
+        "--cloud-topic": args.cloud_topic,
+        "--passthrough": args.passthrough or None,
+        "--depth-pattern": args.depth_pattern,
+        "--color-pattern": args.color_pattern,
+        "--color-intrinsics": args.color_intrinsics,
+        "--depth-to-color": args.depth_to_color,
+        "--depth-only": args.depth_only or None,
+    }
+    given = [k for k, v in flags.items() if v is not None]
+    if given:
+        raise InputError(
+            f"{' '.join(given)} apply to one camera; for several cameras give each camera's "
+            "settings in a rig file (--rig, docs/rig.md)"
+        )
+    options = {} if args.max_frames is None else {"max_frames": args.max_frames}
+    with Progress(None, "encoding", enabled=None if not args.quiet else False) as bar:
+        summary = encode_rig(
+            args.src,
             args.output,
-            intrinsics=rec.intrinsics,
-            depth_scale=rec.depth_scale,
-            color_intrinsics=rec.color_intrinsics,
-            depth_to_color=rec.depth_to_color,
-            clouds=clouds,
+            rig=args.rig,
+            color=parse_codec(args.color, "color"),
+            depth=parse_codec(args.depth, "depth"),
+            fps=args.fps,
             overwrite=args.overwrite,
             progress=bar.update,
+            **options,
         )
+    print_rig_summary(summary, args.output)
+    return 0
+
+
+def print_rig_summary(summary: Any, output: str) -> None:
+    """The lines ``encode`` prints for a rig: per camera, then how the clocks compare."""
+    n, cams = summary.frames, summary.cameras
+    print(
+        f"wrote {n} frames of {len(cams)} cameras to {output} ({mib(summary.bytes)}, "
+        f"{summary.fps:.1f} fps)"
+    )
+    print(f"  rig frame    {summary.rig_frame}")
+    width = max(len(name) for name in cams)
+    for name, cam in cams.items():
+        k = cam.source.get("intrinsics") or {}
+        print(
+            f"  camera {name:{width}}  {cam.frames} frames, {mib(cam.bytes)} (color "
+            f"{mib(cam.bytes_color)}, depth {mib(cam.bytes_depth)}), {k.get('width')}x"
+            f"{k.get('height')} fx={k.get('fx', 0):g}, scale {cam.source.get('depth_scale', 0):g}"
+        )
+        print(f"  {'':{width + 7}}  input {cam.input}; pose from {cam.pose_from}")
+        for key in ("depth_topic", "color_topic", "cloud_topic"):
+            if cam.source.get(key):
+                print(f"  {'':{width + 7}}  {key.replace('_', ' ')} {cam.source[key]}")
+    clocks = summary.clocks
+    if clocks.reference is not None:
+        print(f"  clocks       first and last stamp per camera, offset from {clocks.reference}:")
+        for name, (first, last) in clocks.spans.items():
+            print(
+                f"    {name:{width}}  {first / 1e9:.6f} s to {last / 1e9:.6f} s "
+                f"({(last - first) / 1e9:.3f} s), offset {clocks.offsets[name] / 1e9:+.6f} s"
+            )
+        if clocks.overlap is not None:
+            start, end = clocks.overlap
+            print(f"  overlap      {(end - start) / 1e9:.3f} s, every camera recording")
+        else:
+            print("  overlap      none")
+    for line in summary.warnings:
+        print(f"warning: {line}")
+
+
+def cmd_decode(args: argparse.Namespace) -> int:
+    """``pcdcodec decode REC -o FOLDER``: a TUM-layout folder, with point clouds if asked; of a
+    recording of several cameras, one such folder per camera and ``rig.json``."""
+    from ..datasets import write_folder
+    from ..recording import open as open_recording
+    from ..recording.rig_reader import RigRecording
+
+    clouds = tuple(ext for ext, on in (("ply", args.ply), ("pcd", args.pcd)) if on)
+    with open_recording(args.input, threads=args.threads) as rec:
+        if isinstance(rec, RigRecording):
+            return _decode_rig(rec, args, clouds)
+        with Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar:
+            count = write_folder(
+                rec,
+                args.output,
+                intrinsics=rec.intrinsics,
+                depth_scale=rec.depth_scale,
+                color_intrinsics=rec.color_intrinsics,
+                depth_to_color=rec.depth_to_color,
+                clouds=clouds,
+                overwrite=args.overwrite,
+                progress=bar.update,
+            )
     if not args.quiet:
         print(f"wrote {count} frames to {args.output}")
+    return 0
+
+
+def _decode_rig(rig: Any, args: argparse.Namespace, clouds: tuple[str, ...]) -> int:
+    """One folder per camera (``OUT/<name>/``, as ``decode`` writes one camera's) and
+    ``OUT/rig.json`` (:func:`pcdcodec.datasets.write_rig_folder`)."""
+    from ..datasets import write_rig_folder
+
+    out = Path(args.output)
+    total = sum(len(rig.frames(name)) for name in rig.camera_names)
+    with Progress(total, "decoding", enabled=None if not args.quiet else False) as bar:
+        counts = write_rig_folder(
+            rig, out, clouds=clouds, overwrite=args.overwrite, progress=bar.update
+        )
+    if not args.quiet:
+        print(f"wrote {sum(counts.values())} frames of {len(counts)} cameras to {args.output}:")
+        for name, count in counts.items():
+            print(f"  {out / name}: camera {name}, {count} frames")
+        print(f"  {out / 'rig.json'}: each camera's pose in the rig frame {rig.rig_frame_id!r}")
     return 0
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
     """``pcdcodec verify REC``: every frame decoded and checked; 1 on any problem."""
     from ..recording import open as open_recording
+    from ..recording.rig_reader import RigRecording
 
     with open_recording(args.input) as rec:
         report = rec.verify()
+        per_camera: dict[str, int] = (
+            {name: len(rec.frames(name)) for name in rec.camera_names}
+            if isinstance(rec, RigRecording)
+            else {}
+        )
+    for name, frames in per_camera.items():
+        bad = sum(1 for e in report.errors if e.startswith(f"camera {name!r}:"))
+        print(f"  camera {name}: {frames} frames, " + (f"{bad} problem(s)" if bad else "OK"))
     for error in report.errors:
         print(f"  {error}")
     if not report.indexed:
@@ -127,4 +268,26 @@ def cmd_recover(args: argparse.Namespace) -> int:
 
     count = recover(args.input, args.output, overwrite=args.overwrite)
     print(f"recovered {count} frames into {args.output}")
+    _per_camera(args.output)
     return 0
+
+
+def cmd_join(args: argparse.Namespace) -> int:
+    """``pcdcodec join A B ... -o OUT``: recordings written one after another, as one."""
+    from ..recording.join import join
+
+    count = join(args.parts, args.output, overwrite=args.overwrite)
+    print(f"joined {count} frames of {len(args.parts)} recordings into {args.output}")
+    _per_camera(args.output)
+    return 0
+
+
+def _per_camera(path: str) -> None:
+    """Each camera's frames, for a recording of several cameras."""
+    from ..recording import open as open_recording
+    from ..recording.rig_reader import RigRecording
+
+    with open_recording(path) as rec:
+        if isinstance(rec, RigRecording):
+            for name in rec.camera_names:
+                print(f"  camera {name}: {len(rec.frames(name))} frames")

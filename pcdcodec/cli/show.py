@@ -11,6 +11,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..codec import KINDS
 from ..errors import InputError
 from ..registry import codec_class, list_codecs
@@ -37,6 +39,97 @@ def _info(rec: Any) -> dict[str, Any]:
         "metadata": rec.metadata,
         "first_timestamp_ns": int(rec.timestamps[0]) if len(rec) else None,
     }
+
+
+def _is_rig(rec: Any) -> bool:
+    from ..recording.rig_reader import RigRecording
+
+    return isinstance(rec, RigRecording)
+
+
+def _rig_info(rec: Any) -> dict[str, Any]:
+    """What ``info`` says of a recording of several cameras, as JSON-ready values."""
+    size = rec.path.stat().st_size
+    cameras = []
+    for name, cam in rec.cameras.items():
+        frames = rec.frames(name)
+        cameras.append(
+            {
+                "name": name,
+                "frame_id": cam.frame_id,
+                "frames": len(frames),
+                "duration_s": round(frames.duration, 3),
+                "fps": cam.fps,
+                "intrinsics": cam.intrinsics.to_dict(),
+                "color_intrinsics": cam.color_intrinsics.to_dict()
+                if cam.color_intrinsics
+                else None,
+                "depth_to_color": cam.depth_to_color.tolist()
+                if cam.depth_to_color is not None
+                else None,
+                "depth_scale": cam.depth_scale,
+                "codecs": {"color": cam.color_codec, "depth": cam.depth_codec},
+                "rig_pose": cam.rig_pose.tolist(),
+                "first_timestamp_ns": int(frames.timestamps[0]) if len(frames) else None,
+            }
+        )
+    return {
+        "path": str(rec.path),
+        "format_version": rec.format_version,
+        "rig_frame_id": rec.rig_frame_id,
+        "frames": sum(c["frames"] for c in cameras),
+        "duration_s": round(rec.duration, 3),
+        "size_bytes": size,
+        "indexed": rec.index.indexed,
+        "summary_problem": rec.index.summary_problem,
+        "metadata": rec.metadata,
+        "cameras": cameras,
+    }
+
+
+def _print_rig(info: dict[str, Any], as_json: bool) -> int:
+    if as_json:
+        print(json.dumps(info, indent=2))
+        return 0
+    print(
+        f"{info['path']}: pcdcodec recording of {len(info['cameras'])} cameras, format version "
+        f"{info['format_version']}"
+    )
+    print(f"  frames     {info['frames']} over {info['duration_s']} s, all cameras")
+    print(f"  size       {mib(info['size_bytes'])}")
+    print(f"  rig frame  {info['rig_frame_id']}")
+    for cam in info["cameras"]:
+        intr = cam["intrinsics"]
+        pose = np.asarray(cam["rig_pose"])
+        angle = np.degrees(np.arccos(np.clip((np.trace(pose[:3, :3]) - 1) / 2, -1.0, 1.0)))
+        t = [round(float(v), 4) for v in pose[:3, 3]]
+        print(f"  camera {cam['name']} (frame {cam['frame_id']})")
+        print(
+            f"    frames     {cam['frames']} over {cam['duration_s']} s (nominal {cam['fps']} fps)"
+        )
+        print(
+            f"    camera     {intr['width']}x{intr['height']}, fx={intr['fx']} fy={intr['fy']} "
+            f"cx={intr['cx']} cy={intr['cy']}, depth scale {cam['depth_scale']} per metre"
+        )
+        color_cam = cam["color_intrinsics"]
+        if color_cam:
+            print(
+                f"    color cam  {color_cam['width']}x{color_cam['height']}, fx={color_cam['fx']} "
+                f"fy={color_cam['fy']} cx={color_cam['cx']} cy={color_cam['cy']}"
+            )
+        print(f"    color      {json.dumps(cam['codecs']['color'])}")
+        print(f"    depth      {json.dumps(cam['codecs']['depth'])}")
+        print(f"    rig pose   translation {t} m, rotation {angle:.2f} deg")
+    if info["metadata"]:
+        print(f"  metadata   {json.dumps(info['metadata'])}")
+    if info["summary_problem"]:
+        print(
+            f"  index      unusable ({info['summary_problem']}); frames found by reading the "
+            "whole file"
+        )
+    elif not info["indexed"]:
+        print("  index      missing: the writer did not finish; `pcdcodec recover` rewrites it")
+    return 0
 
 
 def _info_of_source(args: argparse.Namespace) -> int:
@@ -153,6 +246,8 @@ def cmd_info(args: argparse.Namespace) -> int:
             "(a recording keeps its own camera and depth scale)"
         )
     with open_recording(args.input) as rec:
+        if _is_rig(rec):
+            return _print_rig(_rig_info(rec), args.json)
         info = _info(rec)
     if args.json:
         print(json.dumps(info, indent=2))

@@ -16,6 +16,14 @@ and the bag time):
 * for frames with a pose, ``/tf``: ``tf2_msgs/TFMessage`` with one ``TransformStamped`` from
   ``world`` to the camera frame (the camera-to-world pose), so the trajectory plays in RViz.
 
+A recording of several cameras (:class:`~pcdcodec.RigRecording`) is written with each camera's
+topics under its own namespace (``/<name>/depth/image_raw``, ...; each message in the camera's
+``frame_id``), every camera's frames in time order, and one latched ``/tf_static`` message at
+the first frame's stamp placing each camera frame in the rig frame (its rig pose), and, for a
+camera whose color camera is apart from its depth camera, the color frame ``<frame_id>_color``
+in the camera frame (the color images and their camera info are in that frame). Frames with a
+pose place the rig in ``world`` on ``/tf``.
+
 The messages are built and the bag written by :mod:`pcdcodec.ros.bagwriter`. The bag is written
 beside its final name and moved into place when complete.
 """
@@ -23,6 +31,8 @@ beside its final name and moved into place when complete.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import heapq
 import json
 import os
 import shutil
@@ -37,6 +47,7 @@ from .._atomic import atomic_output
 from ..errors import InputError
 from ..geometry.projector import Projector
 from ..recording.reader import Recording
+from ..recording.rig_reader import RigRecording
 from ..ros.bagfile import MCAP_MAGIC
 from ..ros.bagwriter import BagWriter, MessageBuilder
 from ..ros.clouds import CLOUD_DTYPE, cloud_array
@@ -62,24 +73,30 @@ class _Input:
     depth_to_color: Any = None
 
 
+def _open(src: Any) -> tuple[Any, Callable[[], None]]:
+    """``src`` opened (a recording of one or several cameras, or a source), and how to close
+    what was opened here."""
+    if not isinstance(src, (str, os.PathLike)):
+        return src, lambda: None
+    p = Path(src)
+    head = b""
+    if p.is_file():
+        with p.open("rb") as f:
+            head = f.read(8)
+    if head == MCAP_MAGIC:  # a recording, or a ROS 2 bag (which the reader refuses)
+        from ..recording import open as open_recording
+
+        try:
+            rec = open_recording(p)
+        except Exception:
+            rec = None
+        if rec is not None:
+            return rec, rec.close
+    source = open_source(p)
+    return source, source.close
+
+
 def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
-    if isinstance(src, (str, os.PathLike)):
-        p = Path(src)
-        head = b""
-        if p.is_file():
-            with p.open("rb") as f:
-                head = f.read(8)
-        if head == MCAP_MAGIC:  # a recording, or a ROS 2 bag (which Recording refuses)
-            try:
-                rec = Recording(p)
-            except Exception:
-                rec = None
-            if rec is not None:
-                return _from_recording(rec, close=rec.close)
-        src = open_source(p)
-        owned = True
-    else:
-        owned = False
     if isinstance(src, Recording):
         return _from_recording(src, close=lambda: None)
     if isinstance(src, Source):
@@ -96,13 +113,13 @@ def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
             float(depth_scale if depth_scale is not None else src.depth_scale),
             dict(src.metadata),
             src.frame_count,
-            src.close if owned else (lambda: None),
+            lambda: None,
             src.color_intrinsics,
             src.depth_to_color,
         )
     raise InputError(
-        f"export_bag takes a .pcdc path, a Recording, a Source or a path open_source reads, "
-        f"got {type(src).__name__}"
+        f"export_bag takes a .pcdc path, a Recording, a RigRecording, a Source or a path "
+        f"open_source reads, got {type(src).__name__}"
     )
 
 
@@ -130,7 +147,7 @@ def export_bag(
     camera_info: bool = True,
     cloud: bool = False,
     compressed_depth: bool = False,
-    namespace: str = "/camera",
+    namespace: str | None = None,
     frame_id: str | None = None,
     intrinsics: Any = None,
     depth_scale: float | None = None,
@@ -146,9 +163,14 @@ def export_bag(
     ``to`` is ``"rosbag1"`` or ``"rosbag2"``; ``storage`` (ROS 2) ``"mcap"`` or ``"sqlite3"``.
     ``images``, ``camera_info`` and ``cloud`` pick the topics (see the module docstring);
     ``compressed_depth`` writes depth as image_transport compressedDepth (16UC1 depth, depth
-    scale 1000, only). ``intrinsics``/``depth_scale`` override a source's.
+    scale 1000, only). ``intrinsics``/``depth_scale`` override a source's. ``namespace`` is
+    where the topics go (default ``/camera``); of a recording of several cameras, each camera
+    goes under ``<namespace>/<name>`` (default: ``/<name>``) with ``/tf_static`` placing the
+    cameras in the rig (see the module docstring), and ``frame_id``, ``intrinsics`` and
+    ``depth_scale`` cannot be given (each camera has its own).
 
-    Returns a summary: ``frames``, ``path``, ``topics`` and ``bytes`` (size on disk). Raises
+    Returns a summary: ``frames``, ``path``, ``topics`` and ``bytes`` (size on disk), and of a
+    recording of several cameras ``cameras`` (frames written per camera). Raises
     :class:`~pcdcodec.InputError` for an unknown format or storage, an existing output without
     ``overwrite``, or compressedDepth of depth that is not millimetres; nothing is left under
     ``out`` when writing fails.
@@ -164,13 +186,38 @@ def export_bag(
     target = Path(out)
     if target.exists() and not overwrite:
         raise InputError(f"{str(target)!r} already exists; pass overwrite=True to replace it")
-    namespace = "/" + namespace.strip("/") if namespace.strip("/") else ""
-    opts = _Options(to, storage, images, camera_info, cloud, compressed_depth, namespace, frame_id)
-    inp = _input(src, intrinsics, depth_scale)
+    opened, close = _open(src)
     try:
-        return _write(inp, target, opts, max_frames, progress)
+        rig = isinstance(opened, RigRecording)
+        if namespace is None:
+            namespace = "" if rig else "/camera"
+        namespace = "/" + namespace.strip("/") if namespace.strip("/") else ""
+        opts = _Options(
+            to, storage, images, camera_info, cloud, compressed_depth, namespace, frame_id
+        )
+        if rig:
+            given = [
+                k
+                for k, v in (
+                    ("frame_id", frame_id),
+                    ("intrinsics", intrinsics),
+                    ("depth_scale", depth_scale),
+                )
+                if v is not None
+            ]
+            if given:
+                raise InputError(
+                    f"{', '.join(given)} cannot be given for a recording of several cameras: "
+                    "each camera keeps its own"
+                )
+            return _write_rig(opened, target, opts, max_frames, progress)
+        inp = _input(opened, intrinsics, depth_scale)
+        try:
+            return _write(inp, target, opts, max_frames, progress)
+        finally:
+            inp.close()
     finally:
-        inp.close()
+        close()
 
 
 @dataclass(frozen=True)
@@ -185,6 +232,9 @@ class _Options:
     compressed_depth: bool
     namespace: str
     frame_id: str | None
+    #: Whether a color camera apart from the depth camera gets its own frame
+    #: (``<frame_id>_color``) for its images and camera info.
+    color_frame: bool = False
 
 
 class _Export:
@@ -227,6 +277,13 @@ class _Export:
             self.color_dist = list(color_info["D"])
         else:
             self.color_cam, self.color_model, self.color_dist = intr, self.model, self.dist
+        #: The frame of the color images and their camera info.
+        self.color_frame = f"{fid}_color" if opts.color_frame and color_cam is not None else fid
+        self.color_msgs = (
+            MessageBuilder(opts.to == "rosbag2", self.color_frame)
+            if self.color_frame != fid
+            else self.msgs
+        )
         ns = opts.namespace
         self.t_depth = f"{ns}/depth/image_raw"
         self.t_cdepth = f"{self.t_depth}/compressedDepth"
@@ -235,6 +292,8 @@ class _Export:
         self.t_cinfo = f"{ns}/color/camera_info"
         self.t_cloud = f"{ns}/depth_registered/points"
         self.topics: list[str] = []
+        #: Of a camera of a rig: the rig's frame and the camera's rig pose.
+        self.rig_pose: tuple[str, Any] | None = None
 
     def _add(self, bag: BagWriter, topic: str, msgtype: str) -> None:
         self.topics.append(topic)
@@ -279,18 +338,27 @@ class _Export:
                     metres[depth == 0] = np.nan  # ROS 32FC1: NaN is no measurement
                 bag.write(self.t_depth, ts, msgs.image(ts, metres, "32FC1"))
             if color is not None:
-                bag.write(self.t_color, ts, msgs.image(ts, color, "rgb8"))
+                bag.write(self.t_color, ts, self.color_msgs.image(ts, color, "rgb8"))
         if opts.camera_info:
             bag.write(self.t_dinfo, ts, msgs.camera_info(ts, intr, self.model, self.dist))
             if color is not None:
-                info = msgs.camera_info(ts, self.color_cam, self.color_model, self.color_dist)
+                info = self.color_msgs.camera_info(
+                    ts, self.color_cam, self.color_model, self.color_dist
+                )
                 bag.write(self.t_cinfo, ts, info)
         if self.projector is not None:
             bag.write(self.t_cloud, ts, msgs.cloud(ts, cloud_array(self.projector, depth, color)))
         if pose is not None:
             if "/tf" not in bag.conns:
                 self._add(bag, "/tf", "tf2_msgs/msg/TFMessage")
-            bag.write("/tf", ts, msgs.tf(ts, pose, "world"))
+            if self.rig_pose is None:
+                bag.write("/tf", ts, msgs.tf(ts, pose, "world"))
+            else:
+                # One tree, world -> rig -> camera: the rig's pose through the camera's.
+                rig_frame, rig_pose = self.rig_pose
+                rig_in_world = np.asarray(pose, np.float64) @ np.linalg.inv(rig_pose)
+                edge = ("world", rig_frame, rig_in_world)
+                bag.write("/tf", ts, msgs.transforms(ts, [edge]))
 
 
 def _write(
@@ -301,15 +369,41 @@ def _write(
     progress: Callable[[int], None] | None,
 ) -> dict[str, Any]:
     export = _Export(inp, opts)
+    frames = (("", color, depth, ts, pose) for color, depth, ts, pose in inp.frames)
+    summary, _ = _to_bag(frames, {"": export}, target, opts, max_frames, progress)
+    return summary
+
+
+#: What :func:`_to_bag` starts a bag with, at the first frame's stamp (``/tf_static``).
+_Start = Callable[[BagWriter, int], None]
+
+
+def _to_bag(
+    frames: Iterator[tuple[str, Any, Any, int, Any]],
+    exports: dict[str, _Export],
+    target: Path,
+    opts: _Options,
+    max_frames: int | None,
+    progress: Callable[[int], None] | None,
+    start: _Start | None = None,
+) -> tuple[dict[str, Any], dict[str, int]]:
+    """Write ``frames`` (``(camera, color, depth, stamp, pose)``, each camera's through its
+    export) into a bag at ``target``; the summary, and the frames written per camera."""
+    counts = dict.fromkeys(exports, 0)
     count = 0
     with atomic_output(target, place=_swap_in) as staging:
         staging.mkdir(parents=True)
-        bag = BagWriter(staging / target.name, opts.to, opts.storage, export.msgs)
+        first = next(iter(exports.values()))
+        bag = BagWriter(staging / target.name, opts.to, opts.storage, first.msgs)
         try:
-            for color, depth, ts, pose in inp.frames:
-                if count == 0:
+            for camera, color, depth, ts, pose in frames:
+                if count == 0 and start is not None:
+                    start(bag, ts)
+                export = exports[camera]
+                if counts[camera] == 0:
                     export.add_topics(bag, color is not None)
                 export.write_frame(bag, color, depth, ts, pose)
+                counts[camera] += 1
                 count += 1
                 if progress is not None:
                     progress(count)
@@ -327,13 +421,86 @@ def _write(
         if target.is_dir()
         else target.stat().st_size
     )
-    return {
+    summary = {
         "frames": count,
         "path": str(target),
-        "topics": export.topics,
+        "topics": list(bag.conns),
         "bytes": size,
         "format": opts.to,
     }
+    return summary, counts
+
+
+def _in_time_order(rig: RigRecording) -> Iterator[tuple[int, str, Any]]:
+    """``(timestamp, camera, frame)`` of every camera's frames, merged in time order (ties in
+    the rig's camera order); one decoded frame per camera is held at a time."""
+
+    def stamped(k: int, name: str) -> Iterator[tuple[int, int, str, Any]]:
+        for frame in rig.frames(name):
+            yield int(frame.timestamp_ns), k, name, frame
+
+    streams = [stamped(k, name) for k, name in enumerate(rig.camera_names)]
+    for ts, _, name, frame in heapq.merge(*streams, key=lambda e: (e[0], e[1])):
+        yield ts, name, frame
+
+
+def _camera_export(rig: RigRecording, name: str, opts: _Options) -> _Export:
+    """The export of camera ``name`` of ``rig``: its namespace, its frame, its camera."""
+    cam = rig.cameras[name]
+    rec = rig.frames(name)
+    inp = _Input(
+        iter(()),
+        cam.intrinsics,
+        cam.depth_scale,
+        dict(rec.metadata),
+        len(rec),
+        lambda: None,
+        cam.color_intrinsics,
+        cam.depth_to_color,
+    )
+    own = dataclasses.replace(
+        opts, namespace=f"{opts.namespace}/{name}", frame_id=cam.frame_id, color_frame=True
+    )
+    try:
+        export = _Export(inp, own)
+    except InputError as exc:
+        raise InputError(f"camera {name!r}: {exc}") from None
+    export.rig_pose = (rig.rig_frame_id, cam.rig_pose)
+    return export
+
+
+def rig_transforms(rig: RigRecording) -> list[tuple[str, str, Any]]:
+    """The static transforms of a rig, as ``(parent, child, child-to-parent pose)``: each
+    camera frame in the rig frame, and each color camera apart from its depth camera
+    (``<frame_id>_color``) in its camera frame."""
+    edges: list[tuple[str, str, Any]] = []
+    for cam in rig.cameras.values():
+        edges.append((rig.rig_frame_id, cam.frame_id, cam.rig_pose))
+        if cam.color_intrinsics is not None and cam.depth_to_color is not None:
+            color_in_depth = np.linalg.inv(np.asarray(cam.depth_to_color, np.float64))
+            edges.append((cam.frame_id, f"{cam.frame_id}_color", color_in_depth))
+    return edges
+
+
+def _write_rig(
+    rig: RigRecording,
+    target: Path,
+    opts: _Options,
+    max_frames: int | None,
+    progress: Callable[[int], None] | None,
+) -> dict[str, Any]:
+    exports = {name: _camera_export(rig, name, opts) for name in rig.camera_names}
+    tf_msgs = MessageBuilder(opts.to == "rosbag2", rig.rig_frame_id)
+
+    def start(bag: BagWriter, ts: int) -> None:
+        bag.add("/tf_static", "tf2_msgs/msg/TFMessage", latched=True)
+        bag.write("/tf_static", ts, tf_msgs.transforms(ts, rig_transforms(rig)))
+
+    frames = (
+        (name, frame.color, frame.depth, ts, frame.pose) for ts, name, frame in _in_time_order(rig)
+    )
+    summary, counts = _to_bag(frames, exports, target, opts, max_frames, progress, start)
+    return {**summary, "cameras": counts}
 
 
 def _swap_in(staging: Path, target: Path) -> None:

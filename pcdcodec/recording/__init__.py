@@ -17,6 +17,7 @@ from .encode import EncodeSummary, encode
 from .recover import recover
 
 if TYPE_CHECKING:
+    from .encode_rig import RigSummary, encode_rig
     from .reader import Recording
     from .rig import CameraSpec, RigWriter
     from .rig_reader import FrameSet, RigRecording
@@ -27,6 +28,8 @@ if TYPE_CHECKING:
 #: reader and the writer bring their codecs' machinery).
 _LAZY = {
     "CameraSpec": "pcdcodec.recording.rig",
+    "RigSummary": "pcdcodec.recording.encode_rig",
+    "encode_rig": "pcdcodec.recording.encode_rig",
     "FrameSet": "pcdcodec.recording.rig_reader",
     "RigRecording": "pcdcodec.recording.rig_reader",
     "RigWriter": "pcdcodec.recording.rig",
@@ -65,9 +68,11 @@ __all__ = [
     "Recording",
     "RecordingWriter",
     "RigRecording",
+    "RigSummary",
     "RigWriter",
     "VerifyReport",
     "encode",
+    "encode_rig",
     "open",
     "recover",
 ]

@@ -53,8 +53,86 @@ def start_mcap(file: IO[bytes], library: str = LIBRARY) -> Any:
     from mcap.writer import CompressionType, Writer
 
     mcap = Writer(file, chunk_size=0, compression=CompressionType.NONE, enable_data_crcs=True)
+    # The writer keeps every chunk's index entry for the summary, as an object of about 600
+    # bytes: with a chunk per message, 2-3 KB per frame, growing with the recording. Packed,
+    # they take 72 bytes each (the same summary is written).
+    if isinstance(getattr(mcap, _CHUNK_INDEXES, None), list) and not getattr(mcap, _CHUNK_INDEXES):
+        setattr(mcap, _CHUNK_INDEXES, PackedChunkIndexes())
     mcap.start(profile=fmt.PROFILE, library=library)
     return mcap
+
+
+#: Where mcap's Writer keeps its chunk index entries until it writes the summary.
+_CHUNK_INDEXES = "_Writer__chunk_indices"
+
+
+class PackedChunkIndexes:
+    """The chunk index entries of an MCAP writer, kept as packed integers.
+
+    Takes what the writer appends and gives back equal ``ChunkIndex`` records, in order, when it
+    writes the summary. Entries of one channel, uncompressed (all that pcdcodec writes), take 9
+    integers; any other entry is kept as it is.
+    """
+
+    def __init__(self) -> None:
+        from array import array
+
+        self._rows = array("Q")
+        self._others: dict[int, Any] = {}  # position -> an entry kept whole
+        self._count = 0
+
+    def append(self, entry: Any) -> None:
+        offsets = entry.message_index_offsets
+        if entry.compression == "" and len(offsets) == 1:
+            ((channel, where),) = offsets.items()
+            self._rows.extend(
+                (
+                    entry.message_start_time,
+                    entry.message_end_time,
+                    entry.chunk_start_offset,
+                    entry.chunk_length,
+                    channel,
+                    where,
+                    entry.message_index_length,
+                    entry.compressed_size,
+                    entry.uncompressed_size,
+                )
+            )
+        else:
+            self._others[self._count] = entry
+        self._count += 1
+
+    def __len__(self) -> int:
+        return self._count
+
+    def __iter__(self) -> Any:
+        from mcap.records import ChunkIndex
+
+        rows = self._rows
+        k = 0
+        for position in range(self._count):
+            other = self._others.get(position)
+            if other is not None:
+                yield other
+                continue
+            start, end, offset, length, channel, where, index_length, size, raw = rows[k : k + 9]
+            k += 9
+            yield ChunkIndex(
+                message_start_time=start,
+                message_end_time=end,
+                chunk_start_offset=offset,
+                chunk_length=length,
+                message_index_offsets={channel: where},
+                message_index_length=index_length,
+                compression="",
+                compressed_size=size,
+                uncompressed_size=raw,
+            )
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes the packed entries take."""
+        return self._rows.itemsize * len(self._rows)
 
 
 def library_of(path: Path) -> str:
@@ -167,8 +245,10 @@ class Settings:
             try:
                 color_intrinsics = CameraIntrinsics.from_dict(json.loads(meta["color_intrinsics"]))
                 depth_to_color = as_rigid(json.loads(meta["depth_to_color"]), "depth_to_color")
-            except (KeyError, ValueError) as exc:
-                raise DecodeError(f"{name!r} has a damaged color camera record: {exc}") from None
+            except Exception as exc:  # damaged text of any kind, JSON nested too deep included
+                raise DecodeError(
+                    f"{name!r} has a damaged color camera record ({type(exc).__name__}: {exc})"
+                ) from None
         try:
             intrinsics = CameraIntrinsics.from_dict(json.loads(meta["intrinsics"]))
             depth_scale = float(meta["depth_scale"])
@@ -310,7 +390,7 @@ def check_channels(index: fmt.FileIndex, name: str, settings: Settings) -> None:
             text = channel.metadata[key]
             try:
                 got: Any = json.loads(text) if key == "codec" else float(text)
-            except ValueError:
+            except (ValueError, RecursionError):
                 got = text
             if got != value:
                 raise DecodeError(

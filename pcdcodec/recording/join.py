@@ -3,6 +3,10 @@
 Each part must come from the same camera and codecs, and each part's color stream must start
 with a keyframe (a new encoder per part does that), so the joined stream decodes straight
 through. The join copies MCAP messages, it never decodes: it is as fast as the disk.
+
+Parts of several cameras (format version 3) are joined camera by camera in one pass: every
+part must have the same cameras with the same settings, and each camera's messages, sequence
+numbers, frame digests and seal continue across the parts as a one-camera file's do.
 """
 
 from __future__ import annotations
@@ -10,6 +14,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from .._atomic import atomic_output
 from ..errors import DecodeError, InputError
@@ -43,11 +48,48 @@ def _load(path: Path) -> fmt.FileIndex:
 
 
 def _settings(index: fmt.FileIndex) -> dict[str, dict[str, str]]:
-    """The metadata records that must agree between parts (each part has its own seal)."""
-    return {name: data for name, data in index.metadata.items() if name != fmt.SEAL_NAME}
+    """The metadata records that must agree between parts (each part has its own seals)."""
+    return {
+        name: data
+        for name, data in index.metadata.items()
+        if name != fmt.SEAL_NAME and not name.startswith(fmt.SEAL_NAME + ".")
+    }
+
+
+def _lanes(index: fmt.FileIndex, name: str) -> dict[str | None, fmt.FileIndex]:
+    """Each camera of a file seen as a one-camera file (``None``: the one camera of a
+    one-camera file, the file itself)."""
+    cameras = fmt.rig_cameras(index, repr(name))
+    if cameras is None:
+        return {None: index}
+    for camera in cameras:
+        fmt.camera_rig_pose(index, camera, repr(name))  # a part that cannot be read: refused
+    return {camera: fmt.camera_view(index, camera) for camera in cameras}
 
 
 def _check_same(first: fmt.FileIndex, other: fmt.FileIndex, name: str, first_name: str) -> None:
+    ours, theirs = fmt.rig_cameras(first, repr(first_name)), fmt.rig_cameras(other, repr(name))
+    if ours != theirs:
+
+        def holds(cameras: list[str] | None) -> str:
+            return "one camera" if cameras is None else f"the cameras {cameras}"
+
+        raise InputError(
+            f"{name!r} cannot follow {first_name!r}: it holds {holds(theirs)}, "
+            f"{first_name!r} {holds(ours)}; every part must hold the same cameras"
+        )
+    if ours is not None:
+        for cam in ours:
+            a = first.metadata.get(fmt.camera_record(cam), {})
+            b = other.metadata.get(fmt.camera_record(cam), {})
+            fields = sorted(
+                k for k in set(a) | set(b) if k != fmt.DIGEST_KEY and a.get(k) != b.get(k)
+            )
+            if fields:
+                raise InputError(
+                    f"{name!r} cannot follow {first_name!r}: camera {cam!r} has other "
+                    f"settings ({', '.join(fields)}); every part must record each camera alike"
+                )
     if _settings(other) != _settings(first):
         keys = sorted(
             k
@@ -57,10 +99,16 @@ def _check_same(first: fmt.FileIndex, other: fmt.FileIndex, name: str, first_nam
         raise InputError(
             f"{name!r} cannot follow {first_name!r}: its recording metadata differs ({keys})"
         )
+
+
+def _check_channels(
+    first: fmt.FileIndex, other: fmt.FileIndex, name: str, first_name: str, camera: str | None
+) -> None:
+    of = "" if camera is None else f" camera {camera!r}:"
     for topic in _SAME:
         a, b = first.channel(topic), other.channel(topic)
         if (a is None) != (b is None):
-            raise InputError(f"{name!r} cannot follow {first_name!r}: only one has {topic}")
+            raise InputError(f"{name!r} cannot follow {first_name!r}:{of} only one has {topic}")
         if a is not None and b is not None and (a.metadata, a.encoding) != (b.metadata, b.encoding):
             what = "extradata" if topic == fmt.TOPIC_COLOR else "channel metadata"
             diff = sorted(
@@ -69,9 +117,22 @@ def _check_same(first: fmt.FileIndex, other: fmt.FileIndex, name: str, first_nam
                 if a.metadata.get(k) != b.metadata.get(k)
             )
             raise InputError(
-                f"{name!r} cannot follow {first_name!r}: the {topic} {what} differs ({diff}); "
+                f"{name!r} cannot follow {first_name!r}:{of} the {topic} {what} differs ({diff}); "
                 "the parts were written with different codec settings"
             )
+
+
+class _Lane:
+    """One camera's messages being joined: its sequence numbers so far and its seal."""
+
+    def __init__(self) -> None:
+        self.base = {fmt.TOPIC_COLOR: 0, fmt.TOPIC_DEPTH: 0, fmt.TOPIC_FRAME_DIGEST: 0}
+        self.sealer = fmt.Sealer()
+        self.check = fmt.Sealer()  # the part being copied, against its own digests
+        self.keyframes: set[int] = set()
+        self.last_time: int | None = None
+        #: the messages written once per camera (calibration) that the joined file has
+        self.once: set[str] = set()
 
 
 def join(
@@ -84,12 +145,15 @@ def join(
 
     The result reads like a file from one writer: one metadata record, one set of channels,
     continuous message sequence numbers, the camera calibration once, keyframes where each
-    part started. It is written beside ``dst`` and renamed at the end, so ``dst`` never holds
-    a half-written file. Returns the number of frames written.
+    part started. Parts of several cameras (all with the same cameras and settings) give a
+    recording of those cameras, each camera's frames in time order across the parts. It is
+    written beside ``dst`` and renamed at the end, so ``dst`` never holds a half-written file.
+    Returns the number of frames written (all cameras).
 
-    Raises :class:`~pcdcodec.InputError` when the parts differ in camera, codecs or codec
-    extradata, when their timestamps overlap, or when ``dst`` exists and ``overwrite`` is
-    false; :class:`~pcdcodec.DecodeError` for a part that is damaged or not a recording.
+    Raises :class:`~pcdcodec.InputError` when the parts differ in cameras, codecs or codec
+    extradata, when a camera's timestamps overlap between parts, or when ``dst`` exists and
+    ``overwrite`` is false; :class:`~pcdcodec.DecodeError` for a part that is damaged or not
+    a recording.
     """
     paths = [Path(p) for p in parts]
     if not paths:
@@ -101,17 +165,29 @@ def join(
         raise InputError("join writes a new file: the destination must differ from the parts")
     indexes = [_load(p) for p in paths]
     first = indexes[0]
-    last_time: int | None = None
+    lanes = {camera: _Lane() for camera in _lanes(first, str(paths[0]))}
+    # Per camera, the last part that recorded it: each part's channels must match it (a camera
+    # of a rig may have no frames, and so no channels, in some parts).
+    recorded: dict[str | None, tuple[fmt.FileIndex, str]] = {}
     for path, index in zip(paths, indexes, strict=True):
         _check_same(first, index, str(path), str(paths[0]))
-        times = index.times.get(fmt.TOPIC_DEPTH, [])
-        if times and last_time is not None and min(times) <= last_time:
-            raise InputError(
-                f"{str(path)!r} starts at {min(times)} ns, not after the previous part's last "
-                f"frame ({last_time} ns): parts must be given in time order without overlap"
-            )
-        if times:
-            last_time = max(times)
+        for camera, view in _lanes(index, str(path)).items():
+            if camera is None or view.channel(fmt.TOPIC_DEPTH) is not None:
+                if camera in recorded:
+                    before, before_name = recorded[camera]
+                    _check_channels(before, view, str(path), before_name, camera)
+                recorded[camera] = (view, str(path))
+            lane = lanes[camera]
+            times = view.times.get(fmt.TOPIC_DEPTH, [])
+            if times and lane.last_time is not None and min(times) <= lane.last_time:
+                of = "" if camera is None else f"camera {camera!r} of "
+                raise InputError(
+                    f"{of}{str(path)!r} starts at {min(times)} ns, not after the previous "
+                    f"part's last frame ({lane.last_time} ns): parts must be given in time "
+                    "order without overlap"
+                )
+            if times:
+                lane.last_time = max(times)
 
     frames = 0
     with atomic_output(dst_path) as tmp:  # noqa: SIM117 - the file closes before the rename
@@ -119,59 +195,111 @@ def join(
             writer = header.start_mcap(out, header.library_of(paths[0]))
             for name, data in _settings(first).items():
                 writer.add_metadata(name, data)
-            ids = header.copy_channels(writer, first)
-            topic_ids = {ch.topic: ids[cid] for cid, ch in first.channels.items()}
-            # Sequence numbers continue across parts: the color packets (and the keyframe
-            # markers, which share their packet's number), the depth frames and the frame
-            # digests count apart.
-            base = {fmt.TOPIC_COLOR: 0, fmt.TOPIC_DEPTH: 0, fmt.TOPIC_FRAME_DIGEST: 0}
-            # Each part's color digests are checked as its packets are copied; the joined
-            # file gets its own (a part's last packets join the next part's first frame's).
+            # Each channel as the first part that has it registered it: a camera of a rig may
+            # start recording in a later part.
+            topic_ids: dict[str, int] = {}
+            schemas: dict[tuple[str, str, bytes], int] = {}
+            for index in indexes:
+                _register(writer, index, topic_ids, schemas)
             integrity = fmt.integrity_version(first, repr(str(paths[0])))
-            sealer = fmt.Sealer()
-            for n, (path, index) in enumerate(zip(paths, indexes, strict=True)):
-                channel_topic = {cid: ch.topic for cid, ch in index.channels.items()}
-                offsets = sorted({o for topic in index.offsets.values() for o in topic})
-                keyframes = set(index.times.get(fmt.TOPIC_KEYFRAMES, []))
-                check = fmt.Sealer()
-                with path.open("rb") as f:
-                    size = fmt.file_size(f)
-                    for offset in offsets:
-                        for m in fmt.read_chunk_messages(f, offset, what=path.name, size=size):
-                            topic = channel_topic.get(m.channel_id)
-                            if topic is None or (topic == fmt.TOPIC_CALIBRATION and n > 0):
-                                continue
-                            counter = fmt.TOPIC_COLOR if topic == fmt.TOPIC_KEYFRAMES else topic
-                            sequence = m.sequence + base.get(counter, 0)
-                            payload = m.data
-                            if topic == fmt.TOPIC_COLOR:
-                                key = m.log_time in keyframes
-                                check.packet(m.log_time, m.publish_time, key, m.data)
-                                sealer.packet(m.log_time, m.publish_time, key, m.data)
-                            elif topic == fmt.TOPIC_FRAME_DIGEST:
-                                payload = _rejoin(m.data, check, sealer, path, offset)
-                            writer.add_message(
-                                topic_ids[topic], m.log_time, payload, m.publish_time, sequence
-                            )
-                            sealer.note(topic, m.log_time)
-                seal = index.metadata.get(fmt.SEAL_NAME)
-                tail = check.seal()
-                if seal is not None and any(
-                    seal.get(k) != tail[k] for k in ("tail_packets", "tail_digest")
-                ):
-                    raise DecodeError(
-                        f"{str(path)!r}: its last color packets do not match their digest in "
-                        "the seal"
-                    )
-                for topic in base:
-                    base[topic] += len(index.times.get(topic, []))
-                frames += len(index.times.get(fmt.TOPIC_DEPTH, []))
+            for path, index in zip(paths, indexes, strict=True):
+                frames += _copy_part(writer, path, index, lanes, topic_ids)
             if integrity:
-                writer.add_metadata(fmt.SEAL_NAME, fmt.seal(fmt.SEAL_NAME, sealer.seal()))
+                for camera, lane in lanes.items():
+                    seal_name = fmt.SEAL_NAME if camera is None else fmt.camera_seal(camera)
+                    writer.add_metadata(seal_name, fmt.seal(seal_name, lane.sealer.seal()))
             writer.finish()
             out.flush()
             os.fsync(out.fileno())
     return frames
+
+
+#: What a camera writes once, at its first frame: the joined file keeps the first part's.
+_ONCE = (fmt.TOPIC_CALIBRATION, fmt.TOPIC_COLOR_CALIBRATION, fmt.TOPIC_EXTRINSICS)
+
+
+def _copy_part(
+    writer: Any,
+    path: Path,
+    index: fmt.FileIndex,
+    lanes: dict[str | None, _Lane],
+    topic_ids: dict[str, int],
+) -> int:
+    """Copy the part at ``path`` into ``writer``; returns its frames.
+
+    Sequence numbers continue across parts: the color packets (and the keyframe markers,
+    which share their packet's number), the depth frames and the frame digests count apart.
+    Each part's color digests are checked as its packets are copied; the joined file gets its
+    own (a part's last packets join the next part's first frame's)."""
+    views = _lanes(index, str(path))
+    # channel id -> (camera, the topic a one-camera file has it on, the topic in the file)
+    channel_topic = {
+        cid: (camera, ch.topic, index.channels[cid].topic)
+        for camera, view in views.items()
+        for cid, ch in view.channels.items()
+    }
+    for camera, view in views.items():
+        lanes[camera].check = fmt.Sealer()
+        lanes[camera].keyframes = set(view.times.get(fmt.TOPIC_KEYFRAMES, []))
+    offsets = sorted({o for topic in index.offsets.values() for o in topic})
+    with path.open("rb") as f:
+        size = fmt.file_size(f)
+        for offset in offsets:
+            for m in fmt.read_chunk_messages(f, offset, what=path.name, size=size):
+                found = channel_topic.get(m.channel_id)
+                if found is None:
+                    continue
+                camera, topic, real = found
+                lane = lanes[camera]
+                if topic in _ONCE:
+                    if topic in lane.once:
+                        continue
+                    lane.once.add(topic)
+                counter = fmt.TOPIC_COLOR if topic == fmt.TOPIC_KEYFRAMES else topic
+                sequence = m.sequence + lane.base.get(counter, 0)
+                payload = m.data
+                if topic == fmt.TOPIC_COLOR:
+                    key = m.log_time in lane.keyframes
+                    lane.check.packet(m.log_time, m.publish_time, key, m.data)
+                    lane.sealer.packet(m.log_time, m.publish_time, key, m.data)
+                elif topic == fmt.TOPIC_FRAME_DIGEST:
+                    payload = _rejoin(m.data, lane.check, lane.sealer, path, offset)
+                writer.add_message(topic_ids[real], m.log_time, payload, m.publish_time, sequence)
+                lane.sealer.note(topic, m.log_time)
+    frames = 0
+    for camera, view in views.items():
+        lane = lanes[camera]
+        seal = view.metadata.get(fmt.SEAL_NAME)
+        tail = lane.check.seal()
+        ends = ("tail_packets", "tail_digest")
+        if seal is not None and any(seal.get(k) != tail[k] for k in ends):
+            of = "" if camera is None else f" camera {camera!r}:"
+            raise DecodeError(
+                f"{str(path)!r}:{of} its last color packets do not match their digest in the seal"
+            )
+        for topic in lane.base:
+            lane.base[topic] += len(view.times.get(topic, []))
+        frames += len(view.times.get(fmt.TOPIC_DEPTH, []))
+    return frames
+
+
+def _register(
+    writer: Any,
+    index: fmt.FileIndex,
+    topic_ids: dict[str, int],
+    schemas: dict[tuple[str, str, bytes], int],
+) -> None:
+    """Register the channels of ``index`` that ``writer`` lacks (and their schemas)."""
+    for cid, ch in index.channels.items():
+        if ch.topic in topic_ids:
+            continue
+        sid = 0
+        schema = index.schemas.get(index.channel_schema.get(cid, 0))
+        if schema is not None:
+            if schema not in schemas:
+                schemas[schema] = writer.register_schema(*schema)
+            sid = schemas[schema]
+        topic_ids[ch.topic] = writer.register_channel(ch.topic, ch.encoding, sid, ch.metadata)
 
 
 def _rejoin(data: bytes, check: fmt.Sealer, sealer: fmt.Sealer, path: Path, offset: int) -> bytes:

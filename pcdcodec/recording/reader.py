@@ -105,6 +105,8 @@ class Recording(PacketAccess, OneCamera):
 
     #: The camera of a rig's file this reads (``None``: a one-camera file).
     camera: str | None = None
+    #: Of a camera of a rig's file: the chunks (byte offsets) of the other cameras.
+    other_chunks: frozenset[int] = frozenset()
 
     def _read_index(self, name: str) -> fmt.FileIndex:
         """The index of the file, as a one-camera file's."""

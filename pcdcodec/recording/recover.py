@@ -1,4 +1,9 @@
-"""Rewriting a damaged or unfinished ``.pcdc`` file into a clean, indexed one."""
+"""Rewriting a damaged or unfinished ``.pcdc`` file into a clean, indexed one.
+
+A file of several cameras (format version 3) is recovered camera by camera: each camera keeps
+the frames of its own that check out (its frame digests, as a one-camera file's), so a camera
+whose last frames were lost does not cost the others theirs, and each gets a seal of its own.
+"""
 
 from __future__ import annotations
 
@@ -20,12 +25,12 @@ def recover(
 
     Use it on a file whose writer was killed (no summary) or whose tail is cut or damaged:
     everything up to the first damaged record is kept. Returns the number of frames of the
-    new file. ``src`` itself is never changed. Raises :class:`~pcdcodec.DecodeError` when
+    new file (of all its cameras, for a file of several cameras: each keeps the frames of its
+    own that check out). ``src`` itself is never changed. Raises :class:`~pcdcodec.DecodeError` when
     ``src`` is not a pcdcodec recording and :class:`~pcdcodec.InputError` when ``dst`` exists
     and ``overwrite`` is false, or is the same file as ``src``.
     """
     from .._atomic import atomic_output, partial_path  # not loaded by `import pcdcodec`
-    from .reader import Recording
 
     src_path, dst_path = Path(src), Path(dst)
     if not src_path.is_file():
@@ -39,8 +44,7 @@ def recover(
         with atomic_output(dst_path) as tmp:
             with src_path.open("rb") as f:
                 _copy(f, tmp, src_path)
-            with Recording(tmp) as rec:
-                count = len(rec)
+            count = _frames(tmp)
     except PcdcodecError as exc:
         # Name the files the caller gave, never the temporary one.
         text = (
@@ -74,6 +78,10 @@ def _copy(f: IO[bytes], tmp: Path, src_path: Path) -> None:
         )
     fmt.check_metadata(index, repr(str(src_path)))
     integrity = fmt.integrity_version(index, repr(str(src_path)))
+    cameras = fmt.rig_cameras(index, repr(str(src_path)))
+    if cameras is not None:
+        _copy_rig(f, tmp, index, cameras, integrity)
+        return
     offsets = sorted({o for topic in index.offsets.values() for o in topic})
     in_flight: set[int] = set()
     if integrity:
@@ -105,6 +113,91 @@ def _copy(f: IO[bytes], tmp: Path, src_path: Path) -> None:
                         sealer.group()  # copied as written: checked by _complete
         if integrity:
             writer.add_metadata(fmt.SEAL_NAME, fmt.seal(fmt.SEAL_NAME, sealer.seal()))
+        writer.finish()
+
+
+def _frames(path: Path) -> int:
+    """The frames of the recording at ``path`` (all cameras), read as a reader does."""
+    from .reader import Recording, SeveralCamerasError
+
+    try:
+        with Recording(path) as rec:
+            return len(rec)
+    except SeveralCamerasError as several:
+        from .rig_reader import RigRecording
+
+        with RigRecording(path, index=several.index) as rig:
+            return sum(len(rig.frames(name)) for name in rig.camera_names)
+
+
+def _copy_rig(
+    f: IO[bytes], tmp: Path, index: fmt.FileIndex, cameras: list[str], integrity: int
+) -> None:
+    """:func:`_copy` of a file of several cameras: each camera's complete frames, and a seal
+    per camera."""
+    kept: dict[str, set[int]] = {}  # per camera, the chunks it keeps
+    in_flight: dict[str, set[int]] = {}  # per camera, frames an encoder still held back
+    keyframes: dict[str, set[int]] = {}
+    lane_of: dict[int, tuple[str, str]] = {}  # channel id -> (camera, one-camera topic)
+    for name in cameras:
+        view = fmt.camera_view(index, name)
+        offsets = sorted({o for topic in view.offsets.values() for o in topic})
+        if integrity:
+            offsets = offsets[: _complete(f, view, offsets)]
+        kept[name] = set(offsets)
+        in_flight[name] = _in_flight(view, kept[name]) if integrity else set()
+        keyframes[name] = set(view.times.get(fmt.TOPIC_KEYFRAMES, []))
+        lane_of.update({cid: (name, ch.topic) for cid, ch in view.channels.items()})
+    seals = {fmt.SEAL_NAME, *(fmt.camera_seal(name) for name in cameras)}
+    with tmp.open("wb") as out:
+        writer = header.start_mcap(out, "pcdcodec recover")
+        for record, data in index.metadata.items():
+            if record not in seals:  # each camera gets a new seal, of what was kept
+                writer.add_metadata(record, data)
+        # A channel is registered with its first message: a camera that keeps no frame (or
+        # channel no message) leaves no channel without messages behind.
+        schema_ids = {
+            sid: writer.register_schema(schema, encoding, data)
+            for sid, (schema, encoding, data) in index.schemas.items()
+        }
+        channel_ids: dict[int, int] = {}
+
+        def channel(cid: int) -> int:
+            if cid not in channel_ids:
+                ch = index.channels[cid]
+                schema = schema_ids.get(index.channel_schema.get(cid, 0), 0)
+                channel_ids[cid] = writer.register_channel(
+                    ch.topic, ch.encoding, schema, ch.metadata
+                )
+            return channel_ids[cid]
+
+        sealers = {name: fmt.Sealer() for name in cameras}
+        seen: set[tuple[int, int]] = set()
+        for offset in sorted(set().union(*kept.values())):
+            for m in fmt.read_chunk_messages(f, offset, what="recover", size=index.size):
+                key = (m.channel_id, m.log_time)
+                lane = lane_of.get(m.channel_id)
+                if lane is None or key in seen:
+                    continue
+                name, topic = lane
+                if offset not in kept[name]:
+                    continue
+                if m.log_time in in_flight[name] and topic in _FRAME_TOPICS:
+                    continue
+                seen.add(key)
+                writer.add_message(
+                    channel(m.channel_id), m.log_time, m.data, m.publish_time, m.sequence
+                )
+                sealer = sealers[name]
+                sealer.note(topic, m.log_time)
+                if topic == fmt.TOPIC_COLOR:
+                    sealer.packet(m.log_time, m.publish_time, m.log_time in keyframes[name], m.data)
+                elif topic == fmt.TOPIC_FRAME_DIGEST:
+                    sealer.group()  # copied as written: checked by _complete
+        if integrity:
+            for name, sealer in sealers.items():
+                record = fmt.camera_seal(name)
+                writer.add_metadata(record, fmt.seal(record, sealer.seal()))
         writer.finish()
 
 

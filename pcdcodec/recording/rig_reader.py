@@ -8,7 +8,6 @@ one-camera recording gets (digests, seal, CRCs, frame digests) runs per camera.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import IO
@@ -16,8 +15,7 @@ from typing import IO
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import DecodeError, InputError, PcdcodecError
-from ..geometry.transform import as_rigid
+from ..errors import DecodeError, InputError
 from . import _header as header
 from . import _index as fmt
 from .framesets import FrameSet, FrameSets, RigCamera, framesets, match_times
@@ -42,10 +40,17 @@ class CameraRecording(Recording):
     :meth:`RigRecording.frames`."""
 
     def __init__(
-        self, path: Path, view: fmt.FileIndex, camera: str, *, threads: int | None = None
+        self,
+        path: Path,
+        view: fmt.FileIndex,
+        camera: str,
+        *,
+        threads: int | None = None,
+        other_chunks: frozenset[int] = frozenset(),
     ) -> None:
         self._view = view
         self.camera = camera
+        self.other_chunks = other_chunks
         super().__init__(path, threads=threads)
 
     def _read_index(self, name: str) -> fmt.FileIndex:
@@ -92,18 +97,20 @@ class RigRecording:
         self._recordings: dict[str, CameraRecording] = {}
         self.cameras: dict[str, RigCamera] = {}
         self.rig_poses: dict[str, npt.NDArray[np.float64]] = {}
+        everything = {o for offsets in index.offsets.values() for o in offsets}
         try:
             for cam in names:
-                record = index.metadata.get(fmt.camera_record(cam))
-                if record is None:
-                    raise DecodeError(f"{name!r}: camera {cam!r} has no record")
-                try:
-                    pose = as_rigid(json.loads(record[fmt.RIG_POSE_KEY]), f"{cam}.rig_pose")
-                except (KeyError, ValueError, PcdcodecError) as exc:
-                    raise DecodeError(
-                        f"{name!r}: camera {cam!r} has no valid rig pose ({exc})"
-                    ) from None
-                rec = CameraRecording(self.path, fmt.camera_view(index, cam), cam, threads=threads)
+                record = index.metadata[fmt.camera_record(cam)]
+                pose = fmt.camera_rig_pose(index, cam, repr(name))
+                view = fmt.camera_view(index, cam)
+                own = {o for offsets in view.offsets.values() for o in offsets}
+                rec = CameraRecording(
+                    self.path,
+                    view,
+                    cam,
+                    threads=threads,
+                    other_chunks=frozenset(everything - own),
+                )
                 self._recordings[cam] = rec
                 self.rig_poses[cam] = pose
                 self.cameras[cam] = RigCamera(

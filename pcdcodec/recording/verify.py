@@ -55,12 +55,13 @@ def structure_problems(
     has_color: bool,
     intrinsics: CameraIntrinsics,
     camera: str | None = None,
+    elsewhere: frozenset[int] = frozenset(),
 ) -> list[str]:
     """Problems found by reading every record of ``f``, compared with the ``index`` the frames
     use (of a file written with ``integrity`` records, with color or not, of a camera with
     ``intrinsics``; ``camera``: of that camera of a rig, whose ``index`` is its
-    :func:`~pcdcodec.recording._index.camera_view`). The caller holds whatever lock guards
-    ``f``."""
+    :func:`~pcdcodec.recording._index.camera_view`, and ``elsewhere`` the chunks of the other
+    cameras, whose damage is theirs). The caller holds whatever lock guards ``f``."""
     try:
         scanned = fmt.scan(f, skip_damaged_chunks=True)
         if camera is not None:
@@ -72,7 +73,11 @@ def structure_problems(
     # Damaged chunks of frames are reported when those frames are decoded.
     used = {o for topic in (fmt.TOPIC_DEPTH, fmt.TOPIC_COLOR) for o in index.offsets.get(topic, [])}
     skipped = {offset for offset, _ in scanned.damaged_chunks}
-    errors.extend(text for offset, text in scanned.damaged_chunks if offset not in used)
+    errors.extend(
+        text
+        for offset, text in scanned.damaged_chunks
+        if offset not in used and offset not in elsewhere
+    )
     if scanned.damaged_at is not None:
         errors.append(f"damaged record at byte offset {scanned.damaged_at}: {scanned.damage}")
     if scanned.duplicates:
@@ -151,6 +156,7 @@ def verify_recording(rec: Any) -> VerifyReport:
                 has_color=rec.color_codec is not None,
                 intrinsics=rec.intrinsics,
                 camera=rec.camera,
+                elsewhere=rec.other_chunks,
             )
         )
     if rec.integrity and rec.color_codec is not None:

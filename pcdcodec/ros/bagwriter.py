@@ -105,23 +105,32 @@ class MessageBuilder:
 
     def tf(self, ns: int, pose: npt.NDArray[np.float64], parent: str) -> bytes:
         """A ``tf2_msgs/TFMessage`` placing this camera frame in ``parent`` (camera-to-world)."""
+        return self.transforms(ns, [(parent, self.frame_id, pose)])
+
+    def transforms(self, ns: int, edges: list[tuple[str, str, npt.NDArray[np.float64]]]) -> bytes:
+        """A ``tf2_msgs/TFMessage`` of ``(parent, child, pose)`` edges, each ``pose`` the rigid
+        4 × 4 transform taking the child frame's points into the parent frame."""
         t = self.types
-        q = matrix_to_quaternion(pose[:3, :3])
-        header = self.header(ns)
-        header.frame_id = parent
-        stamped = t["geometry_msgs/msg/TransformStamped"](
-            header=header,
-            child_frame_id=self.frame_id,
-            transform=t["geometry_msgs/msg/Transform"](
-                translation=t["geometry_msgs/msg/Vector3"](
-                    x=float(pose[0, 3]), y=float(pose[1, 3]), z=float(pose[2, 3])
-                ),
-                rotation=t["geometry_msgs/msg/Quaternion"](
-                    x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])
-                ),
-            ),
-        )
-        return self.serialize(t["tf2_msgs/msg/TFMessage"](transforms=[stamped]))
+        stamped = []
+        for parent, child, pose in edges:
+            q = matrix_to_quaternion(pose[:3, :3])
+            header = self.header(ns)
+            header.frame_id = parent
+            stamped.append(
+                t["geometry_msgs/msg/TransformStamped"](
+                    header=header,
+                    child_frame_id=child,
+                    transform=t["geometry_msgs/msg/Transform"](
+                        translation=t["geometry_msgs/msg/Vector3"](
+                            x=float(pose[0, 3]), y=float(pose[1, 3]), z=float(pose[2, 3])
+                        ),
+                        rotation=t["geometry_msgs/msg/Quaternion"](
+                            x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])
+                        ),
+                    ),
+                )
+            )
+        return self.serialize(t["tf2_msgs/msg/TFMessage"](transforms=stamped))
 
     def cloud(self, ns: int, pts: npt.NDArray[Any]) -> bytes:
         field = self.types["sensor_msgs/msg/PointField"]
@@ -162,9 +171,16 @@ class BagWriter:
             self.writer = Writer2(path, version=9, storage_plugin=plugin)
         self.writer.open()
 
-    def add(self, topic: str, msgtype: str) -> None:
+    def add(self, topic: str, msgtype: str, *, latched: bool = False) -> None:
+        """Add a topic; a ``latched`` one (``/tf_static``) is offered to late subscribers too
+        when the bag plays (ROS 1 latching, ROS 2 transient-local durability)."""
+        options: dict[str, Any] = {}
+        if latched and self.messages.ros2:
+            options["offered_qos_profiles"] = [_latched_qos()]
+        elif latched:
+            options["latching"] = 1
         self.conns[topic] = self.writer.add_connection(
-            topic, msgtype, typestore=self.messages.store
+            topic, msgtype, typestore=self.messages.store, **options
         )
 
     def write(self, topic: str, ns: int, data: bytes) -> None:
@@ -176,3 +192,28 @@ class BagWriter:
     def abort(self) -> None:
         """Stop writing after a failure (the partial bag is removed by the caller)."""
         self.writer.abort()
+
+
+def _latched_qos() -> Any:
+    """The QoS ``/tf_static`` is published with in ROS 2: reliable, transient local, depth 1."""
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
+
+    never = QosTime(0, 0)
+    return Qos(
+        QosHistory.KEEP_LAST,
+        1,
+        QosReliability.RELIABLE,
+        QosDurability.TRANSIENT_LOCAL,
+        never,
+        never,
+        QosLiveliness.AUTOMATIC,
+        never,
+        False,
+    )

@@ -15,6 +15,9 @@ pose in its parent frame), at the frame's stamp.
 
 Only the chain's samples are kept (the transforms are read twice: once for the tree, once for
 the chain's samples), so memory grows with the chain's messages, not with the whole tree.
+
+A rig's mountings are read apart (:func:`static_placements`): each camera frame's chain of
+``/tf_static`` transforms up to the root of its tree, as one fixed transform into that root.
 """
 
 from __future__ import annotations
@@ -31,7 +34,16 @@ from ..errors import DecodeError
 from ..geometry.transform import quaternion_to_matrix, slerp
 from . import messages as rm
 
-__all__ = ["MAX_GAP_NS", "TF_TOPICS", "TF_TYPES", "TfPoses", "is_tf", "read_tf_poses"]
+__all__ = [
+    "MAX_GAP_NS",
+    "TF_TOPICS",
+    "TF_TYPES",
+    "StaticPlacement",
+    "TfPoses",
+    "is_tf",
+    "read_tf_poses",
+    "static_placements",
+]
 
 #: The longest gap between two samples of a transform that is interpolated across (0.5 s).
 MAX_GAP_NS = 500_000_000
@@ -215,3 +227,66 @@ def read_tf_poses(
     path = " -> ".join([frame, *(child for _, child in chain)])
     notes.append(f"poses from tf: the camera frame {camera!r} in {frame!r} ({path})")
     return TfPoses(camera, frame, chain, [edges[pc] for pc in chain])
+
+
+@dataclass(frozen=True)
+class StaticPlacement:
+    """Where ``/tf_static`` places one frame: the root of its chain of static transforms and
+    the 4 × 4 transform taking a point of the frame into the root frame."""
+
+    frame: str
+    root: str
+    pose: npt.NDArray[np.float64]
+    path: tuple[str, ...]
+
+
+def static_placements(
+    messages: Messages, conns: Iterable[Any], frames: Iterable[str], notes: list[str]
+) -> dict[str, StaticPlacement]:
+    """Where the static transforms of ``conns`` (``/tf_static``; ``/tf`` is not read: a rig's
+    cameras are mounted, not moving) place each of ``frames``: its chain of parents up to the
+    root of the tree, and the product of the transforms along it. Frames that the static tree
+    does not hold, or holds ambiguously (two parents, a loop), are left out with a line in
+    ``notes``."""
+    static = [c for c in conns if is_tf(c) and _static(c)]
+    wanted = [_name(f) for f in frames]
+    if not static:
+        return {}
+    rows: dict[tuple[str, str], npt.NDArray[np.float64]] = {}
+    parents: dict[str, set[str]] = {}
+    for _, _, tf in _transforms(messages, static):
+        child, parent = _name(tf.child_frame_id), _name(tf.header.frame_id)
+        if not child or not parent or child == parent:
+            continue
+        edge = _Edge()
+        edge.add(True, False, tf)
+        if edge.static is None:
+            notes.append(f"tf_static: a transform from {parent!r} to {child!r} is not rigid")
+            continue
+        parents.setdefault(child, set()).add(parent)
+        rows[(parent, child)] = edge.static  # the last one of each edge counts
+    found: dict[str, StaticPlacement] = {}
+    for camera in wanted:
+        pose, frame, seen, path = np.eye(4), camera, {camera}, [camera]
+        while frame in parents:
+            options = parents[frame]
+            if len(options) > 1:
+                notes.append(
+                    f"tf_static gives frame {frame!r} several parents "
+                    f"({', '.join(sorted(options))}): {camera!r} is not placed"
+                )
+                break
+            (parent,) = options
+            if parent in seen:
+                notes.append(f"tf_static has a loop through frame {parent!r}")
+                break
+            pose = _matrix(rows[(parent, frame)]) @ pose
+            seen.add(parent)
+            path.append(parent)
+            frame = parent
+        else:
+            if frame != camera:
+                found[camera] = StaticPlacement(camera, frame, pose, tuple(reversed(path)))
+                continue
+            notes.append(f"tf_static has no transform to the frame {camera!r}")
+    return found

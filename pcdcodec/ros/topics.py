@@ -9,6 +9,10 @@ The rules (also in ``docs/ingest.md``, "How topics are chosen"):
    camera (:func:`affinity`), colour before mono8, raw before compressed;
 3. **camera info**: the ``CameraInfo`` topic closest in name to the depth (or cloud) topic.
 
+A bag whose depth topics lie in several namespaces holds several cameras
+(:func:`camera_namespaces`); each camera's topics are then chosen by these rules among its own
+namespace's topics (``docs/rig.md``).
+
 Nothing here reads a bag: the bag source hands in each connection and a way to read its first
 message, and gets roles and choices back, so the rules can be read (and tested) on their own.
 """
@@ -30,6 +34,7 @@ __all__ = [
     "VIDEO_TYPES",
     "TopicCandidate",
     "affinity",
+    "camera_namespaces",
     "check_color",
     "check_depth",
     "choose_cloud",
@@ -38,6 +43,8 @@ __all__ = [
     "choose_info",
     "choose_mode",
     "classify",
+    "in_namespace",
+    "topic_namespace",
 ]
 
 IMAGE = "sensor_msgs/msg/Image"
@@ -240,3 +247,30 @@ def choose_info(cands: Sequence[TopicCandidate], anchor: str) -> str | None:
     if infos and (len(infos) == 1 or affinity(infos[0].topic, anchor) > (0, 0)):
         return infos[0].topic
     return None
+
+
+def topic_namespace(topic: str) -> str:
+    """The camera namespace of a depth (or cloud) topic: its parts before the first part that
+    names depth or points (``/cam_head/depth/image_raw`` and
+    ``/cam_head/aligned_depth_to_color/image_raw``: ``/cam_head``), else all but its last part
+    (``/cam_wrist/cloud``: ``/cam_wrist``). A topic that starts by naming depth
+    (``/depth/image_raw``) is in the root namespace ``/``."""
+    parts = _parts(topic)
+    for k, part in enumerate(parts):
+        if "depth" in part or part in ("points", "point_cloud", "cloud"):
+            return "/" + "/".join(parts[:k])
+    return "/" + "/".join(parts[:-1])
+
+
+def in_namespace(topic: str, namespace: str) -> bool:
+    """Whether ``topic`` lies under ``namespace`` (``"/"``: every topic)."""
+    prefix = namespace.rstrip("/").lower() + "/"
+    return ("/" + "/".join(_parts(topic)) + "/").startswith(prefix)
+
+
+def camera_namespaces(cands: Sequence[TopicCandidate]) -> list[str]:
+    """The namespaces holding a camera, in name order: one per namespace of a depth topic (or,
+    for a bag without depth images, of an organized cloud topic). A bag of one camera gives one
+    namespace, whatever depth topics it holds there."""
+    role = "depth" if any(c.role == "depth" for c in cands) else "cloud"
+    return sorted({topic_namespace(c.topic) for c in cands if c.role == role})

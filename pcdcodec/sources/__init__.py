@@ -3,10 +3,13 @@
 :mod:`.base` holds the protocol and the registry of readers; each reader (:mod:`.folder`,
 :mod:`.rosbag`, :mod:`.realsense`, :mod:`.azure_kinect`) registers itself when imported. The
 built-in readers are imported here, on the registry's first use, so that importing the package
-loads none of them.
+loads none of them. :func:`realsense_live` (:mod:`.live`, live RealSense cameras through
+``pyrealsense2``) loads on first use too.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 from . import base
 from .base import (
@@ -25,9 +28,21 @@ __all__ = [
     "Source",
     "SourceKind",
     "open_source",
+    "realsense_live",
     "register_source",
     "source_kinds",
 ]
+
+#: Names served from :mod:`.live`, loaded when first asked for.
+_LIVE_NAMES = ("RealSenseLiveSource", "connected_serials", "realsense_live")
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LIVE_NAMES:
+        from . import live
+
+        return getattr(live, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _register_builtin() -> None:

@@ -1,0 +1,211 @@
+"""The depth codecs as numcodecs codecs, with ids ``pcdcodec.<name>``.
+
+One class per depth codec, registered with numcodecs when this module is imported and listed in
+the ``numcodecs.codecs`` entry points of pcdcodec's package metadata, so
+``numcodecs.get_codec({"id": "pcdcodec.depthac"})`` works without importing pcdcodec first.
+A codec registered later (a plugin) gets its class from :func:`numcodec_class`.
+
+``encode`` takes one depth image: a 2-D array, or one with leading axes of length 1 (a Zarr
+chunk of one frame, ``(1, H, W)``); ``decode`` returns the 2-D image, or fills ``out``. The
+config is the codec's :meth:`~pcdcodec.codec.Codec.stored_config` under the numcodecs id, so
+bound options (``max_error``, ``max_rel_error``) are recorded and machine settings
+(``threads``) are not.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any, ClassVar
+
+import numpy as np
+import numpy.typing as npt
+
+from ..depth import FrameCodec
+from ..errors import CodecUnavailableError, InputError, InputTypeError
+from ..registry import codec_class, get_codec
+
+try:
+    import numcodecs.abc
+    import numcodecs.compat
+    import numcodecs.registry
+except ImportError:  # the optional extra is not installed
+    raise CodecUnavailableError(
+        "pcdcodec's numcodecs codecs need numcodecs: pip install 'pcdcodec[zarr]'"
+    ) from None
+
+__all__ = [
+    "JPEGXL",
+    "LZ4",
+    "PNG16",
+    "PREFIX",
+    "RVL",
+    "DepthAC",
+    "DepthNumcodec",
+    "Zstd",
+    "as_image",
+    "numcodec",
+    "numcodec_class",
+]
+
+#: What a pcdcodec codec's name is prefixed with in numcodecs ids and Zarr codec names.
+PREFIX = "pcdcodec."
+
+
+def as_image(buf: Any, codec_id: str) -> npt.NDArray[Any]:
+    """The 2-D depth image in ``buf``: an array of shape ``(H, W)`` or ``(1, ..., 1, H, W)``.
+
+    Raises :class:`~pcdcodec.InputError` for any other shape, naming ``codec_id``: a flat byte
+    buffer has lost the image's shape, and a chunk of several frames is not one image.
+    """
+    arr = numcodecs.compat.ensure_ndarray_like(buf)
+    if arr.ndim < 2 or any(n != 1 for n in arr.shape[:-2]):
+        where = (
+            "a flat buffer has no image shape: use the codec as a Zarr v3 array's serializer "
+            "or a Zarr v2 array's compressor, not after another codec"
+            if arr.ndim < 2
+            else "chunk the array one frame per chunk, e.g. chunks=(1, H, W)"
+        )
+        raise InputError(
+            f"{codec_id} encodes one depth image of shape (H, W) or (1, ..., 1, H, W), got "
+            f"shape {tuple(arr.shape)}; {where}"
+        )
+    image: npt.NDArray[Any] = np.asarray(arr).reshape(arr.shape[-2:])
+    return image
+
+
+class DepthNumcodec(numcodecs.abc.Codec):  # type: ignore[misc]  # numcodecs is untyped
+    """A pcdcodec depth codec as a numcodecs codec; subclasses set :attr:`codec_id`.
+
+    Keyword parameters are the depth codec's own (``pcdcodec.get_codec(name, **params)``),
+    checked when the codec is built.
+    """
+
+    #: ``"pcdcodec." + name``, the numcodecs id.
+    codec_id: ClassVar[str]
+
+    def __init__(self, **params: Any) -> None:
+        codec = get_codec(self.codec_id.removeprefix(PREFIX), kind="depth", **params)
+        if not isinstance(codec, FrameCodec):
+            raise InputTypeError(f"{self.codec_id} is not a frame codec: {codec!r}")
+        self._codec = codec
+
+    @property
+    def codec(self) -> FrameCodec:
+        """The pcdcodec depth codec doing the work."""
+        return self._codec
+
+    def encode(self, buf: Any) -> bytes:
+        """One depth image (see :func:`as_image`) to the codec's self-describing bytes."""
+        return self._codec.encode(as_image(buf, self.codec_id))
+
+    def decode(self, buf: Any, out: Any = None) -> Any:
+        """The depth image in ``buf``; copied into ``out`` (of its size) when given."""
+        data = numcodecs.compat.ensure_contiguous_ndarray(buf)
+        image = self._codec.decode(memoryview(data).cast("B"))
+        if out is None:
+            return image
+        return numcodecs.compat.ndarray_copy(image, out)
+
+    def get_config(self) -> dict[str, Any]:
+        """The numcodecs id and the depth codec's stored parameters (no machine settings)."""
+        config = self._codec.stored_config()
+        config["id"] = self.codec_id
+        return config
+
+    @classmethod
+    def from_config(cls, config: dict[str, Any]) -> DepthNumcodec:
+        """The codec :meth:`get_config` describes (its ``id``, if present, must match)."""
+        params = dict(config)
+        cid = params.pop("id", cls.codec_id)
+        if cid != cls.codec_id:
+            raise InputError(f"config id {cid!r} does not match numcodecs codec {cls.codec_id!r}")
+        return cls(**params)
+
+    def __repr__(self) -> str:
+        params = ", ".join(f"{k}={v!r}" for k, v in self.get_config().items() if k != "id")
+        return f"{type(self).__name__}({params})"
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # By id and full config (machine settings too), so classes made for plugins pickle.
+        return (_rebuild, (self.codec_id, self._codec.get_config()))
+
+
+def _rebuild(codec_id: str, config: dict[str, Any]) -> DepthNumcodec:
+    params = {k: v for k, v in config.items() if k != "id"}
+    return numcodec_class(codec_id)(**params)
+
+
+class DepthAC(DepthNumcodec):
+    """``pcdcodec.depthac``: pcdcodec's own lossless depth coder (``max_error``,
+    ``max_rel_error`` for bounded error)."""
+
+    codec_id: ClassVar[str] = PREFIX + "depthac"
+
+
+class JPEGXL(DepthNumcodec):
+    """``pcdcodec.jpegxl``: lossless JPEG XL (``effort``; ``threads`` is not recorded)."""
+
+    codec_id: ClassVar[str] = PREFIX + "jpegxl"
+
+
+class PNG16(DepthNumcodec):
+    """``pcdcodec.png16``: a 16-bit PNG (``level``)."""
+
+    codec_id: ClassVar[str] = PREFIX + "png16"
+
+
+class RVL(DepthNumcodec):
+    """``pcdcodec.rvl``: run-length and variable-length coding of depth."""
+
+    codec_id: ClassVar[str] = PREFIX + "rvl"
+
+
+class Zstd(DepthNumcodec):
+    """``pcdcodec.zstd``: the raw image through Zstandard (``level``)."""
+
+    codec_id: ClassVar[str] = PREFIX + "zstd"
+
+
+class LZ4(DepthNumcodec):
+    """``pcdcodec.lz4``: the raw image through LZ4 (``level``)."""
+
+    codec_id: ClassVar[str] = PREFIX + "lz4"
+
+
+_CLASSES: dict[str, type[DepthNumcodec]] = {
+    cls.codec_id: cls for cls in (DepthAC, JPEGXL, PNG16, RVL, Zstd, LZ4)
+}
+_lock = threading.Lock()
+
+
+def numcodec_class(name: str) -> type[DepthNumcodec]:
+    """The numcodecs class of depth codec ``name`` (``"depthac"`` or ``"pcdcodec.depthac"``),
+    made and registered with numcodecs on first use for codecs beyond the built-in ones.
+
+    Raises :class:`~pcdcodec.UnknownCodecError` when no depth codec has that name.
+    """
+    if not isinstance(name, str):
+        raise InputTypeError(f"codec name must be a string, got {type(name).__name__}")
+    short = name.removeprefix(PREFIX)
+    codec_class(short, "depth")  # raises for unknown names and color codecs
+    with _lock:
+        cls = _CLASSES.get(PREFIX + short)
+        if cls is None:
+            cls = type(
+                f"Numcodec_{short}",
+                (DepthNumcodec,),
+                {"codec_id": PREFIX + short, "__doc__": f"``{PREFIX}{short}`` for numcodecs."},
+            )
+            _CLASSES[cls.codec_id] = cls
+            numcodecs.registry.register_codec(cls)
+    return cls
+
+
+def numcodec(name: str = "depthac", **params: Any) -> DepthNumcodec:
+    """A numcodecs codec of depth codec ``name`` with its parameters, e.g.
+    ``numcodec("depthac", max_rel_error=0.005)``."""
+    return numcodec_class(name)(**params)
+
+
+for _cls in _CLASSES.values():
+    numcodecs.registry.register_codec(_cls)
