@@ -1,8 +1,10 @@
-"""pcdcodec view: a recording in Rerun, checked through the .rrd file it writes."""
+"""pcdcodec view: a recording in Rerun, checked through the .rrd file it writes, read back with
+Rerun's own reader: depth bit-exact, color packets as recorded, points only when asked."""
 
 from __future__ import annotations
 
 import dataclasses
+import struct
 from pathlib import Path
 from typing import Any
 
@@ -40,11 +42,84 @@ def _contents(rrd: Path) -> dict[str, dict[str, Any]]:
     return out
 
 
+def _blobs(batch: Any, column: str) -> list[bytes]:
+    """The one blob of each row of a ``list<list<uint8>>`` column, as bytes."""
+    outer = batch.column(column)
+    return [bytes(outer[i].values[0].values.to_numpy()) for i in range(len(outer))]
+
+
+def _logged_depths(entry: dict[str, Any]) -> dict[int, np.ndarray[Any, Any]]:
+    """Frame number -> the depth image an ``EncodedDepthImage`` entity holds, decoded (PNG with
+    imagecodecs, RVL after its 20-byte compressedDepth header with pcdcodec's decoder)."""
+    import imagecodecs
+
+    from pcdcodec.depth.rvl import rvl_decode
+
+    out = {}
+    for batch in entry["batches"]:
+        if "EncodedDepthImage:blob" not in batch.schema.names:
+            continue
+        media = [m[0] for m in batch.column("EncodedDepthImage:media_type").to_pylist()]
+        for f, blob, kind in zip(
+            batch.column("frame").to_pylist(),
+            _blobs(batch, "EncodedDepthImage:blob"),
+            media,
+            strict=True,
+        ):
+            if kind == "image/png":
+                out[f] = imagecodecs.png_decode(blob)
+            else:
+                assert kind == "application/rvl"
+                _, quant_a, quant_b, width, height = struct.unpack("<iffII", blob[:20])
+                assert (quant_a, quant_b) == (0.0, 0.0)  # Rerun: no quantization, plain uint16
+                out[f] = rvl_decode(memoryview(blob[20:]), width * height).reshape(height, width)
+    return out
+
+
+def test_view_logs_depth_lossless_and_the_color_packets_as_recorded(
+    recording: Path, tmp_path: Path
+) -> None:
+    from pcdcodec.viewer import view
+
+    with pcdcodec.open(recording) as rec:
+        depths = [rec.depth(i) for i in range(len(rec))]
+        packets = [p.data for p in rec.packets()]
+        scale = rec.depth_scale
+    for depth_format in ("png", "rvl"):
+        out = view(recording, save=tmp_path / f"{depth_format}.rrd", depth_format=depth_format)
+        assert out is not None
+        got = _contents(out)
+        entry = got["/world/camera/image/depth"]
+        logged = _logged_depths(entry)
+        assert sorted(logged) == [0, 1, 2, 3]
+        for i, depth in enumerate(depths):
+            assert logged[i].dtype == np.uint16
+            assert np.array_equal(logged[i], depth)  # bit-exact
+        meters = {
+            m[0] for b in entry["batches"] for m in b.column("EncodedDepthImage:meter").to_pylist()
+        }
+        assert meters == {scale}
+        assert "DepthImage:buffer" not in entry["columns"]
+        rgb = got["/world/camera/image/rgb"]
+        codec = [b for b in rgb["batches"] if "VideoStream:codec" in b.schema.names]
+        assert codec[0].column("VideoStream:codec").to_pylist() == [[0x61766331]]  # H.264
+        samples = [
+            blob for b in rgb["batches"] if "VideoStream:sample" in b.schema.names
+            for blob in _blobs(b, "VideoStream:sample")
+        ]  # fmt: skip
+        assert samples == packets  # passed through, not re-encoded
+        assert sorted(rgb["frames"]) == [0, 1, 2, 3]
+        assert "/world/camera/points" not in got  # Rerun draws the cloud from the depth image
+        if depth_format == "png":  # the default: at most 3 times the recording
+            assert out.stat().st_size < 3 * recording.stat().st_size
+
+
 def test_view_saves_color_depth_points_camera_over_time(
     recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "out.rrd"
-    assert main(["view", str(recording), "--save", str(out), "--stride", "4"]) == 0
+    args = ["view", str(recording), "--save", str(out), "--stride", "4", "--points"]
+    assert main(args) == 0
     assert "wrote" in capsys.readouterr().out
     assert out.exists()
     assert not list(tmp_path.glob(".out.rrd.partial*"))
@@ -52,7 +127,7 @@ def test_view_saves_color_depth_points_camera_over_time(
     assert "Pinhole:image_from_camera" in got["/world/camera"]["columns"]
     assert sorted(got["/world/camera/image/rgb"]["frames"]) == [0, 1, 2, 3]
     assert sorted(got["/world/camera/image/depth"]["frames"]) == [0, 1, 2, 3]
-    assert "DepthImage:meter" in got["/world/camera/image/depth"]["columns"]
+    assert "EncodedDepthImage:meter" in got["/world/camera/image/depth"]["columns"]
     points = got["/world/camera/points"]
     assert sorted(points["frames"]) == [0, 1, 2, 3]
     assert "time" in points["columns"]
@@ -63,27 +138,30 @@ def test_view_saves_color_depth_points_camera_over_time(
     assert "/world/trajectory" not in got  # this recording has no poses
 
 
-def test_view_logs_the_trajectory_where_poses_exist(
-    recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    from pcdcodec.recording.reader import Recording
-
-    plain = Recording.frame
-
-    def posed(self: Recording, i: int) -> Any:
-        frame = plain(self, i)
-        frame.pose = np.eye(4)
-        frame.pose[:3, 3] = [0.1 * i, 0.0, 0.0]
-        return frame
-
-    monkeypatch.setattr(Recording, "frame", posed)
+def test_view_logs_the_trajectory_where_poses_exist(tmp_path: Path) -> None:
     from pcdcodec.viewer import view
 
+    seq = pcdcodec.load_sample(max_frames=4)
+    recording = tmp_path / "posed.pcdc"
+    with pcdcodec.open(recording, "w", intrinsics=seq.intrinsics, depth_scale=5000.0) as w:
+        for i, frame in enumerate(seq):
+            pose = np.eye(4)
+            pose[:3, 3] = [0.1 * i, 0.0, 0.0]
+            w.write_frames([dataclasses.replace(frame, pose=pose)])
     out = view(recording, save=tmp_path / "p.rrd", every=2)
     assert out == tmp_path / "p.rrd"
     got = _contents(out)
-    assert sorted(got["/world/trajectory"]["frames"]) == [0, 2]
+    # One static line through the positions of the frames shown.
+    strips = got["/world/trajectory"]["batches"][0].column("LineStrips3D:strips").to_pylist()
+    assert np.allclose(np.asarray(strips[0][0]), [[0.0, 0, 0], [0.2, 0, 0]])
+    assert got["/world/trajectory"]["frames"] == []
     assert "Transform3D:translation" in got["/world/camera"]["columns"]
+    # Every color packet up to the last frame shown: a video decodes from its keyframe on;
+    # those of frames not shown are on timeline "time" alone.
+    rgb = got["/world/camera/image/rgb"]
+    assert sorted(rgb["frames"]) == [0, 2]
+    samples = sum(b.num_rows for b in rgb["batches"] if "VideoStream:sample" in b.schema.names)
+    assert samples == 3
 
 
 def test_view_threads_reads_ahead_and_logs_the_same(
@@ -102,7 +180,7 @@ def test_view_threads_reads_ahead_and_logs_the_same(
     logged = {}
     for threads in ("1", "2"):
         out = tmp_path / f"t{threads}.rrd"
-        args = ["view", str(recording), "--save", str(out), "--threads", threads]
+        args = ["view", str(recording), "--save", str(out), "--threads", threads, "--points"]
         assert main([*args, "--max-frames", "3"]) == 0
         got = _contents(out)
         points = got["/world/camera/points"]
