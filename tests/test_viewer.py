@@ -232,3 +232,100 @@ def test_view_open3d_checks_its_options_before_opening_a_window(
     with pytest.raises(pcdcodec.PcdcodecError, match="could not open a window"):
         view_open3d(recording, threads=2)
     assert len(windows) == 1
+
+
+def _color_recording(path: Path, color: str, frames: int = 3) -> Path:
+    seq = pcdcodec.load_sample(max_frames=frames)
+    with pcdcodec.open(path, "w", intrinsics=seq.intrinsics, depth_scale=5000.0, color=color) as w:
+        w.write_frames(dataclasses.replace(f, pose=None) for f in seq)
+    return path
+
+
+def test_view_logs_mjpeg_packets_and_other_codecs_as_jpeg_images(tmp_path: Path) -> None:
+    from pcdcodec.viewer import view
+
+    for color in ("mjpeg", "ffv1"):
+        recording = _color_recording(tmp_path / f"{color}.pcdc", color)
+        got = _contents(view(recording, save=tmp_path / f"{color}.rrd"))  # type: ignore[arg-type]
+        rgb = got["/world/camera/image/rgb"]
+        assert sorted(rgb["frames"]) == [0, 1, 2]
+        assert "VideoStream:sample" not in rgb["columns"]
+        images = [blob for b in rgb["batches"] for blob in _blobs(b, "EncodedImage:blob")]
+        assert all(blob.startswith(b"\xff\xd8") for blob in images)  # JPEG
+        if color == "mjpeg":  # the recording's own JPEGs
+            with pcdcodec.open(recording) as rec:
+                assert images == [p.data for p in rec.packets()]
+    # Asked for images: the H.264 recording's color decoded and logged as JPEG too.
+    recording = _color_recording(tmp_path / "h264.pcdc", "h264")
+    got = _contents(view(recording, save=tmp_path / "h.rrd", video=False))  # type: ignore[arg-type]
+    assert "EncodedImage:blob" in got["/world/camera/image/rgb"]["columns"]
+
+
+def test_view_falls_back_to_raw_depth_and_jpeg_without_the_newer_archetypes(
+    recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import rerun as rr
+
+    from pcdcodec.viewer import view
+
+    # Rerun releases before VideoStream (0.24) and EncodedDepthImage have neither.
+    monkeypatch.delattr(rr, "EncodedDepthImage")
+    monkeypatch.delattr(rr, "VideoStream")
+    got = _contents(view(recording, save=tmp_path / "old.rrd"))  # type: ignore[arg-type]
+    depth = got["/world/camera/image/depth"]
+    assert "DepthImage:buffer" in depth["columns"]
+    assert "EncodedDepthImage:blob" not in depth["columns"]
+    with pcdcodec.open(recording) as rec:
+        buffers = [b for b in depth["batches"] if "DepthImage:buffer" in b.schema.names]
+        first = np.frombuffer(_blobs(buffers[0], "DepthImage:buffer")[0], np.uint16)
+        assert np.array_equal(first.reshape(rec.intrinsics.shape), rec.depth(0))
+    assert "EncodedImage:blob" in got["/world/camera/image/rgb"]["columns"]
+
+
+def test_view_logs_float_depth_raw(tmp_path: Path) -> None:
+    from pcdcodec.viewer import view
+
+    seq = pcdcodec.load_sample(max_frames=2)
+    recording = tmp_path / "f.pcdc"
+    with pcdcodec.open(recording, "w", intrinsics=seq.intrinsics, depth="zstd") as w:
+        for f in seq:
+            metres = np.where(f.depth > 0, f.depth / np.float32(5000.0), np.nan).astype(np.float32)
+            w.write_frames([dataclasses.replace(f, depth=metres, pose=None)])
+    got = _contents(view(recording, save=tmp_path / "f.rrd"))  # type: ignore[arg-type]
+    # Neither PNG nor RVL holds float32 depth: Rerun's raw DepthImage, in metres.
+    depth = got["/world/camera/image/depth"]
+    assert "DepthImage:buffer" in depth["columns"]
+    meters = [m for b in depth["batches"] for m in b.column("DepthImage:meter").to_pylist()]
+    assert meters == [[1.0], [1.0]]
+
+
+def test_view_rejects_a_depth_format_it_does_not_know(recording: Path, tmp_path: Path) -> None:
+    from pcdcodec.viewer import view
+
+    with pytest.raises(pcdcodec.InputError, match="depth_format must be one of"):
+        view(recording, save=tmp_path / "x.rrd", depth_format="jpeg")
+
+
+def test_live_view_logs_depth_lossless_and_points_only_when_asked(tmp_path: Path) -> None:
+    import imagecodecs
+
+    from pcdcodec.geometry.projector import Projector
+    from pcdcodec.viewer import LiveView
+
+    seq = pcdcodec.load_sample(max_frames=1)
+    frame = seq[0]
+    projector = Projector(seq.intrinsics, 5000.0)
+    for points in (False, True):
+        out = tmp_path / f"live{points}.rrd"
+        live = LiveView([("cam", projector)], save=out, points=points)
+        assert live.log(0, frame)
+        live.close()
+        got = _contents(out)
+        logged = [
+            imagecodecs.png_decode(blob)
+            for b in got["/world/cam/depth"]["batches"]
+            for blob in _blobs(b, "EncodedDepthImage:blob")
+        ]
+        assert len(logged) == 1
+        assert np.array_equal(logged[0], frame.depth)
+        assert ("/world/cam/points" in got) == points
