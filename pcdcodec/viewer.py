@@ -17,9 +17,9 @@ at its recorded time (timeline ``time``) and by number (timeline ``frame``), kep
 * ``world/trajectory``: the positions of the frames shown as one line (static), where poses
   exist.
 
-Rerun 0.18 to 0.23 lack ``VideoStream`` and releases before ``EncodedDepthImage`` (added after
-0.24) lack encoded depth: there color falls back to JPEG images and depth to the raw
-``DepthImage``, as it does for float32 depth, which neither PNG nor RVL holds.
+Rerun 0.23 lacks ``VideoStream`` (0.24 on) and releases before ``EncodedDepthImage`` (later)
+lack encoded depth: there color falls back to JPEG images and depth to the raw ``DepthImage``,
+as it does for float32 depth, which neither PNG nor RVL holds (``docs/view.md``).
 
 A recording of several cameras is shown by frame sets (``RigRecording.framesets()``: one frame
 per camera, matched by time; timeline ``frame`` is the set's number, and each camera's frame is
