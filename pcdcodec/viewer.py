@@ -292,8 +292,10 @@ def view(
     ``points`` logs the point cloud as well (Rerun draws one from the depth image itself), of
     every ``stride``-th pixel in each direction (1 keeps all). ``threads`` is how many cores
     reading may use (:func:`pcdcodec.open`): with ``every`` 1 the frames are read in order,
-    ahead on that many threads. Raises :class:`~pcdcodec.InputError` for bad options and
-    :class:`~pcdcodec.PcdcodecError` when rerun-sdk is not installed.
+    ahead on that many threads, when their color is decoded (images or ``points``; a color
+    stream passed through leaves only depth to decode, read frame by frame). Raises
+    :class:`~pcdcodec.InputError` for bad options and :class:`~pcdcodec.PcdcodecError` when
+    rerun-sdk is not installed.
     """
     from .recording import open as open_recording
     from .recording.rig_reader import RigRecording
