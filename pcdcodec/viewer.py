@@ -108,14 +108,15 @@ def _color_mode(rr: Any, recording: Any, video: bool) -> str:
     if codec.name == "mjpeg":
         return "jpeg"
     height, width = recording.color_shape
-    stamps = recording.packet_timestamps
+    padded = getattr(codec, "padded_size", None)
     if (
         getattr(codec, "video_format", None) in _VIDEO_CODECS
         and hasattr(rr, "VideoStream")
         and getattr(codec, "pix_fmt", "yuv420p") == "yuv420p"
         and recording.extradata is None  # parameter sets travel in the packets
-        and codec.padded_size(width, height) == (width, height)
-        and bool(np.all(np.diff(stamps) > 0))  # decode order is display order: no B-frames
+        and (padded is None or padded(width, height) == (width, height))
+        # Decode order is display order (no B-frames): Rerun gives a sample one time.
+        and bool(np.all(np.diff(recording.packet_timestamps) > 0))
     ):
         return "stream"
     return "images"

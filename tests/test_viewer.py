@@ -265,6 +265,13 @@ def test_view_logs_mjpeg_packets_and_other_codecs_as_jpeg_images(tmp_path: Path)
     got = _contents(out)
     assert "EncodedImage:blob" in got["/world/camera/image/rgb"]["columns"]
     assert len(_logged_depths(got["/world/camera/image/depth"])) == 3  # RVL
+    # B-frames: packets out of display order, which Rerun's VideoStream cannot take.
+    recording = _color_recording(tmp_path / "b.pcdc", "h264:bframes=2", frames=6)
+    with pcdcodec.open(recording) as rec:
+        assert not np.all(np.diff(rec.packet_timestamps) > 0)
+    got = _contents(view(recording, save=tmp_path / "b.rrd"))  # type: ignore[arg-type]
+    assert "VideoStream:sample" not in got["/world/camera/image/rgb"]["columns"]
+    assert sorted(got["/world/camera/image/rgb"]["frames"]) == list(range(6))
 
 
 def test_view_falls_back_to_raw_depth_and_jpeg_without_the_newer_archetypes(
