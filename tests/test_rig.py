@@ -471,3 +471,173 @@ def test_the_writers_chunk_index_is_packed_and_writes_the_same_file(
     plain = record(tmp_path / "plain.pcdc")
     assert not isinstance(plain, _header.PackedChunkIndexes)
     assert (tmp_path / "packed.pcdc").read_bytes() == (tmp_path / "plain.pcdc").read_bytes()
+
+
+# -- what a review of the rig code found --------------------------------------------------------
+
+
+def _small_frames(n: int) -> tuple[CameraIntrinsics, float, list[tuple[Any, Any]]]:
+    seq = pcdcodec.load_sample(max_frames=n)
+    k = SEQUENCES["sample"].camera
+    small = CameraIntrinsics(160, 120, k.fx / 4, k.fy / 4, k.cx / 4, k.cy / 4)
+    frames = [
+        (
+            np.ascontiguousarray(np.asarray(f.color)[::4, ::4]),
+            np.ascontiguousarray(f.depth[::4, ::4]),
+        )
+        for f in seq
+    ]
+    return small, seq.depth_scale, frames
+
+
+def test_match_times_fills_every_set_a_matching_can() -> None:
+    # Two 30 fps cameras half a frame apart: each set has two frames at the tolerance's edge.
+    ref = np.arange(300, dtype=np.int64) * 33_333_333
+    other = ref + 16_666_666
+    matched = match_times(ref, other, round(0.5 / 30 * 1e9))
+    assert (matched >= 0).all()
+    assert len(set(matched.tolist())) == 300
+    # Set 1 takes the frame 60 ms away rather than losing the one set 0 is nearer to.
+    assert match_times(np.array([0, 100]), np.array([49, 160]), 70).tolist() == [0, 1]
+    # Against every matching of small random cases: the most sets, then the least distance.
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        ref = np.sort(rng.choice(60, int(rng.integers(0, 6)), replace=False)).astype(np.int64)
+        other = np.sort(rng.choice(60, int(rng.integers(0, 6)), replace=False)).astype(np.int64)
+        tol = int(rng.integers(0, 25))
+        got = match_times(ref, other, tol)
+        pairs = [(k, int(j)) for k, j in enumerate(got.tolist()) if j >= 0]
+        assert len({j for _, j in pairs}) == len(pairs)
+        assert all(abs(int(other[j]) - int(ref[k])) <= tol for k, j in pairs)
+        value = (len(pairs), -sum(abs(int(other[j]) - int(ref[k])) for k, j in pairs))
+
+        def best(
+            k: int, used: frozenset[int], ref: Any = ref, other: Any = other, tol: int = tol
+        ) -> tuple[int, int]:
+            if k == len(ref):
+                return (0, 0)
+            options = [best(k + 1, used)]
+            for j in range(len(other)):
+                d = abs(int(other[j]) - int(ref[k]))
+                if j not in used and d <= tol:
+                    filled, dist = best(k + 1, used | {j})
+                    options.append((filled + 1, dist - d))
+            return max(options)
+
+        assert value == best(0, frozenset())
+
+
+@pytest.mark.parametrize("which", ["rig_pose", "cameras"])
+def test_json_nested_too_deep_in_a_rig_record_is_a_decode_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, which: str
+) -> None:
+    import types
+
+    import pcdcodec.recording.rig as rigmod
+
+    small, scale, frames = _small_frames(2)
+    deep = "[" * 100_000 + "]" * 100_000
+
+    def dumps(value: Any, *args: Any, **kwargs: Any) -> str:
+        if which == "rig_pose" and isinstance(value, list) and len(value) == 4:
+            return deep
+        if which == "cameras" and value == ["a", "b"]:
+            return deep
+        return json.dumps(value, *args, **kwargs)
+
+    monkeypatch.setattr(rigmod, "json", types.SimpleNamespace(dumps=dumps))
+    path = tmp_path / "deep.pcdc"
+    specs = [CameraSpec("a", small, scale, color=None), CameraSpec("b", small, scale, color=None)]
+    with RigWriter(path, specs) as w:
+        w.write("a", None, frames[0][1], 0)
+    monkeypatch.undo()
+    with pytest.raises(DecodeError, match=r"deep\.pcdc"):
+        pcdcodec.open(path)
+    with pytest.raises(DecodeError, match=r"deep\.pcdc"):
+        pcdcodec.recover(path, tmp_path / "out.pcdc")
+    from pcdcodec.recording.join import join
+
+    with pytest.raises(pcdcodec.PcdcodecError, match=r"deep\.pcdc"):
+        join([path], tmp_path / "joined.pcdc")
+
+
+def test_a_camera_starting_after_the_file_broke_writes_nothing(tmp_path: Path) -> None:
+    import builtins
+
+    import pcdcodec.recording.rig as rigmod
+
+    small, scale, frames = _small_frames(3)
+
+    class DiskFills:
+        """A file whose next write after ``fail()`` stops half way with ENOSPC."""
+
+        def __init__(self, f: Any) -> None:
+            self.f, self.armed = f, False
+
+        def fail(self) -> None:
+            self.armed = True
+
+        def write(self, data: Any) -> int:
+            if self.armed:
+                self.armed = False
+                self.f.write(bytes(data[: len(data) // 2]))
+                raise OSError(28, "No space left on device")
+            return int(self.f.write(data))
+
+        def __getattr__(self, name: str) -> Any:
+            return getattr(self.f, name)
+
+    held: dict[str, DiskFills] = {}
+
+    def opener(*args: Any, **kwargs: Any) -> DiskFills:
+        held["f"] = DiskFills(builtins.open(*args, **kwargs))  # noqa: SIM115 - closed by close()
+        return held["f"]
+
+    path = tmp_path / "full.pcdc"
+    specs = [CameraSpec("a", small, scale, color="ffv1"), CameraSpec("b", small, scale)]
+    rigmod.open = opener  # type: ignore[attr-defined]
+    try:
+        w = RigWriter(path, specs)
+    finally:
+        del rigmod.open  # type: ignore[attr-defined]
+    w.write("a", *frames[0], 0)
+    w.flush()
+    held["f"].fail()
+    w.write("a", *frames[1], 10**8)
+    with pytest.raises(OSError, match="No space"):
+        w.camera("a").flush()
+    held["f"].f.flush()
+    size = path.stat().st_size
+    with pytest.raises(pcdcodec.PcdcodecError, match="not written further"):
+        w.write("b", *frames[0], 0)  # its first frame: channels and calibration
+    with pytest.raises(pcdcodec.PcdcodecError, match="left unfinished"):
+        w.close()
+    assert path.stat().st_size == size  # nothing after the half-written record
+    with pcdcodec.open(path) as rec:  # unfinished, not damaged: camera a's first frame reads
+        assert rec.index.damaged_at is None
+        assert len(rec.frames("a")) == 1
+        assert np.array_equal(rec.frames("a")[0].depth, frames[0][1])
+
+
+def test_join_compares_a_late_camera_between_the_parts_that_have_it(tmp_path: Path) -> None:
+    from pcdcodec.recording.join import join
+    from pcdcodec.registry import as_codec
+
+    small, scale, frames = _small_frames(2)
+    ffv1: Any = type(as_codec("ffv1", "color"))
+    specs = [
+        CameraSpec("a", small, scale, color=None, depth="png16"),
+        CameraSpec("b", small, scale, color="ffv1", depth="png16"),
+    ]
+    with RigWriter(tmp_path / "p0.pcdc", specs) as w:  # camera b has not started
+        w.write("a", None, frames[0][1], 0)
+    for p, level in ((1, 1), (2, 3)):  # b's packets from encoders of other set-up bytes
+        encoder = ffv1(level=level).encoder(160, 120, 30.0)
+        with RigWriter(tmp_path / f"p{p}.pcdc", specs) as w:
+            for i, (color, depth) in enumerate(frames):
+                t = p * 10**9 + i * 33_333_333
+                packets = encoder.encode(color, t)
+                w.camera("b").write_encoded(packets, depth, t, extradata=encoder.extradata)
+    parts = [tmp_path / f"p{p}.pcdc" for p in range(3)]
+    with pytest.raises(InputError, match=r"p2.pcdc' cannot follow .*p1.pcdc': camera 'b'"):
+        join(parts, tmp_path / "joined.pcdc")

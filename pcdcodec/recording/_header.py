@@ -245,8 +245,10 @@ class Settings:
             try:
                 color_intrinsics = CameraIntrinsics.from_dict(json.loads(meta["color_intrinsics"]))
                 depth_to_color = as_rigid(json.loads(meta["depth_to_color"]), "depth_to_color")
-            except (KeyError, ValueError) as exc:
-                raise DecodeError(f"{name!r} has a damaged color camera record: {exc}") from None
+            except Exception as exc:  # damaged text of any kind, JSON nested too deep included
+                raise DecodeError(
+                    f"{name!r} has a damaged color camera record ({type(exc).__name__}: {exc})"
+                ) from None
         try:
             intrinsics = CameraIntrinsics.from_dict(json.loads(meta["intrinsics"]))
             depth_scale = float(meta["depth_scale"])
@@ -388,7 +390,7 @@ def check_channels(index: fmt.FileIndex, name: str, settings: Settings) -> None:
             text = channel.metadata[key]
             try:
                 got: Any = json.loads(text) if key == "codec" else float(text)
-            except ValueError:
+            except (ValueError, RecursionError):
                 got = text
             if got != value:
                 raise DecodeError(

@@ -15,9 +15,9 @@ import hashlib
 import json
 import re
 import struct
-from typing import IO
+from typing import IO, Any
 
-from ..errors import DecodeError
+from ..errors import DecodeError, PcdcodecError
 from ._scan import (
     MAGIC,
     ChannelInfo,
@@ -110,6 +110,15 @@ CAMERA_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}")
 _LANE_TOPICS = SEALED_TOPICS
 
 
+def parse_json(text: str, what: str) -> Any:
+    """The JSON value of a record's field; :class:`DecodeError` naming ``what`` for text that
+    is not JSON, nested too deep included."""
+    try:
+        return json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise DecodeError(f"{what} is not valid JSON ({type(exc).__name__})") from None
+
+
 def camera_record(name: str) -> str:
     """The metadata record of camera ``name`` of a rig."""
     return f"{METADATA_NAME}.camera.{name}"
@@ -131,8 +140,8 @@ def rig_cameras(index: FileIndex, what: str) -> list[str] | None:
     if main is None or CAMERAS_KEY not in main:
         return None
     try:
-        names = json.loads(main[CAMERAS_KEY])
-    except ValueError:
+        names = parse_json(main[CAMERAS_KEY], f"{what}: {CAMERAS_KEY!r}")
+    except DecodeError:
         names = None
     if (
         not isinstance(names, list)
@@ -140,11 +149,25 @@ def rig_cameras(index: FileIndex, what: str) -> list[str] | None:
         or not all(isinstance(n, str) and CAMERA_NAME.fullmatch(n) for n in names)
         or len(set(names)) != len(names)
     ):
+        text = main[CAMERAS_KEY]
+        shown = repr(text) if len(text) <= 80 else repr(text[:80]) + f"... ({len(text)} chars)"
         raise DecodeError(
-            f"{what}: {CAMERAS_KEY!r} is {main[CAMERAS_KEY]!r}, expected a JSON list of distinct "
-            "camera names"
+            f"{what}: {CAMERAS_KEY!r} is {shown}, expected a JSON list of distinct camera names"
         )
     return names
+
+
+def camera_rig_pose(index: FileIndex, name: str, what: str) -> Any:
+    """Camera ``name``'s pose on the rig (4 × 4 float64), from its record, checked."""
+    from ..geometry.transform import as_rigid
+
+    record = index.metadata.get(camera_record(name))
+    if record is None:
+        raise DecodeError(f"{what}: camera {name!r} has no record")
+    try:
+        return as_rigid(parse_json(record[RIG_POSE_KEY], f"{name}.rig_pose"), "rig_pose")
+    except (KeyError, ValueError, PcdcodecError) as exc:
+        raise DecodeError(f"{what}: camera {name!r} has no valid rig pose ({exc})") from None
 
 
 def camera_view(index: FileIndex, name: str) -> FileIndex:
@@ -258,8 +281,8 @@ def check_metadata(index: FileIndex, what: str) -> None:
 
 def _listed(main: dict[str, str], what: str) -> list[str]:
     try:
-        names = json.loads(main.get(RECORDS_KEY, "[]"))
-    except ValueError:
+        names = parse_json(main.get(RECORDS_KEY, "[]"), f"{what}: {RECORDS_KEY!r}")
+    except DecodeError:
         names = None
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         raise DecodeError(f"{what}: {RECORDS_KEY!r} is not a list of record names")

@@ -206,26 +206,46 @@ class FrameSets(Sequence[FrameSet]):
 def match_times(
     reference: npt.NDArray[np.int64], other: npt.NDArray[np.int64], tolerance_ns: int
 ) -> npt.NDArray[np.int64]:
-    """For each reference time, the index of the nearest ``other`` time within
-    ``tolerance_ns`` (-1 where none is); each ``other`` frame joins at most one set, the one
-    whose time is nearest to it (ties: the earlier set)."""
-    out = np.full(len(reference), -1, np.int64)
-    if not len(other) or not len(reference):
+    """For each reference time, the index of the ``other`` frame matched to it (-1 where
+    none is): each frame joins at most one set, only within ``tolerance_ns`` of the set's
+    time, and of all such matchings the one that fills the most sets, then the one nearest in
+    time (summed distance), ties broken the same way every time.
+
+    Both lists are sorted, so some best matching never crosses (a later set never takes an
+    earlier frame than an earlier set); it is found set by set, keeping for each frame that
+    may still be taken the best matching so far whose last frame is that one.
+    """
+    n, m = len(reference), len(other)
+    out = np.full(n, -1, np.int64)
+    if not n or not m:
         return out
-    right = np.searchsorted(other, reference).clip(0, len(other) - 1)
-    left = (right - 1).clip(0, len(other) - 1)
-    d_left = np.abs(other[left] - reference)
-    d_right = np.abs(other[right] - reference)
-    best = np.where(d_left <= d_right, left, right)
-    dist = np.minimum(d_left, d_right)
-    ok = dist <= tolerance_ns
-    # An other frame wanted by two sets goes to the nearer one.
-    order = np.lexsort((np.arange(len(reference)), dist))
-    taken: set[int] = set()
-    for k in order.tolist():
-        if ok[k] and int(best[k]) not in taken:
-            taken.add(int(best[k]))
-            out[k] = best[k]
+    lo = np.searchsorted(other, reference - tolerance_ns, side="left")
+    hi = np.searchsorted(other, reference + tolerance_ns, side="right")
+    ref, oth = reference.tolist(), other.tolist()
+    # last frame taken -> (sets filled, -summed distance), and the matching as a linked list
+    # of (set, frame, rest); -1: no frame taken yet, or only frames no later set can take.
+    best: dict[int, tuple[tuple[int, int], Any]] = {-1: ((0, 0), None)}
+    for k in range(n):
+        a, b = int(lo[k]), int(hi[k])
+        # Frames before this set's window can be taken by no later set either: fold them.
+        folded = [j for j in best if j < a]
+        if len(folded) > 1 or (folded and folded[0] != -1):
+            keep = max((best[j] for j in folded), key=lambda e: e[0])
+            for j in folded:
+                del best[j]
+            best[-1] = keep
+        taken: dict[int, tuple[tuple[int, int], Any]] = {}
+        for j in range(a, b):
+            prior = [e for u, e in best.items() if u < j]
+            (filled, dist), chain = max(prior, key=lambda e: e[0])
+            taken[j] = ((filled + 1, dist - abs(oth[j] - ref[k])), (k, j, chain))
+        for j, entry in taken.items():
+            if j not in best or entry[0] > best[j][0]:
+                best[j] = entry
+    _, chain = max(best.values(), key=lambda e: e[0])
+    while chain is not None:
+        k, j, chain = chain
+        out[k] = j
     return out
 
 

@@ -62,6 +62,8 @@ def _lanes(index: fmt.FileIndex, name: str) -> dict[str | None, fmt.FileIndex]:
     cameras = fmt.rig_cameras(index, repr(name))
     if cameras is None:
         return {None: index}
+    for camera in cameras:
+        fmt.camera_rig_pose(index, camera, repr(name))  # a part that cannot be read: refused
     return {camera: fmt.camera_view(index, camera) for camera in cameras}
 
 
@@ -97,14 +99,6 @@ def _check_same(first: fmt.FileIndex, other: fmt.FileIndex, name: str, first_nam
         raise InputError(
             f"{name!r} cannot follow {first_name!r}: its recording metadata differs ({keys})"
         )
-    lanes = _lanes(other, name)
-    for camera, view in _lanes(first, first_name).items():
-        theirs_ = lanes[camera]
-        if camera is not None and (
-            view.channel(fmt.TOPIC_DEPTH) is None or theirs_.channel(fmt.TOPIC_DEPTH) is None
-        ):
-            continue  # a camera of a rig without frames in one part: nothing to compare
-        _check_channels(view, theirs_, name, first_name, camera)
 
 
 def _check_channels(
@@ -172,9 +166,17 @@ def join(
     indexes = [_load(p) for p in paths]
     first = indexes[0]
     lanes = {camera: _Lane() for camera in _lanes(first, str(paths[0]))}
+    # Per camera, the last part that recorded it: each part's channels must match it (a camera
+    # of a rig may have no frames, and so no channels, in some parts).
+    recorded: dict[str | None, tuple[fmt.FileIndex, str]] = {}
     for path, index in zip(paths, indexes, strict=True):
         _check_same(first, index, str(path), str(paths[0]))
         for camera, view in _lanes(index, str(path)).items():
+            if camera is None or view.channel(fmt.TOPIC_DEPTH) is not None:
+                if camera in recorded:
+                    before, before_name = recorded[camera]
+                    _check_channels(before, view, str(path), before_name, camera)
+                recorded[camera] = (view, str(path))
             lane = lanes[camera]
             times = view.times.get(fmt.TOPIC_DEPTH, [])
             if times and lane.last_time is not None and min(times) <= lane.last_time:

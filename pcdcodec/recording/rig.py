@@ -22,7 +22,7 @@ import numpy.typing as npt
 
 from ..color import DEFAULT_COLOR_CODEC
 from ..depth import DEFAULT_DEPTH_CODEC
-from ..errors import InputError, InputTypeError
+from ..errors import InputError, InputTypeError, PcdcodecError
 from ..geometry.transform import as_rigid
 from . import _header as header
 from . import _index as fmt
@@ -274,6 +274,14 @@ class RigWriter:
             first = next(iter(self._cameras.values()))._container
             attempt(lambda: first.to_file(shared.mcap.finish))
         attempt(shared.file.close)
+        if shared.failures and not errors:
+            errors.append(
+                PcdcodecError(
+                    f"{str(self._writing)!r} was left unfinished: writing it failed before "
+                    f"({shared.failures[0]!r}); its frames before the failure read, and "
+                    "`pcdcodec recover` gives it an index"
+                )
+            )
         if errors:
             add_note = getattr(errors[0], "add_note", None)
             if self._writing != self._target and add_note is not None:

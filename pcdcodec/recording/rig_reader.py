@@ -8,7 +8,6 @@ one-camera recording gets (digests, seal, CRCs, frame digests) runs per camera.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import IO
@@ -16,8 +15,7 @@ from typing import IO
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import DecodeError, InputError, PcdcodecError
-from ..geometry.transform import as_rigid
+from ..errors import DecodeError, InputError
 from . import _header as header
 from . import _index as fmt
 from .framesets import FrameSet, FrameSets, RigCamera, framesets, match_times
@@ -102,15 +100,8 @@ class RigRecording:
         everything = {o for offsets in index.offsets.values() for o in offsets}
         try:
             for cam in names:
-                record = index.metadata.get(fmt.camera_record(cam))
-                if record is None:
-                    raise DecodeError(f"{name!r}: camera {cam!r} has no record")
-                try:
-                    pose = as_rigid(json.loads(record[fmt.RIG_POSE_KEY]), f"{cam}.rig_pose")
-                except (KeyError, ValueError, PcdcodecError) as exc:
-                    raise DecodeError(
-                        f"{name!r}: camera {cam!r} has no valid rig pose ({exc})"
-                    ) from None
+                record = index.metadata[fmt.camera_record(cam)]
+                pose = fmt.camera_rig_pose(index, cam, repr(name))
                 view = fmt.camera_view(index, cam)
                 own = {o for offsets in view.offsets.values() for o in offsets}
                 rec = CameraRecording(

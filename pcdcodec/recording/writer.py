@@ -284,8 +284,10 @@ class RecordingWriter(FrameInputs):
             ch, cw = self.color_shape
             self._encoder = self.color_codec.encoder(cw, ch, self.fps)
             extradata = self._encoder.extradata
-        with self._container.lock:  # the cameras of a rig share the file
-            self._container.start_streams(height, width, timestamp, extradata)
+        # Through to_file: nothing is written once the file is broken (another camera of a rig
+        # failed part way through a record), and a failure here stops every camera.
+        container = self._container
+        container.to_file(lambda: container.start_streams(height, width, timestamp, extradata))
         self._shape = (height, width)
 
     def write(
@@ -520,6 +522,16 @@ class RecordingWriter(FrameInputs):
             attempt(lambda: container.to_file(self._mcap.finish))
         if self._owns_file:
             attempt(self._file.close)
+        if container.broken is not None and not errors:
+            # Raised before, by the call it failed in: the file is still unfinished, and a file
+            # being replaced stays as it was.
+            errors.append(
+                PcdcodecError(
+                    f"{str(self._writing)!r} was left unfinished: writing it failed before "
+                    f"({container.broken!r}); its frames before the failure read, and "
+                    "`pcdcodec recover` gives it an index"
+                )
+            )
         if errors:
             add_note = getattr(errors[0], "add_note", None)  # Python 3.11+
             if self._writing != self._target and add_note is not None:
