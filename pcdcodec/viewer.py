@@ -109,9 +109,11 @@ def _color_mode(rr: Any, recording: Any, video: bool) -> str:
         return "jpeg"
     height, width = recording.color_shape
     padded = getattr(codec, "padded_size", None)
+    name = _VIDEO_CODECS.get(getattr(codec, "video_format", None) or "")
     if (
-        getattr(codec, "video_format", None) in _VIDEO_CODECS
+        name is not None
         and hasattr(rr, "VideoStream")
+        and hasattr(rr.VideoCodec, name)  # a release's VideoStream may lack some codecs
         and getattr(codec, "pix_fmt", "yuv420p") == "yuv420p"
         and recording.extradata is None  # parameter sets travel in the packets
         and (padded is None or padded(width, height) == (width, height))

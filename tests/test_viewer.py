@@ -342,3 +342,27 @@ def test_live_view_logs_depth_lossless_and_points_only_when_asked(tmp_path: Path
         assert len(logged) == 1
         assert np.array_equal(logged[0], frame.depth)
         assert ("/world/cam/points" in got) == points
+
+
+@pytest.mark.parametrize(("color", "fourcc"), [("h265", 0x68657631), ("av1", 0x61763031)])
+def test_view_passes_h265_and_av1_packets_through(color: str, fourcc: int, tmp_path: Path) -> None:
+    from pcdcodec.registry import list_codecs
+    from pcdcodec.viewer import view
+
+    if color not in list_codecs("color", available_only=True):
+        pytest.skip(f"{color} is not available here")
+    recording = _color_recording(tmp_path / f"{color}.pcdc", color)
+    got = _contents(view(recording, save=tmp_path / f"{color}.rrd"))  # type: ignore[arg-type]
+    rgb = got["/world/camera/image/rgb"]["batches"]
+    codec = [
+        b.column("VideoStream:codec").to_pylist()
+        for b in rgb
+        if "VideoStream:codec" in b.schema.names
+    ]
+    assert codec == [[[fourcc]]]
+    samples = [
+        blob for b in rgb if "VideoStream:sample" in b.schema.names
+        for blob in _blobs(b, "VideoStream:sample")
+    ]  # fmt: skip
+    with pcdcodec.open(recording) as rec:
+        assert samples == [p.data for p in rec.packets()]
