@@ -79,21 +79,32 @@ class _Options:
     video: bool = True
 
 
-def _depth_image(rr: Any, depth: Any, meter: float, fmt: str, png_level: int = 6) -> Any:
-    """``depth`` as a Rerun archetype: encoded (PNG or RVL, lossless) where the installed rerun
-    has ``EncodedDepthImage`` and the depth is uint16, else the raw ``DepthImage``."""
+def _depth_blob(rr: Any, depth: Any, fmt: str, png_level: int = 6) -> tuple[bytes, str] | None:
+    """``depth`` encoded for Rerun's ``EncodedDepthImage`` (bytes and media type, lossless),
+    or ``None`` where it is logged raw: ``fmt`` ``"raw"``, float32 depth (neither PNG nor RVL
+    holds it) or an installed rerun without ``EncodedDepthImage``."""
     if fmt == "raw" or depth.dtype != np.uint16 or not hasattr(rr, "EncodedDepthImage"):
-        return rr.DepthImage(depth, meter=meter)
+        return None
     depth = np.ascontiguousarray(depth)
     if fmt == "rvl":
         from .ros.messages import compressed_depth_encode
 
-        blob, media = compressed_depth_encode(depth, rvl=True), "application/rvl"
-    else:
-        import imagecodecs
+        return compressed_depth_encode(depth, rvl=True), "application/rvl"
+    import imagecodecs
 
-        blob, media = bytes(imagecodecs.png_encode(depth, level=png_level)), "image/png"
-    return rr.EncodedDepthImage(blob=blob, media_type=media, meter=meter)
+    return bytes(imagecodecs.png_encode(depth, level=png_level)), "image/png"
+
+
+def _depth_image(
+    rr: Any, depth: Any, meter: float, fmt: str, png_level: int = 6, blob: Any = False
+) -> Any:
+    """``depth`` as a Rerun archetype, encoded where :func:`_depth_blob` encodes it (``blob``:
+    what it gave, when already called), else the raw ``DepthImage``."""
+    if blob is False:
+        blob = _depth_blob(rr, depth, fmt, png_level)
+    if blob is None:
+        return rr.DepthImage(depth, meter=meter)
+    return rr.EncodedDepthImage(blob=blob[0], media_type=blob[1], meter=meter)
 
 
 def _color_mode(rr: Any, recording: Any, video: bool) -> str:
@@ -164,10 +175,12 @@ def _log_frame(
     mode: str,
     base: str = "world/camera",
     place: bool = True,
+    blob: Any = False,
 ) -> tuple[np.ndarray[Any, Any], np.ndarray[Any, Any] | None] | None:
-    """Log one frame under ``base`` (placed by the frame's pose when ``place``): its depth, its
-    color when ``mode`` is ``"images"``, and with ``opts.points`` its thinned points, which are
-    returned with their colors (camera frame); ``None`` without."""
+    """Log one frame under ``base`` (placed by the frame's pose when ``place``): its depth
+    (``blob``: its :func:`_depth_blob`, when encoded already), its color when ``mode`` is
+    ``"images"``, and with ``opts.points`` its thinned points, which are returned with their
+    colors (camera frame); ``None`` without."""
     projector = frame.projector
     if place and frame.pose is not None:
         pose = np.asarray(frame.pose, dtype=np.float64)
@@ -179,7 +192,7 @@ def _log_frame(
     meter = 1.0 if frame.depth.dtype == np.float32 else projector.depth_scale
     rec.log(
         f"{base}/image/depth",
-        _depth_image(rr, frame.depth, meter, opts.depth_format, opts.png_level),
+        _depth_image(rr, frame.depth, meter, opts.depth_format, opts.png_level, blob),
     )
     if not opts.points:
         return None
@@ -345,16 +358,17 @@ def _log_recording(
     mode = _color_mode(rr, recording, opts.video)
     trajectory: list[np.ndarray[Any, Any]] = []
     shown: dict[int, int] = {}
-    frames = (
-        _frames(recording, every, max_frames)
-        if opts.points or mode == "images"
-        else _depth_frames(recording, every, max_frames)
-    )
-    for i, frame in frames:
+    if opts.points or mode == "images":
+        frames: Iterator[tuple[int, Any, Any]] = (
+            (i, frame, False) for i, frame in _frames(recording, every, max_frames)
+        )
+    else:
+        frames = _depth_frames(recording, every, max_frames, rr, opts)
+    for i, frame, blob in frames:
         shown[frame.timestamp_ns] = i
         rec.set_time("frame", sequence=i)
         rec.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
-        _log_frame(rr, rec, frame, opts, mode)
+        _log_frame(rr, rec, frame, opts, mode, blob=blob)
         if frame.pose is not None:
             trajectory.append(np.asarray(frame.pose, dtype=np.float64)[:3, 3])
     if trajectory:  # once, whole: a growing line logged every frame grows the file as n²
@@ -371,19 +385,40 @@ def _frames(recording: Any, every: int, max_frames: int | None) -> Iterator[tupl
     return ((i, recording[i]) for i in range(0, len(recording), every)[:max_frames])
 
 
-def _depth_frames(recording: Any, every: int, max_frames: int | None) -> Iterator[tuple[int, Any]]:
-    """As :func:`_frames`, the frames without their color (not decoded): depth and pose."""
+def _depth_frames(
+    recording: Any, every: int, max_frames: int | None, rr: Any, opts: _Options
+) -> Iterator[tuple[int, Any, Any]]:
+    """``(i, frame, blob)`` as :func:`_frames` gives frames, without their color (not
+    decoded): depth and pose, and the depth encoded (:func:`_depth_blob`). With the
+    recording's ``threads`` at 2 or more, frames decode and encode ahead on that many threads,
+    a few per thread at most, and come out in order."""
+    from concurrent.futures import Future, ThreadPoolExecutor
+
     from .frame import Frame
 
     times = recording.timestamps
     poses = recording.poses() if recording.has_poses else None
-    for i in range(0, len(recording), every)[:max_frames]:
-        pose = poses[i] if poses is not None else None
+    projector = recording.projector
+
+    def load(i: int) -> tuple[int, Any, Any]:
         depth = recording.depth(i)
-        yield (
-            i,
-            Frame(None, depth, int(times[i]), index=i, pose=pose, projector=recording.projector),
-        )
+        pose = poses[i] if poses is not None else None
+        frame = Frame(None, depth, int(times[i]), index=i, pose=pose, projector=projector)
+        return i, frame, _depth_blob(rr, depth, opts.depth_format, opts.png_level)
+
+    indices = iter(range(0, len(recording), every)[:max_frames])
+    workers = recording.threads or 1
+    if workers < 2:
+        yield from map(load, indices)
+        return
+    with ThreadPoolExecutor(workers) as pool:
+        ahead: list[Future[tuple[int, Any, Any]]] = [
+            pool.submit(load, i) for i in itertools.islice(indices, 4 * workers)
+        ]
+        while ahead:
+            done = ahead.pop(0).result()
+            ahead.extend(pool.submit(load, i) for i in itertools.islice(indices, 1))
+            yield done
 
 
 def view_open3d(

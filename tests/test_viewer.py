@@ -366,3 +366,19 @@ def test_view_passes_h265_and_av1_packets_through(color: str, fourcc: int, tmp_p
     ]  # fmt: skip
     with pcdcodec.open(recording) as rec:
         assert samples == [p.data for p in rec.packets()]
+
+
+def test_view_encodes_depth_ahead_on_threads_in_order(recording: Path, tmp_path: Path) -> None:
+    from pcdcodec.viewer import view
+
+    with pcdcodec.open(recording) as rec:
+        depths = [rec.depth(i) for i in range(len(rec))]
+    for threads in (1, 3):
+        out = view(recording, save=tmp_path / f"t{threads}.rrd", threads=threads)
+        logged = _logged_depths(_contents(out)["/world/camera/image/depth"])  # type: ignore[arg-type]
+        assert sorted(logged) == list(range(len(depths)))
+        assert all(np.array_equal(logged[i], d) for i, d in enumerate(depths))
+    out = view(recording, save=tmp_path / "e.rrd", threads=2, every=3)
+    logged = _logged_depths(_contents(out)["/world/camera/image/depth"])  # type: ignore[arg-type]
+    assert sorted(logged) == [0, 3]
+    assert np.array_equal(logged[3], depths[3])
