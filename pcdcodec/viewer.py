@@ -2,21 +2,31 @@
 
 :func:`view` sends a ``.pcdc`` recording to the Rerun viewer (``pip install "pcdcodec[view]"``),
 or writes a ``.rrd`` file that the viewer opens later (``rerun out.rrd``). Each frame is logged
-at its recorded time (timeline ``time``) and by number (timeline ``frame``):
+at its recorded time (timeline ``time``) and by number (timeline ``frame``), kept small:
 
 * ``world/camera``: the pinhole camera (intrinsics, image size; x right, y down, z forward),
   placed by the frame's pose where the recording has poses;
-* ``world/camera/image/rgb``: the color image (JPEG-compressed in the viewer's store unless
-  ``jpeg_quality`` is ``None``), ``world/camera/image/depth``: the depth image with its scale;
-* ``world/camera/points``: the colored point cloud (every ``stride``-th pixel in each direction);
-* ``world/trajectory``: the camera positions as a line, where poses exist.
+* ``world/camera/image/depth``: the depth image, lossless as a 16-bit PNG (or RVL) in Rerun's
+  ``EncodedDepthImage`` with its scale (``meter``): the viewer back-projects it into a cloud
+  through the pinhole itself;
+* ``world/camera/image/rgb``: the color stream. H.264, H.265 and AV1 recordings pass their own
+  packets to Rerun's ``VideoStream`` as written, without re-encoding; MJPEG packets are logged as
+  the JPEG images they are; other codecs are decoded and logged as JPEG images;
+* ``world/camera/points``: the colored point cloud, only when asked (``points``; every
+  ``stride``-th pixel in each direction);
+* ``world/trajectory``: the positions of the frames shown as one line (static), where poses
+  exist.
+
+Rerun 0.23 lacks ``VideoStream`` (0.24 on) and releases before ``EncodedDepthImage`` (later)
+lack encoded depth: there color falls back to JPEG images and depth to the raw ``DepthImage``,
+as it does for float32 depth, which neither PNG nor RVL holds (``docs/view.md``).
 
 A recording of several cameras is shown by frame sets (``RigRecording.framesets()``: one frame
 per camera, matched by time; timeline ``frame`` is the set's number, and each camera's frame is
 logged at its own time): ``world`` is the rig frame, and each camera is ``world/<name>``, placed
 by its rig pose, with its pinhole, ``image/rgb``, ``image/depth`` and ``points`` as above;
 ``world/fused`` is the set's fused cloud in the rig frame (each camera's thinned points moved by
-its rig pose). Frames that no set took are not shown.
+its rig pose), also only with ``points``. Frames that no set took are not shown.
 
 :func:`view_open3d` plays the point clouds in Open3D's own window, for machines with a display
 and without Rerun. :class:`LiveView` streams frames to a Rerun viewer as they are recorded
@@ -29,6 +39,7 @@ from __future__ import annotations
 import itertools
 import os
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -37,9 +48,15 @@ import numpy as np
 from ._atomic import partial_path
 from .errors import InputError, PcdcodecError
 
-__all__ = ["LiveView", "view", "view_open3d"]
+__all__ = ["DEPTH_FORMATS", "LiveView", "view", "view_open3d"]
 
 _INSTALL = 'pip install "pcdcodec[view]"'
+
+#: How :func:`view` logs depth: a 16-bit PNG, RVL (both lossless, in ``EncodedDepthImage``),
+#: or Rerun's raw ``DepthImage``.
+DEPTH_FORMATS = ("png", "rvl", "raw")
+#: Rerun's names of the video codecs whose packets it decodes as they are.
+_VIDEO_CODECS = {"h264": "H264", "h265": "H265", "av1": "AV1"}
 
 
 def _rerun() -> Any:
@@ -50,29 +67,136 @@ def _rerun() -> Any:
     return rr
 
 
+@dataclass(frozen=True)
+class _Options:
+    """What :func:`view` logs and how."""
+
+    stride: int
+    jpeg_quality: int | None
+    points: bool
+    depth_format: str
+    png_level: int = 6
+    video: bool = True
+
+
+def _depth_blob(rr: Any, depth: Any, fmt: str, png_level: int = 6) -> tuple[bytes, str] | None:
+    """``depth`` encoded for Rerun's ``EncodedDepthImage`` (bytes and media type, lossless),
+    or ``None`` where it is logged raw: ``fmt`` ``"raw"``, float32 depth (neither PNG nor RVL
+    holds it) or an installed rerun without ``EncodedDepthImage``."""
+    if fmt == "raw" or depth.dtype != np.uint16 or not hasattr(rr, "EncodedDepthImage"):
+        return None
+    depth = np.ascontiguousarray(depth)
+    if fmt == "rvl":
+        from .ros.messages import compressed_depth_encode
+
+        return compressed_depth_encode(depth, rvl=True), "application/rvl"
+    import imagecodecs
+
+    return bytes(imagecodecs.png_encode(depth, level=png_level)), "image/png"
+
+
+def _depth_image(
+    rr: Any, depth: Any, meter: float, fmt: str, png_level: int = 6, blob: Any = False
+) -> Any:
+    """``depth`` as a Rerun archetype, encoded where :func:`_depth_blob` encodes it (``blob``:
+    what it gave, when already called), else the raw ``DepthImage``."""
+    if blob is False:
+        blob = _depth_blob(rr, depth, fmt, png_level)
+    if blob is None:
+        return rr.DepthImage(depth, meter=meter)
+    return rr.EncodedDepthImage(blob=blob[0], media_type=blob[1], meter=meter)
+
+
+def _color_mode(rr: Any, recording: Any, video: bool) -> str:
+    """How the color of ``recording`` is logged: ``"stream"`` (its packets in a
+    ``VideoStream``), ``"jpeg"`` (its MJPEG packets as images), ``"images"`` (decoded, then
+    JPEG) or ``"none"`` (no color)."""
+    codec = recording.color_codec
+    if codec is None:
+        return "none"
+    if not video:
+        return "images"
+    if codec.name == "mjpeg":
+        return "jpeg"
+    height, width = recording.color_shape
+    padded = getattr(codec, "padded_size", None)
+    name = _VIDEO_CODECS.get(getattr(codec, "video_format", None) or "")
+    if (
+        name is not None
+        and hasattr(rr, "VideoStream")
+        and hasattr(rr.VideoCodec, name)  # a release's VideoStream may lack some codecs
+        and getattr(codec, "pix_fmt", "yuv420p") == "yuv420p"
+        and recording.extradata is None  # parameter sets travel in the packets
+        and (padded is None or padded(width, height) == (width, height))
+        # Decode order is display order (no B-frames): Rerun gives a sample one time.
+        and bool(np.all(np.diff(recording.packet_timestamps) > 0))
+    ):
+        return "stream"
+    return "images"
+
+
+def _log_packets(
+    rr: Any, rec: Any, recording: Any, entity: str, mode: str, shown: dict[int, int]
+) -> None:
+    """The color packets of ``recording`` at their times, up to the last frame shown.
+
+    ``shown`` maps the time (ns) of each frame shown to its number on timeline ``frame``. A
+    video stream needs every packet from a keyframe on: those of frames not shown are logged
+    on timeline ``time`` alone. MJPEG packets are logged for the frames shown only.
+    """
+    if not shown:
+        return
+    last = max(shown)
+    if mode == "stream":
+        codec = getattr(rr.VideoCodec, _VIDEO_CODECS[recording.color_codec.video_format])
+        rec.log(entity, rr.VideoStream(codec=codec), static=True)
+    for packet in recording.packets():
+        if packet.pts > last:
+            break
+        number = shown.get(packet.pts)
+        if number is None and mode != "stream":
+            continue
+        if number is None:
+            rec.disable_timeline("frame")
+        else:
+            rec.set_time("frame", sequence=number)
+        rec.set_time("time", timestamp=np.datetime64(packet.pts, "ns"))
+        if mode == "stream":
+            rec.log(entity, rr.VideoStream.from_fields(sample=packet.data))
+        else:
+            rec.log(entity, rr.EncodedImage(contents=packet.data, media_type="image/jpeg"))
+
+
 def _log_frame(
     rr: Any,
     rec: Any,
     frame: Any,
-    stride: int,
-    jpeg_quality: int | None,
+    opts: _Options,
+    mode: str,
     base: str = "world/camera",
     place: bool = True,
-) -> tuple[np.ndarray[Any, Any], np.ndarray[Any, Any] | None]:
-    """Log one frame's images and thinned points under ``base`` (placed by the frame's pose
-    when ``place``); returns the points and their colors, in the camera frame."""
+    blob: Any = False,
+) -> tuple[np.ndarray[Any, Any], np.ndarray[Any, Any] | None] | None:
+    """Log one frame under ``base`` (placed by the frame's pose when ``place``): its depth
+    (``blob``: its :func:`_depth_blob`, when encoded already), its color when ``mode`` is
+    ``"images"``, and with ``opts.points`` its thinned points, which are returned with their
+    colors (camera frame); ``None`` without."""
     projector = frame.projector
     if place and frame.pose is not None:
         pose = np.asarray(frame.pose, dtype=np.float64)
         rec.log(base, rr.Transform3D(translation=pose[:3, 3], mat3x3=pose[:3, :3]))
-    if frame.color is not None:
+    if mode == "images" and frame.color is not None:
         image = rr.Image(frame.color)
-        rec.log(
-            f"{base}/image/rgb",
-            image.compress(jpeg_quality=jpeg_quality) if jpeg_quality is not None else image,
-        )
+        quality = opts.jpeg_quality
+        rec.log(f"{base}/image/rgb", image.compress(jpeg_quality=quality) if quality else image)
     meter = 1.0 if frame.depth.dtype == np.float32 else projector.depth_scale
-    rec.log(f"{base}/image/depth", rr.DepthImage(frame.depth, meter=meter))
+    rec.log(
+        f"{base}/image/depth",
+        _depth_image(rr, frame.depth, meter, opts.depth_format, opts.png_level, blob),
+    )
+    if not opts.points:
+        return None
+    stride = opts.stride
     depth = frame.depth[::stride, ::stride]
     color = frame.color[::stride, ::stride] if frame.color is not None else None
     points, colors = _subsampled_points(projector, depth, color, stride)
@@ -98,11 +222,15 @@ def _log_camera(rr: Any, rec: Any, base: str, cam: Any, pose: Any = None) -> Non
 
 
 def _log_rig(
-    rr: Any, rec: Any, rig: Any, every: int, max_frames: int | None, stride: int, jpeg: int | None
+    rr: Any, rec: Any, rig: Any, every: int, max_frames: int | None, opts: _Options
 ) -> None:
-    """Every camera of ``rig`` in its place, and each frame set with its fused cloud."""
+    """Every camera of ``rig`` in its place, each frame set, its fused cloud with
+    ``opts.points``, and each camera's color stream."""
+    modes = {}
     for name, cam in rig.cameras.items():
         _log_camera(rr, rec, f"world/{name}", cam.intrinsics, cam.rig_pose)
+        modes[name] = _color_mode(rr, rig.frames(name), opts.video)
+    shown: dict[str, dict[int, int]] = {name: {} for name in modes}
     sets = rig.framesets()
     for i in range(0, len(sets), every)[:max_frames]:
         frameset = sets[i]
@@ -112,23 +240,31 @@ def _log_rig(
         for name, frame in frameset.frames.items():
             if frame is None:
                 continue
+            shown[name][frame.timestamp_ns] = i
             rec.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
-            own, own_colors = _log_frame(
-                rr, rec, frame, stride, jpeg, base=f"world/{name}", place=False
-            )
+            logged = _log_frame(rr, rec, frame, opts, modes[name], f"world/{name}", place=False)
+            if logged is None:
+                continue
+            own, own_colors = logged
             pose = rig.rig_poses[name]
             points.append(own.astype(np.float64) @ pose[:3, :3].T + pose[:3, 3])
             colors.append(
                 own_colors if own_colors is not None else np.zeros((len(own), 3), np.uint8)
             )
+        if not opts.points:
+            continue
         rec.set_time("time", timestamp=np.datetime64(frameset.timestamp_ns, "ns"))
         fused = np.concatenate(points) if points else np.zeros((0, 3))
         rec.log(
             "world/fused",
             rr.Points3D(
-                fused, colors=np.concatenate(colors) if colors else None, radii=0.004 * stride
+                fused, colors=np.concatenate(colors) if colors else None, radii=0.004 * opts.stride
             ),
         )
+    for name, mode in modes.items():
+        if mode in ("stream", "jpeg"):
+            entity = f"world/{name}/image/rgb"
+            _log_packets(rr, rec, rig.frames(name), entity, mode, shown[name])
 
 
 def _subsampled_points(
@@ -157,15 +293,23 @@ def view(
     stride: int = 2,
     jpeg_quality: int | None = 90,
     threads: int | None = None,
+    points: bool = False,
+    depth_format: str = "png",
+    video: bool = True,
 ) -> Path | None:
     """Show the recording at ``path`` in the Rerun viewer, or write it to the ``.rrd`` file
     ``save`` (written beside its target and moved into place when complete; returned).
 
-    ``every`` logs every n-th frame, ``max_frames`` stops after that many logged frames,
-    ``stride`` thins the point cloud (every ``stride``-th pixel in each direction; 1 keeps all)
-    and ``jpeg_quality`` compresses the color images (``None``: raw). ``threads`` is how many
-    cores reading may use (:func:`pcdcodec.open`): with ``every`` 1 the frames are read in
-    order, ahead on that many threads. Raises
+    ``every`` logs every n-th frame, ``max_frames`` stops after that many logged frames.
+    ``depth_format`` is how depth is logged (:data:`DEPTH_FORMATS`: ``"png"``, the smallest,
+    ``"rvl"``, the fastest to write, both lossless, or ``"raw"``). ``video`` passes H.264,
+    H.265 and AV1 packets through as they are (``False``: every codec's color decoded and
+    logged as images); ``jpeg_quality`` compresses the color logged as images (``None``: raw).
+    ``points`` logs the point cloud as well (Rerun draws one from the depth image itself), of
+    every ``stride``-th pixel in each direction (1 keeps all). ``threads`` is how many cores
+    reading may use (:func:`pcdcodec.open`): with ``every`` 1 the frames are read in order,
+    ahead on that many threads, when their color is decoded (images or ``points``; a color
+    stream passed through leaves only depth to decode, read frame by frame). Raises
     :class:`~pcdcodec.InputError` for bad options and :class:`~pcdcodec.PcdcodecError` when
     rerun-sdk is not installed.
     """
@@ -177,6 +321,9 @@ def view(
             raise InputError(f"{name} must be a positive int, got {value!r}")
     if max_frames is not None and max_frames < 1:
         raise InputError(f"max_frames must be at least 1, got {max_frames}")
+    if depth_format not in DEPTH_FORMATS:
+        raise InputError(f"depth_format must be one of {DEPTH_FORMATS}, got {depth_format!r}")
+    opts = _Options(stride, jpeg_quality, points, depth_format, video=video)
     rr = _rerun()
     target = Path(save) if save is not None else None
     if target is not None and target.is_dir():
@@ -192,9 +339,9 @@ def view(
         try:
             stream.log("world", rr.ViewCoordinates.RDF, static=True)
             if isinstance(recording, RigRecording):
-                _log_rig(rr, stream, recording, every, max_frames, stride, jpeg_quality)
+                _log_rig(rr, stream, recording, every, max_frames, opts)
             else:
-                _log_recording(rr, stream, recording, every, max_frames, stride, jpeg_quality)
+                _log_recording(rr, stream, recording, every, max_frames, opts)
             stream.flush()
         finally:
             stream.disconnect()
@@ -204,19 +351,30 @@ def view(
 
 
 def _log_recording(
-    rr: Any, rec: Any, recording: Any, every: int, max_frames: int | None, stride: int,
-    jpeg: int | None,
-) -> None:  # fmt: skip
-    """The camera of a one-camera recording, each frame, and the trajectory."""
+    rr: Any, rec: Any, recording: Any, every: int, max_frames: int | None, opts: _Options
+) -> None:
+    """The camera of a one-camera recording, each frame, its color and the trajectory."""
     _log_camera(rr, rec, "world/camera", recording.intrinsics)
+    mode = _color_mode(rr, recording, opts.video)
     trajectory: list[np.ndarray[Any, Any]] = []
-    for i, frame in _frames(recording, every, max_frames):
+    shown: dict[int, int] = {}
+    if opts.points or mode == "images":
+        frames: Iterator[tuple[int, Any, Any]] = (
+            (i, frame, False) for i, frame in _frames(recording, every, max_frames)
+        )
+    else:
+        frames = _depth_frames(recording, every, max_frames, rr, opts)
+    for i, frame, blob in frames:
+        shown[frame.timestamp_ns] = i
         rec.set_time("frame", sequence=i)
         rec.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
-        _log_frame(rr, rec, frame, stride, jpeg)
+        _log_frame(rr, rec, frame, opts, mode, blob=blob)
         if frame.pose is not None:
             trajectory.append(np.asarray(frame.pose, dtype=np.float64)[:3, 3])
-            rec.log("world/trajectory", rr.LineStrips3D([np.array(trajectory)]))
+    if trajectory:  # once, whole: a growing line logged every frame grows the file as n²
+        rec.log("world/trajectory", rr.LineStrips3D([np.array(trajectory)]), static=True)
+    if mode in ("stream", "jpeg"):
+        _log_packets(rr, rec, recording, "world/camera/image/rgb", mode, shown)
 
 
 def _frames(recording: Any, every: int, max_frames: int | None) -> Iterator[tuple[int, Any]]:
@@ -225,6 +383,42 @@ def _frames(recording: Any, every: int, max_frames: int | None) -> Iterator[tupl
     if every == 1:
         return enumerate(itertools.islice(recording, max_frames))
     return ((i, recording[i]) for i in range(0, len(recording), every)[:max_frames])
+
+
+def _depth_frames(
+    recording: Any, every: int, max_frames: int | None, rr: Any, opts: _Options
+) -> Iterator[tuple[int, Any, Any]]:
+    """``(i, frame, blob)`` as :func:`_frames` gives frames, without their color (not
+    decoded): depth and pose, and the depth encoded (:func:`_depth_blob`). With the
+    recording's ``threads`` at 2 or more, frames decode and encode ahead on that many threads,
+    a few per thread at most, and come out in order."""
+    from concurrent.futures import Future, ThreadPoolExecutor
+
+    from .frame import Frame
+
+    times = recording.timestamps
+    poses = recording.poses() if recording.has_poses else None
+    projector = recording.projector
+
+    def load(i: int) -> tuple[int, Any, Any]:
+        depth = recording.depth(i)
+        pose = poses[i] if poses is not None else None
+        frame = Frame(None, depth, int(times[i]), index=i, pose=pose, projector=projector)
+        return i, frame, _depth_blob(rr, depth, opts.depth_format, opts.png_level)
+
+    indices = iter(range(0, len(recording), every)[:max_frames])
+    workers = recording.threads or 1
+    if workers < 2:
+        yield from map(load, indices)
+        return
+    with ThreadPoolExecutor(workers) as pool:
+        ahead: list[Future[tuple[int, Any, Any]]] = [
+            pool.submit(load, i) for i in itertools.islice(indices, 4 * workers)
+        ]
+        while ahead:
+            done = ahead.pop(0).result()
+            ahead.extend(pool.submit(load, i) for i in itertools.islice(indices, 1))
+            yield done
 
 
 def view_open3d(
@@ -284,11 +478,13 @@ class LiveView:
 
     ``cameras`` is one ``(name, projector)`` per camera (a
     :class:`~pcdcodec.geometry.projector.Projector` with the camera's intrinsics, depth scale and
-    color camera). :meth:`log` shows the color image, the depth image and every ``stride``-th
-    point of the cloud under ``world/<name>``; frames coming faster than ``max_fps`` are
-    skipped, so the viewer never slows the recording much. ``spawn=False`` with ``save`` writes
-    a ``.rrd`` file instead of opening a window. Raises :class:`~pcdcodec.PcdcodecError`
-    naming ``pip install "pcdcodec[view]"`` when rerun-sdk is not installed.
+    color camera). :meth:`log` shows the color image (JPEG), the depth image (a lossless PNG
+    written at zlib level 1, fast; the raw image where Rerun lacks encoded depth) and, with
+    ``points``, every ``stride``-th point of the cloud under ``world/<name>``; frames coming
+    faster than ``max_fps`` are skipped, so the viewer never slows the recording much.
+    ``save`` writes a ``.rrd`` file instead of opening a window. Raises
+    :class:`~pcdcodec.PcdcodecError` naming ``pip install "pcdcodec[view]"`` when rerun-sdk is
+    not installed.
     """
 
     def __init__(
@@ -298,12 +494,14 @@ class LiveView:
         max_fps: float = 5.0,
         stride: int = 4,
         save: str | os.PathLike[str] | None = None,
+        points: bool = False,
     ) -> None:
         import time
 
         rr = _rerun()
         self._rr, self._time = rr, time.monotonic
         self.cameras, self.stride, self.period = cameras, stride, 1.0 / max_fps
+        self.points = points
         self._last = [float("-inf")] * len(cameras)
         self.stream = rr.RecordingStream("pcdcodec-record")
         if save is not None:
@@ -326,7 +524,9 @@ class LiveView:
         if frame.color is not None:
             stream.log(f"world/{name}/color", rr.Image(frame.color).compress(jpeg_quality=80))
         meter = 1.0 if frame.depth.dtype == np.float32 else projector.depth_scale
-        stream.log(f"world/{name}/depth", rr.DepthImage(frame.depth, meter=meter))
+        stream.log(f"world/{name}/depth", _depth_image(rr, frame.depth, meter, "png", 1))
+        if not self.points:
+            return True
         points, colors = projector.to_points(frame.depth, frame.color)
         step = self.stride * self.stride
         stream.log(

@@ -549,11 +549,11 @@ def test_view_shows_every_camera_in_its_place_and_the_fused_cloud(
     rig: tuple[Path, list[Cam]], tmp_path: Path
 ) -> None:
     pytest.importorskip("rerun")
-    from .test_viewer import _contents
+    from .test_viewer import _blobs, _contents, _logged_depths
 
     path, cams = rig
     out = tmp_path / "rig.rrd"
-    assert main(["view", str(path), "--save", str(out), "--stride", "4"]) == 0
+    assert main(["view", str(path), "--save", str(out), "--stride", "4", "--points"]) == 0
     got = _contents(out)
     with pcdcodec.open(path) as rec:
         sets = rec.framesets()
@@ -572,6 +572,22 @@ def test_view_shows_every_camera_in_its_place_and_the_fused_cloud(
             assert sorted(got[f"{base}/image/depth"]["frames"]) == in_sets
             assert sorted(got[f"{base}/points"]["frames"]) == in_sets
             assert (f"{base}/image/rgb" in got) == (cam.colors is not None)
+            # Each camera's depth lossless; its color packets as recorded, up to its last frame
+            # shown.
+            frames = rec.frames(cam.spec.name)
+            logged = _logged_depths(got[f"{base}/image/depth"])
+            for k in in_sets:
+                frame = sets[k].frames[cam.spec.name]
+                assert np.array_equal(logged[k], frame.depth)
+            if cam.colors is not None:
+                last = max(sets[k].frames[cam.spec.name].timestamp_ns for k in in_sets)
+                packets = [p.data for p in frames.packets() if p.pts <= last]
+                rgb = got[f"{base}/image/rgb"]["batches"]
+                samples = [
+                    blob for b in rgb if "VideoStream:sample" in b.schema.names
+                    for blob in _blobs(b, "VideoStream:sample")
+                ]  # fmt: skip
+                assert samples == packets
         # The fused cloud of each set: every camera's thinned points moved by its rig pose.
         fused = got["/world/fused"]
         assert sorted(fused["frames"]) == list(range(len(sets)))

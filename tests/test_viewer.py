@@ -1,8 +1,10 @@
-"""pcdcodec view: a recording in Rerun, checked through the .rrd file it writes."""
+"""pcdcodec view: a recording in Rerun, checked through the .rrd file it writes, read back with
+Rerun's own reader: depth bit-exact, color packets as recorded, points only when asked."""
 
 from __future__ import annotations
 
 import dataclasses
+import struct
 from pathlib import Path
 from typing import Any
 
@@ -40,11 +42,84 @@ def _contents(rrd: Path) -> dict[str, dict[str, Any]]:
     return out
 
 
+def _blobs(batch: Any, column: str) -> list[bytes]:
+    """The one blob of each row of a ``list<list<uint8>>`` column, as bytes."""
+    outer = batch.column(column)
+    return [bytes(outer[i].values[0].values.to_numpy()) for i in range(len(outer))]
+
+
+def _logged_depths(entry: dict[str, Any]) -> dict[int, np.ndarray[Any, Any]]:
+    """Frame number -> the depth image an ``EncodedDepthImage`` entity holds, decoded (PNG with
+    imagecodecs, RVL after its 20-byte compressedDepth header with pcdcodec's decoder)."""
+    import imagecodecs
+
+    from pcdcodec.depth.rvl import rvl_decode
+
+    out = {}
+    for batch in entry["batches"]:
+        if "EncodedDepthImage:blob" not in batch.schema.names:
+            continue
+        media = [m[0] for m in batch.column("EncodedDepthImage:media_type").to_pylist()]
+        for f, blob, kind in zip(
+            batch.column("frame").to_pylist(),
+            _blobs(batch, "EncodedDepthImage:blob"),
+            media,
+            strict=True,
+        ):
+            if kind == "image/png":
+                out[f] = imagecodecs.png_decode(blob)
+            else:
+                assert kind == "application/rvl"
+                _, quant_a, quant_b, width, height = struct.unpack("<iffII", blob[:20])
+                assert (quant_a, quant_b) == (0.0, 0.0)  # Rerun: no quantization, plain uint16
+                out[f] = rvl_decode(memoryview(blob[20:]), width * height).reshape(height, width)
+    return out
+
+
+def test_view_logs_depth_lossless_and_the_color_packets_as_recorded(
+    recording: Path, tmp_path: Path
+) -> None:
+    from pcdcodec.viewer import view
+
+    with pcdcodec.open(recording) as rec:
+        depths = [rec.depth(i) for i in range(len(rec))]
+        packets = [p.data for p in rec.packets()]
+        scale = rec.depth_scale
+    for depth_format in ("png", "rvl"):
+        out = view(recording, save=tmp_path / f"{depth_format}.rrd", depth_format=depth_format)
+        assert out is not None
+        got = _contents(out)
+        entry = got["/world/camera/image/depth"]
+        logged = _logged_depths(entry)
+        assert sorted(logged) == [0, 1, 2, 3]
+        for i, depth in enumerate(depths):
+            assert logged[i].dtype == np.uint16
+            assert np.array_equal(logged[i], depth)  # bit-exact
+        meters = {
+            m[0] for b in entry["batches"] for m in b.column("EncodedDepthImage:meter").to_pylist()
+        }
+        assert meters == {scale}
+        assert "DepthImage:buffer" not in entry["columns"]
+        rgb = got["/world/camera/image/rgb"]
+        codec = [b for b in rgb["batches"] if "VideoStream:codec" in b.schema.names]
+        assert codec[0].column("VideoStream:codec").to_pylist() == [[0x61766331]]  # H.264
+        samples = [
+            blob for b in rgb["batches"] if "VideoStream:sample" in b.schema.names
+            for blob in _blobs(b, "VideoStream:sample")
+        ]  # fmt: skip
+        assert samples == packets  # passed through, not re-encoded
+        assert sorted(rgb["frames"]) == [0, 1, 2, 3]
+        assert "/world/camera/points" not in got  # Rerun draws the cloud from the depth image
+        if depth_format == "png":  # the default: at most 3 times the recording
+            assert out.stat().st_size < 3 * recording.stat().st_size
+
+
 def test_view_saves_color_depth_points_camera_over_time(
     recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "out.rrd"
-    assert main(["view", str(recording), "--save", str(out), "--stride", "4"]) == 0
+    args = ["view", str(recording), "--save", str(out), "--stride", "4", "--points"]
+    assert main(args) == 0
     assert "wrote" in capsys.readouterr().out
     assert out.exists()
     assert not list(tmp_path.glob(".out.rrd.partial*"))
@@ -52,7 +127,7 @@ def test_view_saves_color_depth_points_camera_over_time(
     assert "Pinhole:image_from_camera" in got["/world/camera"]["columns"]
     assert sorted(got["/world/camera/image/rgb"]["frames"]) == [0, 1, 2, 3]
     assert sorted(got["/world/camera/image/depth"]["frames"]) == [0, 1, 2, 3]
-    assert "DepthImage:meter" in got["/world/camera/image/depth"]["columns"]
+    assert "EncodedDepthImage:meter" in got["/world/camera/image/depth"]["columns"]
     points = got["/world/camera/points"]
     assert sorted(points["frames"]) == [0, 1, 2, 3]
     assert "time" in points["columns"]
@@ -63,27 +138,30 @@ def test_view_saves_color_depth_points_camera_over_time(
     assert "/world/trajectory" not in got  # this recording has no poses
 
 
-def test_view_logs_the_trajectory_where_poses_exist(
-    recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    from pcdcodec.recording.reader import Recording
-
-    plain = Recording.frame
-
-    def posed(self: Recording, i: int) -> Any:
-        frame = plain(self, i)
-        frame.pose = np.eye(4)
-        frame.pose[:3, 3] = [0.1 * i, 0.0, 0.0]
-        return frame
-
-    monkeypatch.setattr(Recording, "frame", posed)
+def test_view_logs_the_trajectory_where_poses_exist(tmp_path: Path) -> None:
     from pcdcodec.viewer import view
 
+    seq = pcdcodec.load_sample(max_frames=4)
+    recording = tmp_path / "posed.pcdc"
+    with pcdcodec.open(recording, "w", intrinsics=seq.intrinsics, depth_scale=5000.0) as w:
+        for i, frame in enumerate(seq):
+            pose = np.eye(4)
+            pose[:3, 3] = [0.1 * i, 0.0, 0.0]
+            w.write_frames([dataclasses.replace(frame, pose=pose)])
     out = view(recording, save=tmp_path / "p.rrd", every=2)
     assert out == tmp_path / "p.rrd"
     got = _contents(out)
-    assert sorted(got["/world/trajectory"]["frames"]) == [0, 2]
+    # One static line through the positions of the frames shown.
+    strips = got["/world/trajectory"]["batches"][0].column("LineStrips3D:strips").to_pylist()
+    assert np.allclose(np.asarray(strips[0][0]), [[0.0, 0, 0], [0.2, 0, 0]])
+    assert got["/world/trajectory"]["frames"] == []
     assert "Transform3D:translation" in got["/world/camera"]["columns"]
+    # Every color packet up to the last frame shown: a video decodes from its keyframe on;
+    # those of frames not shown are on timeline "time" alone.
+    rgb = got["/world/camera/image/rgb"]
+    assert sorted(rgb["frames"]) == [0, 2]
+    samples = sum(b.num_rows for b in rgb["batches"] if "VideoStream:sample" in b.schema.names)
+    assert samples == 3
 
 
 def test_view_threads_reads_ahead_and_logs_the_same(
@@ -102,12 +180,15 @@ def test_view_threads_reads_ahead_and_logs_the_same(
     logged = {}
     for threads in ("1", "2"):
         out = tmp_path / f"t{threads}.rrd"
-        args = ["view", str(recording), "--save", str(out), "--threads", threads]
+        args = ["view", str(recording), "--save", str(out), "--threads", threads, "--points"]
         assert main([*args, "--max-frames", "3"]) == 0
         got = _contents(out)
         points = got["/world/camera/points"]
         assert sorted(points["frames"]) == [0, 1, 2]
-        logged[threads] = [b.column("Points3D:positions").to_pylist() for b in points["batches"]]
+        # Row by row: how Rerun batches rows into chunks depends on timing.
+        logged[threads] = [
+            row for b in points["batches"] for row in b.column("Points3D:positions").to_pylist()
+        ]
     assert read_ahead == [1, 2]  # every frame in order, on the threads asked for
     assert logged["2"] == logged["1"]
     assert main(["view", str(recording), "--save", str(tmp_path / "x.rrd"), "--threads", "-2"]) == 1
@@ -154,3 +235,150 @@ def test_view_open3d_checks_its_options_before_opening_a_window(
     with pytest.raises(pcdcodec.PcdcodecError, match="could not open a window"):
         view_open3d(recording, threads=2)
     assert len(windows) == 1
+
+
+def _color_recording(path: Path, color: str, frames: int = 3) -> Path:
+    seq = pcdcodec.load_sample(max_frames=frames)
+    with pcdcodec.open(path, "w", intrinsics=seq.intrinsics, depth_scale=5000.0, color=color) as w:
+        w.write_frames(dataclasses.replace(f, pose=None) for f in seq)
+    return path
+
+
+def test_view_logs_mjpeg_packets_and_other_codecs_as_jpeg_images(tmp_path: Path) -> None:
+    from pcdcodec.viewer import view
+
+    for color in ("mjpeg", "ffv1"):
+        recording = _color_recording(tmp_path / f"{color}.pcdc", color)
+        got = _contents(view(recording, save=tmp_path / f"{color}.rrd"))  # type: ignore[arg-type]
+        rgb = got["/world/camera/image/rgb"]
+        assert sorted(rgb["frames"]) == [0, 1, 2]
+        assert "VideoStream:sample" not in rgb["columns"]
+        images = [blob for b in rgb["batches"] for blob in _blobs(b, "EncodedImage:blob")]
+        assert all(blob.startswith(b"\xff\xd8") for blob in images)  # JPEG
+        if color == "mjpeg":  # the recording's own JPEGs
+            with pcdcodec.open(recording) as rec:
+                assert images == [p.data for p in rec.packets()]
+    # Asked for images: the H.264 recording's color decoded and logged as JPEG too.
+    recording = _color_recording(tmp_path / "h264.pcdc", "h264")
+    out = tmp_path / "h.rrd"
+    assert main(["view", str(recording), "--save", str(out), "--no-video", "--depth", "rvl"]) == 0
+    got = _contents(out)
+    assert "EncodedImage:blob" in got["/world/camera/image/rgb"]["columns"]
+    assert len(_logged_depths(got["/world/camera/image/depth"])) == 3  # RVL
+    # B-frames: packets out of display order, which Rerun's VideoStream cannot take.
+    recording = _color_recording(tmp_path / "b.pcdc", "h264:bframes=2", frames=6)
+    with pcdcodec.open(recording) as rec:
+        assert not np.all(np.diff(rec.packet_timestamps) > 0)
+    got = _contents(view(recording, save=tmp_path / "b.rrd"))  # type: ignore[arg-type]
+    assert "VideoStream:sample" not in got["/world/camera/image/rgb"]["columns"]
+    assert sorted(got["/world/camera/image/rgb"]["frames"]) == list(range(6))
+
+
+def test_view_falls_back_to_raw_depth_and_jpeg_without_the_newer_archetypes(
+    recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import rerun as rr
+
+    from pcdcodec.viewer import view
+
+    # Rerun releases before VideoStream (0.24) and EncodedDepthImage have neither.
+    monkeypatch.delattr(rr, "EncodedDepthImage")
+    monkeypatch.delattr(rr, "VideoStream")
+    got = _contents(view(recording, save=tmp_path / "old.rrd"))  # type: ignore[arg-type]
+    depth = got["/world/camera/image/depth"]
+    assert "DepthImage:buffer" in depth["columns"]
+    assert "EncodedDepthImage:blob" not in depth["columns"]
+    with pcdcodec.open(recording) as rec:
+        buffers = [b for b in depth["batches"] if "DepthImage:buffer" in b.schema.names]
+        first = np.frombuffer(_blobs(buffers[0], "DepthImage:buffer")[0], np.uint16)
+        assert np.array_equal(first.reshape(rec.intrinsics.shape), rec.depth(0))
+    assert "EncodedImage:blob" in got["/world/camera/image/rgb"]["columns"]
+
+
+def test_view_logs_float_depth_raw(tmp_path: Path) -> None:
+    from pcdcodec.viewer import view
+
+    seq = pcdcodec.load_sample(max_frames=2)
+    recording = tmp_path / "f.pcdc"
+    with pcdcodec.open(recording, "w", intrinsics=seq.intrinsics, depth="zstd") as w:
+        for f in seq:
+            metres = np.where(f.depth > 0, f.depth / np.float32(5000.0), np.nan).astype(np.float32)
+            w.write_frames([dataclasses.replace(f, depth=metres, pose=None)])
+    got = _contents(view(recording, save=tmp_path / "f.rrd"))  # type: ignore[arg-type]
+    # Neither PNG nor RVL holds float32 depth: Rerun's raw DepthImage, in metres.
+    depth = got["/world/camera/image/depth"]
+    assert "DepthImage:buffer" in depth["columns"]
+    meters = [m for b in depth["batches"] for m in b.column("DepthImage:meter").to_pylist()]
+    assert meters == [[1.0], [1.0]]
+
+
+def test_view_rejects_a_depth_format_it_does_not_know(recording: Path, tmp_path: Path) -> None:
+    from pcdcodec.viewer import view
+
+    with pytest.raises(pcdcodec.InputError, match="depth_format must be one of"):
+        view(recording, save=tmp_path / "x.rrd", depth_format="jpeg")
+
+
+def test_live_view_logs_depth_lossless_and_points_only_when_asked(tmp_path: Path) -> None:
+    import imagecodecs
+
+    from pcdcodec.geometry.projector import Projector
+    from pcdcodec.viewer import LiveView
+
+    seq = pcdcodec.load_sample(max_frames=1)
+    frame = seq[0]
+    projector = Projector(seq.intrinsics, 5000.0)
+    for points in (False, True):
+        out = tmp_path / f"live{points}.rrd"
+        live = LiveView([("cam", projector)], save=out, points=points)
+        assert live.log(0, frame)
+        live.close()
+        got = _contents(out)
+        logged = [
+            imagecodecs.png_decode(blob)
+            for b in got["/world/cam/depth"]["batches"]
+            for blob in _blobs(b, "EncodedDepthImage:blob")
+        ]
+        assert len(logged) == 1
+        assert np.array_equal(logged[0], frame.depth)
+        assert ("/world/cam/points" in got) == points
+
+
+@pytest.mark.parametrize(("color", "fourcc"), [("h265", 0x68657631), ("av1", 0x61763031)])
+def test_view_passes_h265_and_av1_packets_through(color: str, fourcc: int, tmp_path: Path) -> None:
+    from pcdcodec.registry import list_codecs
+    from pcdcodec.viewer import view
+
+    if color not in list_codecs("color", available_only=True):
+        pytest.skip(f"{color} is not available here")
+    recording = _color_recording(tmp_path / f"{color}.pcdc", color)
+    got = _contents(view(recording, save=tmp_path / f"{color}.rrd"))  # type: ignore[arg-type]
+    rgb = got["/world/camera/image/rgb"]["batches"]
+    codec = [
+        b.column("VideoStream:codec").to_pylist()
+        for b in rgb
+        if "VideoStream:codec" in b.schema.names
+    ]
+    assert codec == [[[fourcc]]]
+    samples = [
+        blob for b in rgb if "VideoStream:sample" in b.schema.names
+        for blob in _blobs(b, "VideoStream:sample")
+    ]  # fmt: skip
+    with pcdcodec.open(recording) as rec:
+        assert samples == [p.data for p in rec.packets()]
+
+
+def test_view_encodes_depth_ahead_on_threads_in_order(recording: Path, tmp_path: Path) -> None:
+    from pcdcodec.viewer import view
+
+    with pcdcodec.open(recording) as rec:
+        depths = [rec.depth(i) for i in range(len(rec))]
+    for threads in (1, 3):
+        out = view(recording, save=tmp_path / f"t{threads}.rrd", threads=threads)
+        logged = _logged_depths(_contents(out)["/world/camera/image/depth"])  # type: ignore[arg-type]
+        assert sorted(logged) == list(range(len(depths)))
+        assert all(np.array_equal(logged[i], d) for i, d in enumerate(depths))
+    out = view(recording, save=tmp_path / "e.rrd", threads=2, every=3)
+    logged = _logged_depths(_contents(out)["/world/camera/image/depth"])  # type: ignore[arg-type]
+    assert sorted(logged) == [0, 3]
+    assert np.array_equal(logged[3], depths[3])

@@ -417,7 +417,23 @@ def _view_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--every", type=int, default=1, help="show every n-th frame")
     p.add_argument("--max-frames", type=int, default=None, help="show at most N frames")
     p.add_argument(
+        "--points",
+        action="store_true",
+        help="log the point cloud too (Rerun draws one from the depth image itself)",
+    )
+    p.add_argument(
         "--stride", type=int, default=2, help="point cloud of every n-th pixel (default: 2)"
+    )
+    p.add_argument(
+        "--depth",
+        choices=("png", "rvl", "raw"),
+        default="png",
+        help="depth as a lossless 16-bit PNG (default, smallest), RVL (fastest) or raw pixels",
+    )
+    p.add_argument(
+        "--no-video",
+        action="store_true",
+        help="color as JPEG images, not the recording's own H.264/H.265/AV1 packets",
     )
     p.add_argument("--open3d", action="store_true", help="play in Open3D's window instead")
     _add_threads_option(p)

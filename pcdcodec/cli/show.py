@@ -329,6 +329,9 @@ def cmd_view(args: argparse.Namespace) -> int:
         max_frames=args.max_frames,
         stride=args.stride,
         threads=args.threads,
+        points=args.points,
+        depth_format=args.depth,
+        video=not args.no_video,
     )
     if saved is not None:
         print(f"wrote {saved} (open it with: rerun {saved})")
