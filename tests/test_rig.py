@@ -564,7 +564,7 @@ def test_json_nested_too_deep_in_a_rig_record_is_a_decode_error(
 def test_a_camera_starting_after_the_file_broke_writes_nothing(tmp_path: Path) -> None:
     import builtins
 
-    import pcdcodec.recording.rig as rigmod
+    import pcdcodec.recording.writer as writermod
 
     small, scale, frames = _small_frames(3)
 
@@ -595,11 +595,11 @@ def test_a_camera_starting_after_the_file_broke_writes_nothing(tmp_path: Path) -
 
     path = tmp_path / "full.pcdc"
     specs = [CameraSpec("a", small, scale, color="ffv1"), CameraSpec("b", small, scale)]
-    rigmod.open = opener  # type: ignore[attr-defined]
+    writermod.open = opener  # type: ignore[attr-defined]  # the writers open files there
     try:
         w = RigWriter(path, specs)
     finally:
-        del rigmod.open  # type: ignore[attr-defined]
+        del writermod.open  # type: ignore[attr-defined]
     w.write("a", *frames[0], 0)
     w.flush()
     held["f"].fail()

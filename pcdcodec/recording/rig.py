@@ -22,12 +22,12 @@ import numpy.typing as npt
 
 from ..color import DEFAULT_COLOR_CODEC
 from ..depth import DEFAULT_DEPTH_CODEC
-from ..errors import InputError, InputTypeError, PcdcodecError
+from ..errors import InputError, InputTypeError
 from ..geometry.transform import as_rigid
 from . import _header as header
 from . import _index as fmt
 from ._container import SharedFile
-from .writer import RecordingWriter
+from .writer import RecordingWriter, end_close, open_output
 
 __all__ = ["CameraSpec", "RigWriter"]
 
@@ -120,18 +120,8 @@ class RigWriter:
         user = header.user_metadata(metadata)
         self.path = Path(path)
         self.rig_frame_id = rig_frame_id
-        if self.path.exists() and not overwrite:
-            raise InputError(
-                f"{str(self.path)!r} already exists; pass overwrite=True to replace it"
-            )
-        if self.path.is_dir():
-            raise InputError(f"{str(self.path)!r} is a folder, not a file")
-        from .._atomic import partial_path  # not loaded by `import pcdcodec`
-
         self._target = self.path
-        self._writing = partial_path(self.path) if self.path.exists() else self.path
-        mode = "xb" if self._writing == self.path else "wb"
-        file = open(self._writing, mode)  # noqa: SIM115 - closed by close()
+        self._writing, file = open_output(self.path, overwrite)
         self._shared = SharedFile(file, self._writing)
         self._closed = False
         try:
@@ -274,24 +264,9 @@ class RigWriter:
             first = next(iter(self._cameras.values()))._container
             attempt(lambda: first.to_file(shared.mcap.finish))
         attempt(shared.file.close)
-        if shared.failures and not errors:
-            errors.append(
-                PcdcodecError(
-                    f"{str(self._writing)!r} was left unfinished: writing it failed before "
-                    f"({shared.failures[0]!r}); its frames before the failure read, and "
-                    "`pcdcodec recover` gives it an index"
-                )
-            )
-        if errors:
-            add_note = getattr(errors[0], "add_note", None)
-            if self._writing != self._target and add_note is not None:
-                add_note(
-                    f"{str(self._target)!r} was left as it was; the frames written are in "
-                    f"{str(self._writing)!r}"
-                )
-            raise errors[0]
-        if self._writing != self._target:
-            os.replace(self._writing, self._target)
+        end_close(
+            errors, shared.failures[0] if shared.failures else None, self._writing, self._target
+        )
 
     def abort(self) -> None:
         """Stop without finishing: what was written stays readable, as after a crash."""

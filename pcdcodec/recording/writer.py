@@ -39,6 +39,46 @@ _NS = 1_000_000_000
 MAX_TIMESTAMP_NS = (2**31) * _NS - 1
 
 
+def open_output(path: Path, overwrite: bool) -> tuple[Path, IO[bytes]]:
+    """The file a writer writes ``path`` through, opened: ``path`` itself, or, when it
+    replaces an existing file, a partial file beside it, swapped in by :func:`end_close`, so the
+    old file survives until the new one is complete."""
+    if path.exists() and not overwrite:
+        raise InputError(f"{str(path)!r} already exists; pass overwrite=True to replace it")
+    if path.is_dir():
+        raise InputError(f"{str(path)!r} is a folder, not a file")
+    from .._atomic import partial_path  # not loaded by `import pcdcodec`
+
+    writing = partial_path(path) if path.exists() else path
+    mode = "xb" if writing == path else "wb"
+    return writing, open(writing, mode)
+
+
+def end_close(
+    errors: list[BaseException], broken: BaseException | None, writing: Path, target: Path
+) -> None:
+    """The end of a writer's close: raise the first error (or, when none was raised in the
+    close, the failure that broke the file earlier), keeping a replaced file as it was; else
+    swap the new file in."""
+    if broken is not None and not errors:
+        # Raised before, by the call it failed in: the file is still unfinished.
+        errors.append(
+            PcdcodecError(
+                f"{str(writing)!r} was left unfinished: writing it failed before ({broken!r}); "
+                "its frames before the failure read, and `pcdcodec recover` gives it an index"
+            )
+        )
+    if errors:
+        add_note = getattr(errors[0], "add_note", None)  # Python 3.11+
+        if writing != target and add_note is not None:
+            add_note(
+                f"{str(target)!r} was left as it was; the frames written are in {str(writing)!r}"
+            )
+        raise errors[0]
+    if writing != target:
+        os.replace(writing, target)
+
+
 def _checked_packet(k: int, packet: Any) -> Packet:
     """Packet ``k`` of a group for :meth:`RecordingWriter.write_encoded`, checked on the
     caller's thread: a value the file cannot hold, met on the writing thread, would be raised
@@ -192,20 +232,8 @@ class RecordingWriter(FrameInputs):
 
     def _open_file(self, overwrite: bool, video_format: str | None, user: dict[str, str]) -> None:
         """Create the file (beside an existing one it replaces) and write its records."""
-        if self.path.exists() and not overwrite:
-            raise InputError(
-                f"{str(self.path)!r} already exists; pass overwrite=True to replace it"
-            )
-        if self.path.is_dir():
-            raise InputError(f"{str(self.path)!r} is a folder, not a file")
-        # Replacing a file: write beside it and swap at the end, so the old one survives
-        # until the new one is complete.
-        from .._atomic import partial_path  # not loaded by `import pcdcodec`
-
         self._target = self.path
-        self._writing = partial_path(self.path) if self.path.exists() else self.path
-        mode = "xb" if self._writing == self.path else "wb"
-        self._file = open(self._writing, mode)  # noqa: SIM115 - closed by close()
+        self._writing, self._file = open_output(self.path, overwrite)
         self._container = Container(
             self._file,
             self._writing,
@@ -522,26 +550,7 @@ class RecordingWriter(FrameInputs):
             attempt(lambda: container.to_file(self._mcap.finish))
         if self._owns_file:
             attempt(self._file.close)
-        if container.broken is not None and not errors:
-            # Raised before, by the call it failed in: the file is still unfinished, and a file
-            # being replaced stays as it was.
-            errors.append(
-                PcdcodecError(
-                    f"{str(self._writing)!r} was left unfinished: writing it failed before "
-                    f"({container.broken!r}); its frames before the failure read, and "
-                    "`pcdcodec recover` gives it an index"
-                )
-            )
-        if errors:
-            add_note = getattr(errors[0], "add_note", None)  # Python 3.11+
-            if self._writing != self._target and add_note is not None:
-                add_note(
-                    f"{str(self._target)!r} was left as it was; the frames written are in "
-                    f"{str(self._writing)!r}"
-                )
-            raise errors[0]
-        if self._writing != self._target:
-            os.replace(self._writing, self._target)
+        end_close(errors, container.broken, self._writing, self._target)
 
     def abort(self) -> None:
         """Stop without finishing: what was written stays readable, as after a crash."""
