@@ -346,6 +346,11 @@ def test_cli_reads_a_bag_of_several_cameras_as_a_rig(
         ("cameras:\n  - {name: a, depth: nosuchcodec}", "camera a, key 'depth'"),
         ("cameras:\n  - {name: a, depth_scale: -3}", "camera a, key 'depth_scale'"),
         ("cameras:\n  - {name: a, colour: h264}", "camera a: unknown keys ['colour']"),
+        ("cameras:\n  - {name: a, options: [1]}", "camera a, key 'options': expected a mapping"),
+        (
+            "cameras:\n  - {name: a, options: {depth_scale: 2}}",
+            "camera a, key 'options': give ['depth_scale'] as the camera's own keys",
+        ),
         ("cameras:\n  - {name: a}\n  - {name: a}", "given more than once: ['a']"),
         ("cameras: [", "is not YAML"),
         ("cameras:\n  - {name: a, fps: 1" + "0" * 400 + "}", "camera a, key 'fps'"),
@@ -552,3 +557,30 @@ def test_a_bag_of_two_cloud_cameras(tmp_path: Path, cams: list[Cam]) -> None:
             assert info.depth_scale == 1000.0
             got = [f.depth for f in rec.frames(camera=cam.ns)]
             assert [g.tobytes() for g in got] == [d.tobytes() for d in cam.depths[:2]]
+
+
+def test_rig_file_options_go_to_the_cameras_reader(tmp_path: Path) -> None:
+    from pcdcodec.datasets import sample_dir
+    from pcdcodec.sources.rigfile import open_rig
+
+    sample = sample_dir()
+    pose = "extrinsic: [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]"
+    good = _write_rig_file(
+        tmp_path / "good.yaml",
+        f"cameras:\n  - {{name: a, source: {sample}, options: {{layout: tum}}, {pose}}}",
+    )
+    cams = open_rig(good)
+    try:
+        assert len(list(cams[0].source)) == 15
+    finally:
+        for cam in cams:
+            cam.source.close()
+    bad = _write_rig_file(
+        tmp_path / "bad.yaml",
+        f"cameras:\n  - {{name: a, source: {sample}, options: {{layout: bogus}}, {pose}}}",
+    )
+    with pytest.raises(InputError) as info:
+        open_rig(bad)
+    assert f"rig file {str(bad)!r}" in str(info.value)
+    assert "camera a" in str(info.value)
+    assert "layout must be" in str(info.value)

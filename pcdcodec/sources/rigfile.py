@@ -57,7 +57,10 @@ _CAMERA_KEYS = (
     "color",
     "depth",
     "fps",
+    "options",
 )
+#: Options a camera sets with keys of its own, not through ``options``.
+_OWN_KEYS = ("intrinsics", "depth_scale")
 
 
 @dataclass
@@ -168,6 +171,19 @@ def _entry(where: _Where, k: int, item: Any) -> RigCameraEntry:
     entry.frame_id = item.get("frame_id")
     if "extrinsic" in item:
         entry.extrinsic = _extrinsic(where, name, item["extrinsic"])
+    if item.get("options") is not None:
+        value = item["options"]
+        if not isinstance(value, Mapping) or not all(isinstance(k, str) for k in value):
+            raise where.error(
+                "expected a mapping of the reader's options (layout, depth_topic, color_topic, "
+                f"depth_pattern, ...), got {_kind(value)}",
+                name,
+                "options",
+            )
+        own = sorted(k for k in value if k in _OWN_KEYS)
+        if own:
+            raise where.error(f"give {own} as the camera's own keys", name, "options")
+        entry.source_options.update(value)
     if item.get("intrinsics") is not None:
         value = item["intrinsics"]
         if isinstance(value, str):
