@@ -3,9 +3,11 @@
 For each set (the TUM fr1_rpy, RealSense D435 and 7-Scenes frames of ``../shared/data`` where
 present, the bundled sample otherwise) this writes the same ``--frames`` frames (each set played
 forward and back, as ``benchmarks/random_access.py`` does) several ways: a ``.pcdc`` recording
-per ``--variants`` value (h264 crf 18 with that keyframe interval, and the x264 tune if one is
-named; depthac depth), a color PNG and a 16-bit depth PNG per frame (OpenCV, zlib level 6), and
-a color and a depth ``.npy`` per frame. Then, round after round (after one to warm up), each in
+per ``--variants`` value (a color codec spec as the command line takes it, ``training`` for
+``pcdcodec.torch.TRAINING_COLOR``; depthac depth), a color PNG and a 16-bit depth PNG per frame
+(OpenCV, zlib level 6), and a color and a depth ``.npy`` per frame. The color quality of each
+recording (PSNR of its decoded color against the original frames, mean and lowest frame) is
+printed with its size. Then, round after round (after one to warm up), each in
 turn and in a new random order every round, so that a slow spell of a shared machine lands on
 all of them:
 
@@ -18,7 +20,8 @@ all of them:
 The bytes per frame of each way of storing the frames come with them.
 
     python benchmarks/dataloader_throughput.py --rounds 3
-    python benchmarks/dataloader_throughput.py --variants 2 5 10 --workers 1 2 --frames 150
+    python benchmarks/dataloader_throughput.py --variants training h264:gop=5 av1:gop=2 \
+        --workers 1 2 --frames 150
 """
 
 from __future__ import annotations
@@ -43,7 +46,8 @@ from torch.utils.data import DataLoader, Dataset
 
 import pcdcodec
 from benchmarks.random_access import PRESENT, looped, sequence
-from pcdcodec.torch import IterableRecordingDataset, RecordingDataset
+from pcdcodec.registry import parse_codec_spec
+from pcdcodec.torch import TRAINING_COLOR, IterableRecordingDataset, RecordingDataset
 
 FRAMES = 300
 FIELDS = ["color", "depth"]
@@ -97,16 +101,26 @@ def write_files(seq: Any, root: Path, frames: int) -> tuple[Path, Path]:
 
 
 def color_config(variant: str) -> dict[str, Any]:
-    """The h264 config of a variant: ``"G"`` (keyframe interval G), then optionally ``:TUNE``
-    (an x264 tune) and ``:crf=N``, e.g. ``"5:fastdecode:crf=20"``."""
-    gop, *rest = variant.split(":")
-    config: dict[str, Any] = {"id": "h264", "gop": int(gop)}
-    for part in rest:
-        if part.startswith("crf="):
-            config["crf"] = int(part[4:])
-        else:
-            config["tune"] = part
-    return config
+    """The color codec config of a variant: ``"training"`` (``TRAINING_COLOR``) or a codec spec
+    as the command line takes it, e.g. ``"h264:gop=5,tune=fastdecode"``."""
+    if variant == "training":
+        return dict(TRAINING_COLOR)
+    return parse_codec_spec(variant, kind="color").get_config()
+
+
+def psnr(a: Any, b: Any) -> float:
+    """Peak signal-to-noise ratio of two uint8 images, in dB (99 where they are equal)."""
+    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
+    return 10 * float(np.log10(255.0**2 / mse)) if mse else 99.0
+
+
+def color_quality(seq: Any, path: Path, frames: int) -> tuple[float, float]:
+    """Mean and lowest PSNR of the recording's decoded color against the original frames."""
+    with pcdcodec.open(path) as rec:
+        values = [
+            psnr(frame.color, rgb) for frame, (rgb, _) in zip(rec, looped(seq, frames), strict=True)
+        ]
+    return statistics.fmean(values), min(values)
 
 
 def write_recording(seq: Any, path: Path, frames: int, variant: str) -> Path:
@@ -173,8 +187,9 @@ def main() -> None:
     parser.add_argument(
         "--variants",
         nargs="*",
-        default=["5", "10", "30", "5:fastdecode"],
-        help='recordings to write: "G" (h264 with keyframe interval G) or "G:TUNE" (x264 tune)',
+        default=["training", "h264:gop=5,tune=fastdecode", "h264:gop=5", "h264"],
+        help='color of the recordings to write: "training" (TRAINING_COLOR) or a codec spec '
+        '("h264:gop=5,tune=fastdecode")',
     )
     parser.add_argument("--workers", nargs="*", type=int, default=[1, 2, 4])
     parser.add_argument(
@@ -197,18 +212,19 @@ def measure(name: str, work: Path, args: argparse.Namespace, rng: random.Random)
     loader_gop = args.loader_variant or args.variants[0]
     seq = sequence(name)
     recs = {
-        g: write_recording(seq, work / f"gop{g.replace(':', '-')}.pcdc", args.frames, g)
-        for g in args.variants
+        g: write_recording(seq, work / f"variant{k}.pcdc", args.frames, g)
+        for k, g in enumerate(args.variants)
     }
+    quality = {f"pcdc {g}": color_quality(seq, p, args.frames) for g, p in recs.items()}
     png, npy = write_files(seq, work, args.frames)
     n = args.frames
-    sizes = {f"pcdc gop {g}": p.stat().st_size / n for g, p in recs.items()}
+    sizes = {f"pcdc {g}": p.stat().st_size / n for g, p in recs.items()}
     sizes["PNG"] = folder_bytes(png) / n
     sizes["npy"] = folder_bytes(npy) / n
     makers: dict[str, Callable[[list[int]], Iterable[Any]]] = {}
     for g, p in recs.items():
-        makers[f"pcdc gop {g}|random"] = lambda o, p=p: _indexed(RecordingDataset(p, FIELDS), o)
-        makers[f"pcdc gop {g}|in order"] = lambda o, p=p: IterableRecordingDataset(p, FIELDS)
+        makers[f"pcdc {g}|random"] = lambda o, p=p: _indexed(RecordingDataset(p, FIELDS), o)
+        makers[f"pcdc {g}|in order"] = lambda o, p=p: IterableRecordingDataset(p, FIELDS)
     makers["PNG|random"] = lambda o: _indexed(PngFrames(png, n), o)
     makers["PNG|in order"] = lambda o: _indexed(PngFrames(png, n), list(range(n)))
     makers["npy|random"] = lambda o: _indexed(NpyFrames(npy, n), o)
@@ -216,10 +232,8 @@ def measure(name: str, work: Path, args: argparse.Namespace, rng: random.Random)
     wall: dict[str, list[float]] = {k: [] for k in makers}
     cpu: dict[str, list[float]] = {k: [] for k in makers}
     loaders: dict[str, Callable[[], Any]] = {
-        f"pcdc gop {loader_gop}|random": lambda: RecordingDataset(recs[loader_gop], FIELDS),
-        f"pcdc gop {loader_gop}|in order": lambda: IterableRecordingDataset(
-            recs[loader_gop], FIELDS
-        ),
+        f"pcdc {loader_gop}|random": lambda: RecordingDataset(recs[loader_gop], FIELDS),
+        f"pcdc {loader_gop}|in order": lambda: IterableRecordingDataset(recs[loader_gop], FIELDS),
         "PNG|random": lambda: PngFrames(png, n),
         "npy|random": lambda: NpyFrames(npy, n),
     }
@@ -246,14 +260,16 @@ def measure(name: str, work: Path, args: argparse.Namespace, rng: random.Random)
             loader_fps[(key, w)].append(loader_pass(ds, w, key.endswith("random")))
     print(f"\n## {name}: {n} frames of {seq.intrinsics.width}x{seq.intrinsics.height}")
     print(
-        "\n| stored as | bytes/frame | PNG / this | npy / this | random fps | in order fps "
-        "| CPU: random fps | in order fps |"
+        "\n| stored as | bytes/frame | PNG / this | npy / this | color PSNR, dB (lowest) "
+        "| random fps | in order fps | CPU: random fps | in order fps |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for label, size in sizes.items():
         r, o = f"{label}|random", f"{label}|in order"
+        mean, low = quality.get(label, (99.0, 99.0))
         print(
             f"| {label} | {size:,.0f} | {sizes['PNG'] / size:.1f} | {sizes['npy'] / size:.1f} | "
+            f"{mean:.2f} ({low:.2f}) | "
             f"{spread(wall[r])} | "
             f"{spread(wall[o])} | {spread(cpu[r])} | {spread(cpu[o])} |"
         )

@@ -98,6 +98,23 @@ def test_every_field_is_what_the_recording_holds(recordings: Path) -> None:
             assert item["index"] == i
 
 
+def test_training_color_makes_every_frame_a_keyframe(recordings: Path) -> None:
+    """With TRAINING_COLOR a random frame decodes its own color packet only, and holds no frame
+    back (every frame handed in is in the file as it goes)."""
+    assert pt.TRAINING_COLOR["gop"] == 1
+    assert pt.TRAINING_COLOR["low_delay"] is True
+    sample = list(pcdcodec.load_sample())
+    with pcdcodec.open(recordings / "b.pcdc") as rec:
+        assert rec.color_codec is not None
+        assert rec.color_codec.name == pt.TRAINING_COLOR["id"]
+        assert len(rec.packet_timestamps) == len(rec) == FRAMES
+        assert rec.keyframes == list(range(FRAMES))
+        # Lossy, but close: every frame's color is within a few grey levels of the original.
+        for i, original in ((0, sample[-1]), (FRAMES - 1, sample[0])):
+            error = np.abs(rec[i].color.astype(np.int16) - original.color.astype(np.int16))
+            assert error.mean() < 4.0
+
+
 def test_depth_alone_skips_color_and_still_has_the_pose(
     recordings: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
