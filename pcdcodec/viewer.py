@@ -197,9 +197,7 @@ def _log_frame(
     if not opts.points:
         return None
     stride = opts.stride
-    depth = frame.depth[::stride, ::stride]
-    color = frame.color[::stride, ::stride] if frame.color is not None else None
-    points, colors = _subsampled_points(projector, depth, color, stride)
+    points, colors = _subsampled_points(projector, frame.depth, frame.color, stride)
     rec.log(f"{base}/points", rr.Points3D(points, colors=colors, radii=0.004 * stride))
     return points, colors
 
@@ -270,18 +268,13 @@ def _log_rig(
 def _subsampled_points(
     projector: Any, depth: Any, color: Any, stride: int
 ) -> tuple[np.ndarray[Any, Any], np.ndarray[Any, Any] | None]:
-    """Points of every ``stride``-th pixel, in metres in the camera frame."""
-    if stride == 1:
-        return projector.to_points(depth, color)  # type: ignore[no-any-return]
-    cam = projector.intrinsics
-    v, u = np.nonzero(np.isfinite(depth) & (depth > 0))
-    z = depth[v, u].astype(np.float64)
-    if depth.dtype != np.float32:
-        z = z / projector.depth_scale
-    x = (u * stride - cam.cx) * z / cam.fx
-    y = (v * stride - cam.cy) * z / cam.fy
-    points = np.stack([x, y, z], axis=1).astype(np.float32)
-    return points, (color[v, u] if color is not None else None)
+    """Points of every ``stride``-th pixel in each direction, in metres in the camera frame,
+    as the projector makes them (its color camera, distortion and ``depth_trunc`` included)."""
+    if stride > 1:
+        thinned = np.zeros_like(depth)  # 0: no depth, in uint16 and float32 alike
+        thinned[::stride, ::stride] = depth[::stride, ::stride]
+        depth = thinned
+    return projector.to_points(depth, color)  # type: ignore[no-any-return]
 
 
 def view(

@@ -382,3 +382,34 @@ def test_view_encodes_depth_ahead_on_threads_in_order(recording: Path, tmp_path:
     logged = _logged_depths(_contents(out)["/world/camera/image/depth"])  # type: ignore[arg-type]
     assert sorted(logged) == [0, 3]
     assert np.array_equal(logged[3], depths[3])
+
+
+def test_view_points_take_their_colors_through_the_color_camera(tmp_path: Path) -> None:
+    seq = pcdcodec.load_sample(max_frames=1)
+    cam, frame = seq.intrinsics, seq[0]
+    small = pcdcodec.CameraIntrinsics(320, 240, cam.fx / 2, cam.fy / 2, cam.cx / 2, cam.cy / 2)
+    path = tmp_path / "two.pcdc"
+    with pcdcodec.open(
+        path,
+        "w",
+        intrinsics=cam,
+        depth_scale=seq.depth_scale,
+        color_intrinsics=small,
+        depth_to_color=np.eye(4),
+        color="mjpeg",  # every frame a JPEG, kept as recorded, so the colors compare exactly
+    ) as w:
+        w.write(np.ascontiguousarray(frame.color[::2, ::2]), frame.depth, frame.timestamp_ns)
+    out = tmp_path / "out.rrd"
+    assert main(["view", str(path), "--save", str(out), "--points", "--stride", "2"]) == 0
+    batch = _contents(out)["/world/camera/points"]["batches"][0]
+    positions = np.array(batch.column("Points3D:positions").to_pylist()[0], np.float32)
+    colors = batch.column("Points3D:colors").to_pylist()[0]
+    with pcdcodec.open(path) as rec:
+        decoded = rec[0]
+        thinned = np.zeros_like(decoded.depth)
+        thinned[::2, ::2] = decoded.depth[::2, ::2]
+        want, want_colors = rec.projector.to_points(thinned, decoded.color)
+    assert want_colors is not None
+    assert np.array_equal(positions, want)
+    packed = [int.from_bytes(bytes([*c, 255]), "big") for c in want_colors.tolist()]
+    assert colors == packed
