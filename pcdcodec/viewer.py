@@ -36,6 +36,7 @@ are imported only here, when called.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 from collections.abc import Iterator
@@ -45,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from ._atomic import partial_path
+from ._atomic import atomic_output
 from .errors import InputError, PcdcodecError
 
 __all__ = ["DEPTH_FORMATS", "LiveView", "view", "view_open3d"]
@@ -312,8 +313,18 @@ def view(
     for name, value in (("every", every), ("stride", stride)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise InputError(f"{name} must be a positive int, got {value!r}")
-    if max_frames is not None and max_frames < 1:
-        raise InputError(f"max_frames must be at least 1, got {max_frames}")
+    if max_frames is not None and (
+        isinstance(max_frames, bool) or not isinstance(max_frames, int) or max_frames < 1
+    ):
+        raise InputError(f"max_frames must be None or a positive int, got {max_frames!r}")
+    if jpeg_quality is not None and (
+        isinstance(jpeg_quality, bool)
+        or not isinstance(jpeg_quality, int)
+        or not 1 <= jpeg_quality <= 100
+    ):
+        raise InputError(
+            f"jpeg_quality must be an int in 1..100, or None for raw images, got {jpeg_quality!r}"
+        )
     if depth_format not in DEPTH_FORMATS:
         raise InputError(f"depth_format must be one of {DEPTH_FORMATS}, got {depth_format!r}")
     opts = _Options(stride, jpeg_quality, points, depth_format, video=video)
@@ -321,25 +332,26 @@ def view(
     target = Path(save) if save is not None else None
     if target is not None and target.is_dir():
         raise InputError(f"{str(target)!r} is a folder; --save takes an .rrd file name")
+    if target is not None and not target.parent.is_dir():
+        raise InputError(f"cannot save {str(target)!r}: no folder {str(target.parent)!r}")
     with open_recording(path, threads=threads) as recording:
         stream = rr.RecordingStream("pcdcodec", recording_id=str(recording.path.resolve()))
-        partial = None
-        if target is not None:
-            partial = partial_path(target)
-            stream.save(str(partial))
-        else:
-            stream.spawn()
-        try:
-            stream.log("world", rr.ViewCoordinates.RDF, static=True)
-            if isinstance(recording, RigRecording):
-                _log_rig(rr, stream, recording, every, max_frames, opts)
+        # Written beside the target and moved onto it when complete; removed if logging fails.
+        output = atomic_output(target) if target is not None else contextlib.nullcontext()
+        with output as partial:
+            if partial is not None:
+                stream.save(str(partial))
             else:
-                _log_recording(rr, stream, recording, every, max_frames, opts)
-            stream.flush()
-        finally:
-            stream.disconnect()
-        if partial is not None and target is not None:
-            os.replace(partial, target)
+                stream.spawn()
+            try:
+                stream.log("world", rr.ViewCoordinates.RDF, static=True)
+                if isinstance(recording, RigRecording):
+                    _log_rig(rr, stream, recording, every, max_frames, opts)
+                else:
+                    _log_recording(rr, stream, recording, every, max_frames, opts)
+                stream.flush()
+            finally:
+                stream.disconnect()
     return target
 
 

@@ -201,6 +201,27 @@ def test_view_rejects_bad_options(recording: Path, tmp_path: Path) -> None:
         view(recording, save=tmp_path / "x.rrd", stride=0)
     with pytest.raises(pcdcodec.InputError, match="folder"):
         view(recording, save=tmp_path)
+    with pytest.raises(pcdcodec.InputError, match="max_frames must be None or a positive int"):
+        view(recording, save=tmp_path / "x.rrd", max_frames=2.5)  # type: ignore[arg-type]
+    for quality in (0, 101, "x"):
+        with pytest.raises(pcdcodec.InputError, match=f"jpeg_quality .* got {quality!r}"):
+            view(recording, save=tmp_path / "x.rrd", jpeg_quality=quality)  # type: ignore[arg-type]
+    with pytest.raises(pcdcodec.InputError, match="no folder"):
+        view(recording, save=tmp_path / "missing" / "x.rrd")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_view_leaves_no_partial_file_when_the_recording_fails(
+    recording: Path, tmp_path: Path
+) -> None:
+    from pcdcodec.viewer import view
+
+    data = recording.read_bytes()
+    cut = tmp_path / "cut.pcdc"
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    with pytest.raises(pcdcodec.DecodeError):
+        view(cut, save=tmp_path / "cut.rrd")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.pcdc"]
 
 
 def test_view_open3d_checks_its_options_before_opening_a_window(
