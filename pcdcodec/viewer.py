@@ -190,7 +190,8 @@ def _log_frame(
         image = rr.Image(frame.color)
         quality = opts.jpeg_quality
         rec.log(f"{base}/image/rgb", image.compress(jpeg_quality=quality) if quality else image)
-    meter = 1.0 if frame.depth.dtype == np.float32 else projector.depth_scale
+    # Depth units per metre, float32 depth too: as the projector (and format.md) divide it.
+    meter = projector.depth_scale
     rec.log(
         f"{base}/image/depth",
         _depth_image(rr, frame.depth, meter, opts.depth_format, opts.png_level, blob),
@@ -528,7 +529,7 @@ class LiveView:
         stream.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
         if frame.color is not None:
             stream.log(f"world/{name}/color", rr.Image(frame.color).compress(jpeg_quality=80))
-        meter = 1.0 if frame.depth.dtype == np.float32 else projector.depth_scale
+        meter = projector.depth_scale  # depth units per metre, as for view()
         stream.log(f"world/{name}/depth", _depth_image(rr, frame.depth, meter, "png", 1))
         if not self.points:
             return True

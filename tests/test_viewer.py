@@ -321,16 +321,25 @@ def test_view_logs_float_depth_raw(tmp_path: Path) -> None:
 
     seq = pcdcodec.load_sample(max_frames=2)
     recording = tmp_path / "f.pcdc"
-    with pcdcodec.open(recording, "w", intrinsics=seq.intrinsics, depth="zstd") as w:
-        for f in seq:
-            metres = np.where(f.depth > 0, f.depth / np.float32(5000.0), np.nan).astype(np.float32)
-            w.write_frames([dataclasses.replace(f, depth=metres, pose=None)])
-    got = _contents(view(recording, save=tmp_path / "f.rrd"))  # type: ignore[arg-type]
-    # Neither PNG nor RVL holds float32 depth: Rerun's raw DepthImage, in metres.
-    depth = got["/world/camera/image/depth"]
-    assert "DepthImage:buffer" in depth["columns"]
-    meters = [m for b in depth["batches"] for m in b.column("DepthImage:meter").to_pylist()]
-    assert meters == [[1.0], [1.0]]
+    for scale in (1.0, 1000.0):  # float32 metres, and float32 millimetres
+        recording = tmp_path / f"f{scale}.pcdc"
+        with pcdcodec.open(
+            recording, "w", intrinsics=seq.intrinsics, depth_scale=scale, depth="zstd"
+        ) as w:
+            for f in seq:
+                units = np.where(f.depth > 0, f.depth / np.float32(5000.0 / scale), np.nan)
+                w.write_frames([dataclasses.replace(f, depth=units.astype(np.float32), pose=None)])
+        out = tmp_path / f"f{scale}.rrd"
+        got = _contents(view(recording, save=out, points=True))  # type: ignore[arg-type]
+        # Neither PNG nor RVL holds float32 depth: Rerun's raw DepthImage, with its depth units
+        # per metre, which put it where the points logged beside it are.
+        depth = got["/world/camera/image/depth"]
+        assert "DepthImage:buffer" in depth["columns"]
+        meters = [m for b in depth["batches"] for m in b.column("DepthImage:meter").to_pylist()]
+        assert meters == [[scale], [scale]]
+        points = got["/world/camera/points"]["batches"][0].column("Points3D:positions")
+        z = np.array(points.to_pylist()[0])[:, 2]
+        assert 0.5 < float(np.median(z)) < 5  # metres, for both scales
 
 
 def test_view_rejects_a_depth_format_it_does_not_know(recording: Path, tmp_path: Path) -> None:
