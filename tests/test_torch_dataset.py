@@ -353,3 +353,24 @@ def test_a_recording_rewritten_shorter_is_an_error_not_the_end(tmp_path: Path) -
     _write(rig, 2, ("head", "wrist"))
     with pytest.raises(InputError, match="has 2 frame sets, 6 when the dataset was made"):
         sets[0]
+
+
+def test_a_dataset_without_any_item_is_refused(tmp_path: Path) -> None:
+    rig = tmp_path / "rig.pcdc"
+    _write(rig, 3, ("head", "wrist"))
+    lonely = tmp_path / "lonely.pcdc"
+    seq = pcdcodec.load_sample()
+    specs = [CameraSpec(c, seq.intrinsics, seq.depth_scale, fps=30.0) for c in ("head", "wrist")]
+    with pcdcodec.open(lonely, "w", cameras=specs) as w:
+        for f in list(seq)[:3]:
+            w.write("head", f.color, f.depth, f.timestamp_ns)  # wrist records nothing
+    with pytest.raises(InputError, match=r"no complete frame set .*\['head', 'wrist'\]"):
+        pt.RecordingDataset(lonely, ["depth"], framesets=True)
+    assert len(pt.RecordingDataset([lonely, rig], ["depth"], framesets=True)) == 3
+    assert len(pt.RecordingDataset(lonely, ["depth"])) == 3  # head's frames, one by one
+    empty = tmp_path / "empty.pcdc"
+    with pcdcodec.open(empty, "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale):
+        pass
+    with pytest.raises(InputError, match="hold no frame"):
+        pt.RecordingDataset(empty)
+    assert len(pt.RecordingDataset([empty, rig], ["depth"])) == 6

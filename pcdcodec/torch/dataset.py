@@ -131,6 +131,14 @@ class RecordingDataset(Dataset[Any]):
             self._readers.close()  # nothing stays open in the process that made the dataset
         counts = np.array([n for _, _, n in self.parts], np.int64)
         self._starts: npt.NDArray[np.int64] = np.concatenate([[0], np.cumsum(counts)])
+        if not len(self):  # a sampler would fail later, saying nothing of why
+            raise InputError(
+                f"no complete frame set in {self.sources}: in each, some camera of "
+                f"{[list(c) for _, c, _ in self.parts]} has no frame within the tolerance of "
+                "the first camera's"
+                if self.framesets
+                else f"the recordings {self.sources} hold no frame"
+            )
         self._sets.clear()  # rebuilt where read: they are not worth pickling
 
     def _catalog(self, wanted: tuple[str, ...] | None) -> None:
