@@ -167,6 +167,8 @@ def test_numcodec_decode_checks_out_and_its_input() -> None:
         codec.decode(data, out=np.empty(depth.shape, np.float32))
     with pytest.raises(pcdcodec.InputTypeError, match="out is int16"):
         codec.decode(data, out=np.empty(depth.shape, np.int16))
+    with pytest.raises(pcdcodec.InputTypeError, match="read-only bytes"):
+        codec.decode(data, out=bytes(depth.nbytes))
     with pytest.raises(pcdcodec.InputTypeError, match="got str"):
         codec.decode("not bytes")
     with pytest.raises(pcdcodec.InputTypeError, match="contiguous"):

@@ -96,6 +96,9 @@ def _fill(image: npt.NDArray[Any], out: Any, codec_id: str) -> Any:
         dest = numcodecs.compat.ensure_ndarray_like(out)
     except (TypeError, ValueError) as e:
         raise InputTypeError(f"{codec_id}: out must be a writeable array or buffer: {e}") from None
+    if not dest.flags.writeable:
+        kind = type(out).__name__
+        raise InputTypeError(f"{codec_id}: out must be writeable, got a read-only {kind}")
     wanted = f"the decoded {image.shape[0]}x{image.shape[1]} {image.dtype} image"
     if dest.nbytes != image.nbytes:
         raise InputError(
