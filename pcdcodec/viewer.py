@@ -84,6 +84,7 @@ def _depth_blob(rr: Any, depth: Any, fmt: str, png_level: int = 6) -> tuple[byte
     """``depth`` encoded for Rerun's ``EncodedDepthImage`` (bytes and media type, lossless),
     or ``None`` where it is logged raw: ``fmt`` ``"raw"``, float32 depth (neither PNG nor RVL
     holds it) or an installed rerun without ``EncodedDepthImage``."""
+    depth = _native(depth)
     if fmt == "raw" or depth.dtype != np.uint16 or not hasattr(rr, "EncodedDepthImage"):
         return None
     depth = np.ascontiguousarray(depth)
@@ -96,11 +97,17 @@ def _depth_blob(rr: Any, depth: Any, fmt: str, png_level: int = 6) -> tuple[byte
     return bytes(imagecodecs.png_encode(depth, level=png_level)), "image/png"
 
 
+def _native(depth: Any) -> Any:
+    """``depth`` in the machine's byte order (a copy only where it is not)."""
+    return depth.astype(depth.dtype.newbyteorder("="), copy=False)
+
+
 def _depth_image(
     rr: Any, depth: Any, meter: float, fmt: str, png_level: int = 6, blob: Any = False
 ) -> Any:
     """``depth`` as a Rerun archetype, encoded where :func:`_depth_blob` encodes it (``blob``:
     what it gave, when already called), else the raw ``DepthImage``."""
+    depth = _native(depth)  # Rerun takes an image's bytes as little-endian
     if blob is False:
         blob = _depth_blob(rr, depth, fmt, png_level)
     if blob is None:

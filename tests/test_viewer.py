@@ -349,6 +349,31 @@ def test_view_rejects_a_depth_format_it_does_not_know(recording: Path, tmp_path:
         view(recording, save=tmp_path / "x.rrd", depth_format="jpeg")
 
 
+def test_live_view_logs_big_endian_depth_as_its_values(tmp_path: Path) -> None:
+    import imagecodecs
+
+    from pcdcodec.geometry.projector import Projector
+    from pcdcodec.viewer import LiveView
+
+    seq = pcdcodec.load_sample(max_frames=1)
+    projector = Projector(seq.intrinsics, seq.depth_scale)
+    depth = seq[0].depth
+    metres = (depth / np.float32(seq.depth_scale)).astype(">f4")
+    for name, image in (("u16", depth.astype(">u2")), ("f32", metres)):
+        out = tmp_path / f"live_{name}.rrd"
+        live = LiveView([("cam", projector)], save=out)
+        assert live.log(0, pcdcodec.Frame(None, image, 0, projector=projector))
+        live.close()
+        batch = _contents(out)["/world/cam/depth"]["batches"][0]
+        if name == "u16":  # a PNG of the values
+            logged = imagecodecs.png_decode(_blobs(batch, "EncodedDepthImage:blob")[0])
+            assert np.array_equal(logged, depth)
+        else:  # raw: Rerun takes the buffer as little-endian float32
+            raw = bytes(batch.column("DepthImage:buffer").to_pylist()[0][0])
+            logged = np.frombuffer(raw, "<f4").reshape(depth.shape)
+            assert np.array_equal(logged, metres)
+
+
 def test_live_view_logs_depth_lossless_and_points_only_when_asked(tmp_path: Path) -> None:
     import imagecodecs
 
