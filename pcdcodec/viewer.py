@@ -36,6 +36,7 @@ are imported only here, when called.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 from collections.abc import Iterator
@@ -45,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from ._atomic import partial_path
+from ._atomic import atomic_output
 from .errors import InputError, PcdcodecError
 
 __all__ = ["DEPTH_FORMATS", "LiveView", "view", "view_open3d"]
@@ -83,6 +84,7 @@ def _depth_blob(rr: Any, depth: Any, fmt: str, png_level: int = 6) -> tuple[byte
     """``depth`` encoded for Rerun's ``EncodedDepthImage`` (bytes and media type, lossless),
     or ``None`` where it is logged raw: ``fmt`` ``"raw"``, float32 depth (neither PNG nor RVL
     holds it) or an installed rerun without ``EncodedDepthImage``."""
+    depth = _native(depth)
     if fmt == "raw" or depth.dtype != np.uint16 or not hasattr(rr, "EncodedDepthImage"):
         return None
     depth = np.ascontiguousarray(depth)
@@ -95,11 +97,17 @@ def _depth_blob(rr: Any, depth: Any, fmt: str, png_level: int = 6) -> tuple[byte
     return bytes(imagecodecs.png_encode(depth, level=png_level)), "image/png"
 
 
+def _native(depth: Any) -> Any:
+    """``depth`` in the machine's byte order (a copy only where it is not)."""
+    return depth.astype(depth.dtype.newbyteorder("="), copy=False)
+
+
 def _depth_image(
     rr: Any, depth: Any, meter: float, fmt: str, png_level: int = 6, blob: Any = False
 ) -> Any:
     """``depth`` as a Rerun archetype, encoded where :func:`_depth_blob` encodes it (``blob``:
     what it gave, when already called), else the raw ``DepthImage``."""
+    depth = _native(depth)  # Rerun takes an image's bytes as little-endian
     if blob is False:
         blob = _depth_blob(rr, depth, fmt, png_level)
     if blob is None:
@@ -189,7 +197,8 @@ def _log_frame(
         image = rr.Image(frame.color)
         quality = opts.jpeg_quality
         rec.log(f"{base}/image/rgb", image.compress(jpeg_quality=quality) if quality else image)
-    meter = 1.0 if frame.depth.dtype == np.float32 else projector.depth_scale
+    # Depth units per metre, float32 depth too: as the projector (and format.md) divide it.
+    meter = projector.depth_scale
     rec.log(
         f"{base}/image/depth",
         _depth_image(rr, frame.depth, meter, opts.depth_format, opts.png_level, blob),
@@ -197,9 +206,7 @@ def _log_frame(
     if not opts.points:
         return None
     stride = opts.stride
-    depth = frame.depth[::stride, ::stride]
-    color = frame.color[::stride, ::stride] if frame.color is not None else None
-    points, colors = _subsampled_points(projector, depth, color, stride)
+    points, colors = _subsampled_points(projector, frame.depth, frame.color, stride)
     rec.log(f"{base}/points", rr.Points3D(points, colors=colors, radii=0.004 * stride))
     return points, colors
 
@@ -270,18 +277,13 @@ def _log_rig(
 def _subsampled_points(
     projector: Any, depth: Any, color: Any, stride: int
 ) -> tuple[np.ndarray[Any, Any], np.ndarray[Any, Any] | None]:
-    """Points of every ``stride``-th pixel, in metres in the camera frame."""
-    if stride == 1:
-        return projector.to_points(depth, color)  # type: ignore[no-any-return]
-    cam = projector.intrinsics
-    v, u = np.nonzero(np.isfinite(depth) & (depth > 0))
-    z = depth[v, u].astype(np.float64)
-    if depth.dtype != np.float32:
-        z = z / projector.depth_scale
-    x = (u * stride - cam.cx) * z / cam.fx
-    y = (v * stride - cam.cy) * z / cam.fy
-    points = np.stack([x, y, z], axis=1).astype(np.float32)
-    return points, (color[v, u] if color is not None else None)
+    """Points of every ``stride``-th pixel in each direction, in metres in the camera frame,
+    as the projector makes them (its color camera, distortion and ``depth_trunc`` included)."""
+    if stride > 1:
+        thinned = np.zeros_like(depth)  # 0: no depth, in uint16 and float32 alike
+        thinned[::stride, ::stride] = depth[::stride, ::stride]
+        depth = thinned
+    return projector.to_points(depth, color)  # type: ignore[no-any-return]
 
 
 def view(
@@ -319,8 +321,18 @@ def view(
     for name, value in (("every", every), ("stride", stride)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise InputError(f"{name} must be a positive int, got {value!r}")
-    if max_frames is not None and max_frames < 1:
-        raise InputError(f"max_frames must be at least 1, got {max_frames}")
+    if max_frames is not None and (
+        isinstance(max_frames, bool) or not isinstance(max_frames, int) or max_frames < 1
+    ):
+        raise InputError(f"max_frames must be None or a positive int, got {max_frames!r}")
+    if jpeg_quality is not None and (
+        isinstance(jpeg_quality, bool)
+        or not isinstance(jpeg_quality, int)
+        or not 1 <= jpeg_quality <= 100
+    ):
+        raise InputError(
+            f"jpeg_quality must be an int in 1..100, or None for raw images, got {jpeg_quality!r}"
+        )
     if depth_format not in DEPTH_FORMATS:
         raise InputError(f"depth_format must be one of {DEPTH_FORMATS}, got {depth_format!r}")
     opts = _Options(stride, jpeg_quality, points, depth_format, video=video)
@@ -328,25 +340,26 @@ def view(
     target = Path(save) if save is not None else None
     if target is not None and target.is_dir():
         raise InputError(f"{str(target)!r} is a folder; --save takes an .rrd file name")
+    if target is not None and not target.parent.is_dir():
+        raise InputError(f"cannot save {str(target)!r}: no folder {str(target.parent)!r}")
     with open_recording(path, threads=threads) as recording:
         stream = rr.RecordingStream("pcdcodec", recording_id=str(recording.path.resolve()))
-        partial = None
-        if target is not None:
-            partial = partial_path(target)
-            stream.save(str(partial))
-        else:
-            stream.spawn()
-        try:
-            stream.log("world", rr.ViewCoordinates.RDF, static=True)
-            if isinstance(recording, RigRecording):
-                _log_rig(rr, stream, recording, every, max_frames, opts)
+        # Written beside the target and moved onto it when complete; removed if logging fails.
+        output = atomic_output(target) if target is not None else contextlib.nullcontext()
+        with output as partial:
+            if partial is not None:
+                stream.save(str(partial))
             else:
-                _log_recording(rr, stream, recording, every, max_frames, opts)
-            stream.flush()
-        finally:
-            stream.disconnect()
-        if partial is not None and target is not None:
-            os.replace(partial, target)
+                stream.spawn()
+            try:
+                stream.log("world", rr.ViewCoordinates.RDF, static=True)
+                if isinstance(recording, RigRecording):
+                    _log_rig(rr, stream, recording, every, max_frames, opts)
+                else:
+                    _log_recording(rr, stream, recording, every, max_frames, opts)
+                stream.flush()
+            finally:
+                stream.disconnect()
     return target
 
 
@@ -523,7 +536,7 @@ class LiveView:
         stream.set_time("time", timestamp=np.datetime64(frame.timestamp_ns, "ns"))
         if frame.color is not None:
             stream.log(f"world/{name}/color", rr.Image(frame.color).compress(jpeg_quality=80))
-        meter = 1.0 if frame.depth.dtype == np.float32 else projector.depth_scale
+        meter = projector.depth_scale  # depth units per metre, as for view()
         stream.log(f"world/{name}/depth", _depth_image(rr, frame.depth, meter, "png", 1))
         if not self.points:
             return True

@@ -325,3 +325,69 @@ def test_a_rig_gives_one_item_per_frame_set(rig: Path, recordings: Path) -> None
     assert list(swapped[0]) == ["wrist", "head"]
     with pytest.raises(InputError, match="no camera 'wrist'"):
         pt.RecordingDataset([rig, recordings / "a.pcdc"], framesets=True, cameras=["wrist"])
+
+
+def test_cameras_and_fields_arguments_are_checked(rig: Path) -> None:
+    by_generator = pt.RecordingDataset(rig, ["camera"], cameras=(c for c in ["wrist"]))
+    assert len(by_generator) == 8
+    with pytest.raises(InputError, match="twice"):
+        pt.RecordingDataset(rig, ["index"], cameras=["head", "head"])
+    with pytest.raises(InputError, match="twice"):
+        pt.RecordingDataset(rig, ["index"], cameras=["head", "head"], framesets=True)
+    with pytest.raises(InputTypeError, match="cameras must be a list of camera names, got 3"):
+        pt.RecordingDataset(rig, cameras=3)  # type: ignore[arg-type]
+    with pytest.raises(InputTypeError, match=r"each field must be a field name, got \['depth'\]"):
+        pt.RecordingDataset(rig, [["depth"]])
+
+
+def _write(path: Path, frames: int, cameras: tuple[str, ...] = ()) -> None:
+    """``frames`` frames of the sample, of one camera or of each of ``cameras``."""
+    seq = pcdcodec.load_sample()
+    if cameras:
+        specs = [CameraSpec(c, seq.intrinsics, seq.depth_scale, fps=30.0) for c in cameras]
+        options: dict[str, Any] = {"cameras": specs}
+    else:
+        options = {"intrinsics": seq.intrinsics, "depth_scale": seq.depth_scale}
+    with pcdcodec.open(path, "w", overwrite=True, **options) as w:
+        for f in list(seq)[:frames]:
+            for c in cameras:
+                w.write(c, f.color, f.depth, f.timestamp_ns)
+            if not cameras:
+                w.write(f.color, f.depth, f.timestamp_ns)
+
+
+def test_a_recording_rewritten_shorter_is_an_error_not_the_end(tmp_path: Path) -> None:
+    path = tmp_path / "a.pcdc"
+    _write(path, 6)
+    ds = pt.RecordingDataset(path, ["depth"])
+    _write(path, 2)
+    with pytest.raises(InputError, match=r"has 2 frames of camera .* 6 when the dataset was made"):
+        list(ds)  # an IndexError would end the iteration after two items, silently
+    rig = tmp_path / "rig.pcdc"
+    _write(rig, 6, ("head", "wrist"))
+    sets = pt.RecordingDataset(rig, ["index"], framesets=True)
+    assert len(sets) == 6
+    _write(rig, 2, ("head", "wrist"))
+    with pytest.raises(InputError, match="has 2 frame sets, 6 when the dataset was made"):
+        sets[0]
+
+
+def test_a_dataset_without_any_item_is_refused(tmp_path: Path) -> None:
+    rig = tmp_path / "rig.pcdc"
+    _write(rig, 3, ("head", "wrist"))
+    lonely = tmp_path / "lonely.pcdc"
+    seq = pcdcodec.load_sample()
+    specs = [CameraSpec(c, seq.intrinsics, seq.depth_scale, fps=30.0) for c in ("head", "wrist")]
+    with pcdcodec.open(lonely, "w", cameras=specs) as w:
+        for f in list(seq)[:3]:
+            w.write("head", f.color, f.depth, f.timestamp_ns)  # wrist records nothing
+    with pytest.raises(InputError, match=r"no complete frame set .*\['head', 'wrist'\]"):
+        pt.RecordingDataset(lonely, ["depth"], framesets=True)
+    assert len(pt.RecordingDataset([lonely, rig], ["depth"], framesets=True)) == 3
+    assert len(pt.RecordingDataset(lonely, ["depth"])) == 3  # head's frames, one by one
+    empty = tmp_path / "empty.pcdc"
+    with pcdcodec.open(empty, "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale):
+        pass
+    with pytest.raises(InputError, match="hold no frame"):
+        pt.RecordingDataset(empty)
+    assert len(pt.RecordingDataset([empty, rig], ["depth"])) == 6

@@ -201,6 +201,27 @@ def test_view_rejects_bad_options(recording: Path, tmp_path: Path) -> None:
         view(recording, save=tmp_path / "x.rrd", stride=0)
     with pytest.raises(pcdcodec.InputError, match="folder"):
         view(recording, save=tmp_path)
+    with pytest.raises(pcdcodec.InputError, match="max_frames must be None or a positive int"):
+        view(recording, save=tmp_path / "x.rrd", max_frames=2.5)  # type: ignore[arg-type]
+    for quality in (0, 101, "x"):
+        with pytest.raises(pcdcodec.InputError, match=f"jpeg_quality .* got {quality!r}"):
+            view(recording, save=tmp_path / "x.rrd", jpeg_quality=quality)  # type: ignore[arg-type]
+    with pytest.raises(pcdcodec.InputError, match="no folder"):
+        view(recording, save=tmp_path / "missing" / "x.rrd")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_view_leaves_no_partial_file_when_the_recording_fails(
+    recording: Path, tmp_path: Path
+) -> None:
+    from pcdcodec.viewer import view
+
+    data = recording.read_bytes()
+    cut = tmp_path / "cut.pcdc"
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    with pytest.raises(pcdcodec.DecodeError):
+        view(cut, save=tmp_path / "cut.rrd")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.pcdc"]
 
 
 def test_view_open3d_checks_its_options_before_opening_a_window(
@@ -300,16 +321,25 @@ def test_view_logs_float_depth_raw(tmp_path: Path) -> None:
 
     seq = pcdcodec.load_sample(max_frames=2)
     recording = tmp_path / "f.pcdc"
-    with pcdcodec.open(recording, "w", intrinsics=seq.intrinsics, depth="zstd") as w:
-        for f in seq:
-            metres = np.where(f.depth > 0, f.depth / np.float32(5000.0), np.nan).astype(np.float32)
-            w.write_frames([dataclasses.replace(f, depth=metres, pose=None)])
-    got = _contents(view(recording, save=tmp_path / "f.rrd"))  # type: ignore[arg-type]
-    # Neither PNG nor RVL holds float32 depth: Rerun's raw DepthImage, in metres.
-    depth = got["/world/camera/image/depth"]
-    assert "DepthImage:buffer" in depth["columns"]
-    meters = [m for b in depth["batches"] for m in b.column("DepthImage:meter").to_pylist()]
-    assert meters == [[1.0], [1.0]]
+    for scale in (1.0, 1000.0):  # float32 metres, and float32 millimetres
+        recording = tmp_path / f"f{scale}.pcdc"
+        with pcdcodec.open(
+            recording, "w", intrinsics=seq.intrinsics, depth_scale=scale, depth="zstd"
+        ) as w:
+            for f in seq:
+                units = np.where(f.depth > 0, f.depth / np.float32(5000.0 / scale), np.nan)
+                w.write_frames([dataclasses.replace(f, depth=units.astype(np.float32), pose=None)])
+        out = tmp_path / f"f{scale}.rrd"
+        got = _contents(view(recording, save=out, points=True))  # type: ignore[arg-type]
+        # Neither PNG nor RVL holds float32 depth: Rerun's raw DepthImage, with its depth units
+        # per metre, which put it where the points logged beside it are.
+        depth = got["/world/camera/image/depth"]
+        assert "DepthImage:buffer" in depth["columns"]
+        meters = [m for b in depth["batches"] for m in b.column("DepthImage:meter").to_pylist()]
+        assert meters == [[scale], [scale]]
+        points = got["/world/camera/points"]["batches"][0].column("Points3D:positions")
+        z = np.array(points.to_pylist()[0])[:, 2]
+        assert 0.5 < float(np.median(z)) < 5  # metres, for both scales
 
 
 def test_view_rejects_a_depth_format_it_does_not_know(recording: Path, tmp_path: Path) -> None:
@@ -317,6 +347,31 @@ def test_view_rejects_a_depth_format_it_does_not_know(recording: Path, tmp_path:
 
     with pytest.raises(pcdcodec.InputError, match="depth_format must be one of"):
         view(recording, save=tmp_path / "x.rrd", depth_format="jpeg")
+
+
+def test_live_view_logs_big_endian_depth_as_its_values(tmp_path: Path) -> None:
+    import imagecodecs
+
+    from pcdcodec.geometry.projector import Projector
+    from pcdcodec.viewer import LiveView
+
+    seq = pcdcodec.load_sample(max_frames=1)
+    projector = Projector(seq.intrinsics, seq.depth_scale)
+    depth = seq[0].depth
+    metres = (depth / np.float32(seq.depth_scale)).astype(">f4")
+    for name, image in (("u16", depth.astype(">u2")), ("f32", metres)):
+        out = tmp_path / f"live_{name}.rrd"
+        live = LiveView([("cam", projector)], save=out)
+        assert live.log(0, pcdcodec.Frame(None, image, 0, projector=projector))
+        live.close()
+        batch = _contents(out)["/world/cam/depth"]["batches"][0]
+        if name == "u16":  # a PNG of the values
+            logged = imagecodecs.png_decode(_blobs(batch, "EncodedDepthImage:blob")[0])
+            assert np.array_equal(logged, depth)
+        else:  # raw: Rerun takes the buffer as little-endian float32
+            raw = bytes(batch.column("DepthImage:buffer").to_pylist()[0][0])
+            logged = np.frombuffer(raw, "<f4").reshape(depth.shape)
+            assert np.array_equal(logged, metres)
 
 
 def test_live_view_logs_depth_lossless_and_points_only_when_asked(tmp_path: Path) -> None:
@@ -382,3 +437,34 @@ def test_view_encodes_depth_ahead_on_threads_in_order(recording: Path, tmp_path:
     logged = _logged_depths(_contents(out)["/world/camera/image/depth"])  # type: ignore[arg-type]
     assert sorted(logged) == [0, 3]
     assert np.array_equal(logged[3], depths[3])
+
+
+def test_view_points_take_their_colors_through_the_color_camera(tmp_path: Path) -> None:
+    seq = pcdcodec.load_sample(max_frames=1)
+    cam, frame = seq.intrinsics, seq[0]
+    small = pcdcodec.CameraIntrinsics(320, 240, cam.fx / 2, cam.fy / 2, cam.cx / 2, cam.cy / 2)
+    path = tmp_path / "two.pcdc"
+    with pcdcodec.open(
+        path,
+        "w",
+        intrinsics=cam,
+        depth_scale=seq.depth_scale,
+        color_intrinsics=small,
+        depth_to_color=np.eye(4),
+        color="mjpeg",  # every frame a JPEG, kept as recorded, so the colors compare exactly
+    ) as w:
+        w.write(np.ascontiguousarray(frame.color[::2, ::2]), frame.depth, frame.timestamp_ns)
+    out = tmp_path / "out.rrd"
+    assert main(["view", str(path), "--save", str(out), "--points", "--stride", "2"]) == 0
+    batch = _contents(out)["/world/camera/points"]["batches"][0]
+    positions = np.array(batch.column("Points3D:positions").to_pylist()[0], np.float32)
+    colors = batch.column("Points3D:colors").to_pylist()[0]
+    with pcdcodec.open(path) as rec:
+        decoded = rec[0]
+        thinned = np.zeros_like(decoded.depth)
+        thinned[::2, ::2] = decoded.depth[::2, ::2]
+        want, want_colors = rec.projector.to_points(thinned, decoded.color)
+    assert want_colors is not None
+    assert np.array_equal(positions, want)
+    packed = [int.from_bytes(bytes([*c, 255]), "big") for c in want_colors.tolist()]
+    assert colors == packed

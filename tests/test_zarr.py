@@ -148,6 +148,71 @@ def test_numcodec_refuses_what_is_not_one_image() -> None:
         pz_numcodecs.DepthAC.from_config({"id": "pcdcodec.rvl"})
 
 
+def test_numcodec_decode_checks_out_and_its_input() -> None:
+    codec = pz_numcodecs.numcodec("depthac")
+    depth = load_depths("sample", 1)[0]
+    data = codec.encode(depth)
+    swapped = np.empty(depth.shape, ">u2")
+    codec.decode(data, out=swapped)  # by value, not the image's bytes seen as big-endian
+    assert np.array_equal(swapped, depth)
+    fortran = np.empty(depth.shape, np.uint16, order="F")
+    codec.decode(data, out=fortran)
+    assert np.array_equal(fortran, depth)
+    raw = np.empty(depth.nbytes, np.uint8)  # a byte buffer takes the image's bytes
+    codec.decode(data, out=raw)
+    assert raw.tobytes() == depth.tobytes()
+    with pytest.raises(pcdcodec.InputError, match=r"out holds 200 bytes.*needs 614400"):
+        codec.decode(data, out=np.empty((10, 10), np.uint16))
+    with pytest.raises(pcdcodec.InputError, match=r"out holds 1228800 bytes \(float32"):
+        codec.decode(data, out=np.empty(depth.shape, np.float32))
+    with pytest.raises(pcdcodec.InputTypeError, match="out is int16"):
+        codec.decode(data, out=np.empty(depth.shape, np.int16))
+    with pytest.raises(pcdcodec.InputTypeError, match="read-only bytes"):
+        codec.decode(data, out=bytes(depth.nbytes))
+    with pytest.raises(pcdcodec.InputTypeError, match="got str"):
+        codec.decode("not bytes")
+    with pytest.raises(pcdcodec.InputTypeError, match="contiguous"):
+        codec.decode(np.frombuffer(data, np.uint8)[::2])
+
+
+def test_numcodec_refuses_what_zarr_v2_would_read_back_swapped_or_scrambled() -> None:
+    codec = pz_numcodecs.numcodec("depthac")
+    depth = load_depths("sample", 1)[0]
+    with pytest.raises(pcdcodec.InputTypeError, match=r"little-endian depth, got >u2.*<u2"):
+        codec.encode(depth.astype(">u2"))
+    with pytest.raises(pcdcodec.InputTypeError, match=r"got >f4.*<f4"):
+        codec.encode(depth.astype(">f4"))
+    zarr = _zarr()
+    store = zarr.storage.MemoryStore()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Zarr warns that v2 arrays are not the newest format
+        array = zarr.create_array(
+            store,
+            shape=(1, *depth.shape),
+            chunks=(1, *depth.shape),
+            dtype=">u2",
+            zarr_format=2,
+            filters=None,
+            compressors=codec,
+        )
+        with pytest.raises(pcdcodec.InputTypeError, match="byte-swapped"):
+            array[0] = depth
+        fortran = zarr.create_array(
+            zarr.storage.MemoryStore(),
+            shape=(1, *depth.shape),
+            chunks=(1, *depth.shape),
+            dtype="<u2",
+            order="F",
+            zarr_format=2,
+            filters=None,
+            compressors=codec,
+        )
+        with pytest.raises(pcdcodec.InputError, match="order 'F' would read back scrambled"):
+            fortran[0] = depth
+    with pytest.raises(pcdcodec.InputError, match="Fortran order"):
+        codec.encode(np.asfortranarray(depth))
+
+
 def test_plugin_codec_gets_a_numcodec_class() -> None:
     from .test_registry import Negate
 

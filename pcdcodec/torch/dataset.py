@@ -51,6 +51,21 @@ def _tensors(value: Any) -> Any:
     return value
 
 
+def _check_cameras(cameras: Any) -> tuple[str, ...]:
+    """``cameras`` as a tuple of camera names, each once."""
+    try:
+        names = tuple(cameras) if not isinstance(cameras, str) else None
+    except TypeError:
+        names = None
+    if names is None or not all(isinstance(c, str) for c in names):
+        raise InputTypeError(f"cameras must be a list of camera names, got {cameras!r}")
+    if not names:
+        raise InputError("cameras is empty: leave it out for every camera")
+    if len(set(names)) != len(names):
+        raise InputError(f"cameras names a camera twice: {list(names)}")
+    return names
+
+
 def _check_threads(threads: Any) -> int | None:
     if threads is not None and (
         isinstance(threads, bool) or not isinstance(threads, int) or not 0 <= threads <= 256
@@ -100,10 +115,7 @@ class RecordingDataset(Dataset[Any]):
         if isinstance(max_open, bool) or not isinstance(max_open, int) or max_open < 1:
             raise InputError(f"max_open must be an int >= 1, got {max_open!r}")
         if cameras is not None:
-            if isinstance(cameras, str) or not all(isinstance(c, str) for c in cameras):
-                raise InputTypeError(f"cameras must be a list of camera names, got {cameras!r}")
-            if not cameras:
-                raise InputError("cameras is empty: leave it out for every camera")
+            cameras = _check_cameras(cameras)
         if tolerance is not None and (
             isinstance(tolerance, bool)
             or not isinstance(tolerance, (int, float))
@@ -127,6 +139,14 @@ class RecordingDataset(Dataset[Any]):
             self._readers.close()  # nothing stays open in the process that made the dataset
         counts = np.array([n for _, _, n in self.parts], np.int64)
         self._starts: npt.NDArray[np.int64] = np.concatenate([[0], np.cumsum(counts)])
+        if not len(self):  # a sampler would fail later, saying nothing of why
+            raise InputError(
+                f"no complete frame set in {self.sources}: in each, some camera of "
+                f"{[list(c) for _, c, _ in self.parts]} has no frame within the tolerance of "
+                "the first camera's"
+                if self.framesets
+                else f"the recordings {self.sources} hold no frame"
+            )
         self._sets.clear()  # rebuilt where read: they are not worth pickling
 
     def _catalog(self, wanted: tuple[str, ...] | None) -> None:
@@ -188,6 +208,12 @@ class RecordingDataset(Dataset[Any]):
 
     def locate(self, i: int) -> tuple[str, tuple[str, ...], int]:
         """Where item ``i`` is: its recording, its camera(s), and its frame (or set) index."""
+        part, j = self._where(i)
+        source, cameras, _ = self.parts[part]
+        return source, cameras, j
+
+    def _where(self, i: int) -> tuple[int, int]:
+        """Item ``i``'s part and its frame (or set) index in that part."""
         n = len(self)
         if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
             raise InputTypeError(f"an item index must be an int, got {type(i).__name__}")
@@ -195,8 +221,7 @@ class RecordingDataset(Dataset[Any]):
             raise IndexError(f"item {i} is out of range for {n} items")
         i = int(i) % n
         part = int(np.searchsorted(self._starts, i, side="right")) - 1
-        source, cameras, _ = self.parts[part]
-        return source, cameras, i - int(self._starts[part])
+        return part, i - int(self._starts[part])
 
     def _frame(self, source: str, camera: str, j: int) -> dict[str, Any]:
         cam = self._readers.camera(source, camera)
@@ -222,11 +247,26 @@ class RecordingDataset(Dataset[Any]):
 
     def raw(self, i: int) -> Any:
         """Item ``i`` as numpy arrays, before ``tensors`` and ``transform``."""
-        source, cameras, j = self.locate(i)
-        if not self.framesets:
-            return self._frame(source, cameras[0], j)
-        row = self._matches(source, cameras)[j]
-        return {c: self._frame(source, c, int(k)) for c, k in zip(cameras, row, strict=True)}
+        part, j = self._where(i)
+        source, cameras, counted = self.parts[part]
+        if self.framesets:
+            sets = self._matches(source, cameras)
+            self._check_count(source, "frame sets", counted, len(sets))
+            row = sets[j]
+            return {c: self._frame(source, c, int(k)) for c, k in zip(cameras, row, strict=True)}
+        frames = len(self._readers.camera(source, cameras[0]).timestamps)
+        self._check_count(source, f"frames of camera {cameras[0]!r}", counted, frames)
+        return self._frame(source, cameras[0], j)
+
+    @staticmethod
+    def _check_count(source: str, what: str, counted: int, now: int) -> None:
+        # A file rewritten since it was counted: reading past its end would raise IndexError,
+        # which ends a plain iteration over the dataset early, without a word.
+        if now != counted:
+            raise InputError(
+                f"{source!r} has {now} {what}, {counted} when the dataset was made: the file "
+                "changed since; make the dataset again"
+            )
 
     def __getitem__(self, i: int) -> Any:
         item = self.raw(i)

@@ -58,6 +58,8 @@ def check_fields(fields: Any) -> tuple[str, ...]:
     if not names:
         raise InputError(f"fields is empty; choose from {sorted(FIELDS)}")
     for name in names:
+        if not isinstance(name, str):
+            raise InputTypeError(f"each field must be a field name, got {name!r}")
         if name not in FIELDS:
             raise InputError(f"unknown field {name!r}; the fields are {sorted(FIELDS)}")
     if len(set(names)) != len(names):

@@ -69,8 +69,48 @@ def as_image(buf: Any, codec_id: str) -> npt.NDArray[Any]:
             f"{codec_id} encodes one depth image of shape (H, W) or (1, ..., 1, H, W), got "
             f"shape {tuple(arr.shape)}; {where}"
         )
+    if arr.flags.f_contiguous and not arr.flags.c_contiguous:
+        # Zarr format 2 takes what decode() returns as the chunk's bytes in the array's order.
+        raise InputError(
+            f"{codec_id} takes depth in C order, got an array in Fortran order: a Zarr format 2 "
+            "array of order 'F' would read back scrambled; create it with order='C', or pass "
+            "np.ascontiguousarray(depth)"
+        )
     image: npt.NDArray[Any] = np.asarray(arr).reshape(arr.shape[-2:])
+    if image.dtype.byteorder == ">" or (image.dtype.byteorder == "=" and _BIG_ENDIAN):
+        # Zarr format 2 views what decode() returns (little-endian) as the array's dtype.
+        raise InputTypeError(
+            f"{codec_id} takes little-endian depth, got {image.dtype.str}: a Zarr format 2 array "
+            f"of it would read back byte-swapped; store it as {image.dtype.newbyteorder('<').str}"
+        )
     return image
+
+
+_BIG_ENDIAN = np.dtype("=u2").str[0] == ">"
+
+
+def _fill(image: npt.NDArray[Any], out: Any, codec_id: str) -> Any:
+    """``image`` copied into ``out``: by value into an array of its dtype (in any byte order
+    and memory layout, of any shape holding its pixels), as raw bytes into a byte buffer."""
+    try:
+        dest = numcodecs.compat.ensure_ndarray_like(out)
+    except (TypeError, ValueError) as e:
+        raise InputTypeError(f"{codec_id}: out must be a writeable array or buffer: {e}") from None
+    if not dest.flags.writeable:
+        kind = type(out).__name__
+        raise InputTypeError(f"{codec_id}: out must be writeable, got a read-only {kind}")
+    wanted = f"the decoded {image.shape[0]}x{image.shape[1]} {image.dtype} image"
+    if dest.nbytes != image.nbytes:
+        raise InputError(
+            f"{codec_id}: out holds {dest.nbytes} bytes ({dest.dtype} {tuple(dest.shape)}), "
+            f"{wanted} needs {image.nbytes}"
+        )
+    if dest.dtype.itemsize == 1:
+        return numcodecs.compat.ndarray_copy(image, out)
+    if dest.dtype.kind != image.dtype.kind or dest.dtype.itemsize != image.dtype.itemsize:
+        raise InputTypeError(f"{codec_id}: out is {dest.dtype}, {wanted} is {image.dtype}")
+    np.copyto(dest, image.reshape(dest.shape))
+    return out
 
 
 class DepthNumcodec(numcodecs.abc.Codec):  # type: ignore[misc]  # numcodecs is untyped
@@ -100,11 +140,17 @@ class DepthNumcodec(numcodecs.abc.Codec):  # type: ignore[misc]  # numcodecs is 
 
     def decode(self, buf: Any, out: Any = None) -> Any:
         """The depth image in ``buf``; copied into ``out`` (of its size) when given."""
-        data = numcodecs.compat.ensure_contiguous_ndarray(buf)
+        try:
+            data = numcodecs.compat.ensure_contiguous_ndarray(buf)
+        except (TypeError, ValueError) as e:
+            raise InputTypeError(
+                f"{self.codec_id} decodes a contiguous bytes-like buffer, got "
+                f"{type(buf).__name__}: {e}"
+            ) from None
         image = self._codec.decode(memoryview(data).cast("B"))
         if out is None:
             return image
-        return numcodecs.compat.ndarray_copy(image, out)
+        return _fill(image, out, self.codec_id)
 
     def get_config(self) -> dict[str, Any]:
         """The numcodecs id and the depth codec's stored parameters (no machine settings)."""
