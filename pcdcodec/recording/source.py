@@ -20,7 +20,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import InputError
+from ..errors import DecodeError, InputError
 from ..geometry.camera import as_intrinsics
 from ..sources.base import Source
 
@@ -40,8 +40,10 @@ class RecordingSource(Source):
     ``max_frames`` keeps the first frames; ``intrinsics`` and ``depth_scale`` replace what the
     recording says (the depth values stay as stored); ``threads`` is the reader's (see
     :class:`~pcdcodec.Recording`). Raises what opening the recording raises (a damaged file:
-    :class:`~pcdcodec.DecodeError` naming it), and :class:`~pcdcodec.InputError` for a rig's
-    file without ``camera`` or a camera it does not hold.
+    :class:`~pcdcodec.DecodeError` naming it), :class:`~pcdcodec.DecodeError` for a file
+    without its index (cut short, or its writer did not finish: ``pcdcodec recover`` first),
+    and :class:`~pcdcodec.InputError` for a rig's file without ``camera`` or a camera it does
+    not hold.
     """
 
     def __init__(
@@ -78,6 +80,15 @@ class RecordingSource(Source):
                     "re-encode them all as a rig (pcdcodec.encode_rig, or `pcdcodec encode`)"
                 )
             rec: Recording = opened.frames(camera)
+            if not rec.indexed:
+                # Written again, the frames before the cut would pass for the whole recording.
+                cut = rec.index.truncated_at
+                where = f" (it ends inside a record at byte offset {cut})" if cut else ""
+                raise DecodeError(
+                    f"{str(self.path)!r} has no index{where}: it was cut short, or its writer "
+                    "did not finish; `pcdcodec recover` copies the frames it can read into a "
+                    "complete recording, which can then be encoded again"
+                )
         except BaseException:
             if self._owns:
                 opened.close()
