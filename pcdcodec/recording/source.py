@@ -33,6 +33,18 @@ if TYPE_CHECKING:
 __all__ = ["RecordingSource", "recording_cameras"]
 
 
+def _open(path: Path, threads: int | None) -> Recording | RigRecording:
+    """The recording at ``path``: a :class:`~pcdcodec.Recording`, or a
+    :class:`~pcdcodec.RigRecording` for a rig's file (as :func:`pcdcodec.open` reads)."""
+    from .reader import Recording, SeveralCamerasError
+    from .rig_reader import RigRecording
+
+    try:
+        return Recording(path, threads=threads)
+    except SeveralCamerasError as rig:
+        return RigRecording(path, index=rig.index, threads=threads)
+
+
 class RecordingSource(Source):
     """The frames of one camera of a ``.pcdc`` recording, as stored.
 
@@ -57,7 +69,6 @@ class RecordingSource(Source):
         threads: int | None = None,
         _rig: RigRecording | None = None,
     ) -> None:
-        from . import open as open_recording
         from .rig_reader import RigRecording
 
         self.path = Path(path)
@@ -66,9 +77,7 @@ class RecordingSource(Source):
         ):
             raise InputError(f"max_frames must be an int of at least 1, got {max_frames!r}")
         self.max_frames = max_frames
-        opened: Recording | RigRecording = (
-            _rig if _rig is not None else open_recording(self.path, threads=threads)
-        )
+        opened: Recording | RigRecording = _rig if _rig is not None else _open(self.path, threads)
         #: Whether this source opened the file's reader (else only its camera's is its own).
         self._owns = _rig is None
         self._file = opened
@@ -173,13 +182,12 @@ def recording_cameras(
     recording. ``options`` go to each camera's :class:`RecordingSource` (``max_frames``, ...).
     """
     from ..sources.rig import CameraInput
-    from . import open as open_recording
     from .rig_reader import RigRecording
 
     if "camera" in options:
         raise InputError("camera= picks one camera; a rig's file read as a rig gives them all")
     threads = options.pop("threads", None)
-    opened = open_recording(path, threads=threads)
+    opened = _open(Path(path), threads)
     if not isinstance(opened, RigRecording):
         opened.close()
         return None
