@@ -235,7 +235,24 @@ def test_a_damaged_recording_as_input_names_the_file(tmp_path: Path) -> None:
     )
     assert done.returncode == 1
     assert "cut.pcdc" in done.stderr
+    assert "pcdcodec recover" in done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_a_recording_damaged_inside_names_the_file_and_writes_nothing(tmp_path: Path) -> None:
+    src = tmp_path / "run.pcdc"
+    _write(src, 4)
+    with pcdcodec.open(src) as rec:
+        offset = int(rec._offsets[2])  # the chunk of frame 2's depth
+    data = bytearray(src.read_bytes())
+    data[offset + 200] ^= 0xFF
+    bad = tmp_path / "bad.pcdc"
+    bad.write_bytes(bytes(data))
+    out = tmp_path / "out.pcdc"
+    with pytest.raises(DecodeError) as info:
+        pcdcodec.encode(bad, out, depth="zstd")
+    assert str(bad) in str(info.value)
+    assert not out.exists()
 
 
 def _rig(path: Path) -> dict[str, list[int]]:
