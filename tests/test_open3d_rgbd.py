@@ -123,7 +123,9 @@ def test_tensor_float_depth_is_metres(tmp_path: Path, sample: RGBDSequence) -> N
     np.testing.assert_array_equal(frame.depth, metres)
     assert frame.timestamp_ns == 7
     path = tmp_path / "f.pcdc"
-    with pcdcodec.open(path, "w", intrinsics=sample.intrinsics, depth="zstd", color=None) as w:
+    with pcdcodec.open(
+        path, "w", intrinsics=sample.intrinsics, depth_scale=1.0, depth="zstd", color=None
+    ) as w:
         w.write_rgbd(image, depth_scale=1.0)
     with pcdcodec.open(path) as rec:
         np.testing.assert_array_equal(rec[0].depth, metres)

@@ -255,7 +255,12 @@ def test_float_depth_round_trips_bit_exactly(tmp_path: Path) -> None:
     seq = pcdcodec.load_sample(max_frames=4)
     metres = []
     with pcdcodec.open(
-        tmp_path / "f.pcdc", "w", intrinsics=seq.intrinsics, color="ffv1", depth="lz4"
+        tmp_path / "f.pcdc",
+        "w",
+        intrinsics=seq.intrinsics,
+        depth_scale=1.0,
+        color="ffv1",
+        depth="lz4",
     ) as rec:
         for frame in seq:
             m = (frame.depth / seq.depth_scale).astype(np.float32)

@@ -128,6 +128,33 @@ def test_depth_only_and_float_metres(tmp_path: Path, sample: RGBDSequence) -> No
         assert len(points) == int(np.isfinite(metres[2]).sum())
 
 
+def test_float_metres_need_the_depth_scale_given(tmp_path: Path, sample: RGBDSequence) -> None:
+    """Without depth_scale, float32 metres would be read at the uint16 default of 1000 units per
+    metre, 1000x too near: the writer refuses the frame and keeps what was written."""
+    metres = np.where(sample[0].depth > 0, sample[0].depth / 5000.0, np.nan).astype(np.float32)
+    path = tmp_path / "f.pcdc"
+    with pcdcodec.open(path, "w", intrinsics=sample.intrinsics, color=None, depth="zstd") as w:
+        w.write(None, sample[0].depth, 1)  # uint16 at the default scale is fine
+        with pytest.raises(pcdcodec.InputError, match="depth_scale"):
+            w.write(None, metres, 2)
+    with pcdcodec.open(path) as rec:
+        assert len(rec) == 1
+        assert np.array_equal(rec[0].depth, sample[0].depth)
+    cam = sample.intrinsics
+    rig = tmp_path / "rig.pcdc"
+    specs = [
+        pcdcodec.CameraSpec("a", cam, color=None, depth="zstd"),
+        pcdcodec.CameraSpec("b", cam, 1.0, color=None, depth="zstd"),
+    ]
+    with pcdcodec.open(rig, "w", cameras=specs) as w:
+        w.write("b", None, metres, 1)
+        with pytest.raises(pcdcodec.InputError, match="depth_scale"):
+            w.write("a", None, metres, 1)
+    with pcdcodec.open(rig) as rec:
+        points = rec.frames("b")[0].to_points()[0]
+        assert np.isclose(np.nanmax(points[:, 2]), np.nanmax(metres))
+
+
 def test_frames_give_point_clouds_and_rgbd(default_file: Path, sample: RGBDSequence) -> None:
     with pcdcodec.open(default_file) as rec:
         frame = rec[0]

@@ -92,7 +92,7 @@ def open(
     mode: Literal["w"],
     *,
     intrinsics: Any,
-    depth_scale: float = ...,
+    depth_scale: float | None = ...,
     color: Any = ...,
     depth: Any = ...,
     fps: float = ...,
@@ -123,7 +123,8 @@ def open(path: str | os.PathLike[str], mode: str = "r", **options: Any) -> Any:
                            color="h264", depth="depthac") as rec:
             rec.write(rgb, depth, timestamp_ns)
 
-    Options for ``"w"``: ``intrinsics`` (required), ``depth_scale`` (depth units per metre),
+    Options for ``"w"``: ``intrinsics`` (required), ``depth_scale`` (depth units per metre;
+    1000, millimetres, by default, which float32 depth does not take: give 1.0 for metres),
     ``color`` and ``depth`` (codec names, configs or codecs; ``color=None`` records depth only),
     ``fps`` (nominal frame rate), ``metadata`` (a dict of your own), ``overwrite``,
     ``in_flight`` (frames encoded ahead, bounding memory).

@@ -46,7 +46,7 @@ class CameraSpec:
 
     name: str
     intrinsics: Any
-    depth_scale: float = 1000.0
+    depth_scale: float | None = None
     fps: float = 30.0
     color: Any = DEFAULT_COLOR_CODEC
     depth: Any = DEFAULT_DEPTH_CODEC

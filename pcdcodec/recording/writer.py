@@ -137,7 +137,7 @@ class RecordingWriter(FrameInputs):
         path: str | os.PathLike[str],
         *,
         intrinsics: Any,
-        depth_scale: float = 1000.0,
+        depth_scale: float | None = None,
         color: Any = DEFAULT_COLOR_CODEC,
         depth: Any = DEFAULT_DEPTH_CODEC,
         fps: float = 30.0,
@@ -158,7 +158,10 @@ class RecordingWriter(FrameInputs):
             depth_to_color,
         )
         self.world_frame_id = world_frame_id
-        self.depth_scale = check_depth_scale(depth_scale)
+        # float32 depth is metres only at depth_scale 1.0: the uint16 default (1000, millimetres)
+        # would put its points 1000x too near the camera, so float32 frames need it given.
+        self._scale_given = depth_scale is not None
+        self.depth_scale = check_depth_scale(1000.0 if depth_scale is None else depth_scale)
         if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 1000:
             raise InputError(f"fps must be a number in (0, 1000], got {fps!r}")
         self.fps = float(fps)
@@ -342,6 +345,14 @@ class RecordingWriter(FrameInputs):
         self._raise_background_error()
         self._take(color, depth, timestamp, pose)
 
+    def _check_float_scale(self, depth: npt.NDArray[Any]) -> None:
+        if depth.dtype == np.float32 and not self._scale_given:
+            raise InputError(
+                "float32 depth needs depth_scale given when the recording is opened: 1.0 for "
+                "metres (as ROS 32FC1), else its units per metre; the default, 1000, is for "
+                "uint16 millimetres and would scale float metres 1000x too small"
+            )
+
     def _take(self, color: Any, depth: Any, timestamp: int | None, pose: Any) -> None:
         """:meth:`write` past its checks for an open writer and earlier errors."""
         rigid = None if pose is None else as_rigid(pose, "pose")
@@ -349,6 +360,7 @@ class RecordingWriter(FrameInputs):
             raise InputError("this recording takes encoded color (write_encoded), not images")
         timestamp = self._next_timestamp(timestamp)
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
+        self._check_float_scale(d)
         rgb: npt.NDArray[np.uint8] | None = None
         if self.color_codec is None and color is not None:
             raise InputError(
@@ -409,6 +421,7 @@ class RecordingWriter(FrameInputs):
         group = [_checked_packet(k, p) for k, p in enumerate(packets)]
         timestamp = self._next_timestamp(timestamp)
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
+        self._check_float_scale(d)
         self._check_shape(d, timestamp, encoded=True, extradata=extradata)
         self._mode = "encoded"
         self._last_ts = timestamp

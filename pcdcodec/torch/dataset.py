@@ -25,14 +25,15 @@ __all__ = ["TRAINING_COLOR", "IterableRecordingDataset", "RecordingDataset"]
 #: The color codec to record training data with (``pcdcodec.open(..., color=TRAINING_COLOR)``):
 #: AV1 with every frame a keyframe, so that a random frame costs what a frame read in order
 #: costs, and dav1d decodes it faster than a color PNG file is read. ``crf`` 52 of SVT-AV1's
-#: low-delay mode (which holds no frame back) gives color of 37–38 dB PSNR on 640×480 sensors,
-#: small enough that color and lossless depth together take under a tenth of a color and a
-#: depth PNG file (``docs/learning.md``, measured on every set, with the trade-offs).
+#: low-delay mode (which holds no frame back) keeps color at 33–37 dB PSNR on the measured
+#: 640×480 sensors, small enough that color and lossless depth together take under a tenth of
+#: a color and a depth PNG file; preset 8 encodes about 2.4× faster than preset 6 for 1–2 %
+#: more bytes (``docs/learning.md``, measured on every set, with the trade-offs).
 TRAINING_COLOR: dict[str, Any] = {
     "id": "av1",
     "gop": 1,
     "crf": 52,
-    "preset": 6,
+    "preset": 8,
     "low_delay": True,
 }
 
