@@ -163,7 +163,7 @@ def test_float32_depth_with_nan_and_a_color_camera_apart(tmp_path: Path) -> None
         src,
         "w",
         intrinsics=seq.intrinsics,
-        depth_scale=seq.depth_scale,
+        depth_scale=1.0,  # float32 metres
         depth="zstd",
         color_intrinsics=color_cam,
         depth_to_color=d2c,
