@@ -197,6 +197,7 @@ def test_cli_recodes_a_recording(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     assert "wrote 3 frames" in done.stdout
     assert "depth scale  5000" in done.stdout
+    assert "color decoded from the recording's h264 and encoded again" in done.stdout
     with pcdcodec.open(out) as rec:
         assert rec.codecs["color"] is not None
         assert rec.codecs["color"]["id"] == "av1"

@@ -155,11 +155,17 @@ class RecordingSource(Source):
         return itertools.islice(self._rec._in_order(start), stop - start)
 
     def describe(self) -> dict[str, Any]:
-        """As :meth:`Source.describe`, with the codecs the recording was written with and the
-        camera of a rig's file."""
+        """As :meth:`Source.describe`, with the codecs the recording was written with, its
+        rate, the camera of a rig's file, and a note on what happens to the color."""
         out = super().describe()
         out["codecs"] = self.codecs
         out["fps"] = self.fps
+        color = self.codecs.get("color")
+        if color is not None:
+            out["notes"] = [
+                f"color decoded from the recording's {color.get('id')} and encoded again "
+                "(a lossy color codec loses once more); depth as stored, bit for bit"
+            ]
         if self.camera is not None:
             out["camera"] = self.camera
         return out
