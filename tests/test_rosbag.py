@@ -127,12 +127,12 @@ def test_open_source_picks_bags_by_content_not_name(tmp_path: Path) -> None:
     assert detect_kind(mcap_renamed) == "rosbag"
     with pcdcodec.open_source(mcap_renamed) as src:
         assert len(list(src)) == 1
-    # A .pcdc recording is MCAP too, but with pcdcodec's profile: not a bag.
+    # A .pcdc recording is MCAP too, but with pcdcodec's profile: not a bag, a recording.
     rec = tmp_path / "r.pcdc"
     seq = pcdcodec.load_sample(max_frames=1)
     with pcdcodec.open(rec, "w", intrinsics=seq.intrinsics, depth_scale=5000.0) as w:
         w.write_frames(seq)
-    assert detect_kind(rec) is None
+    assert detect_kind(rec) == "recording"
     assert detect_kind(pcdcodec.datasets.sample_dir()) == "folder"
 
 

@@ -19,6 +19,8 @@ def _is_input(path: Path) -> bool:
     from ..sources.base import source_kinds
 
     for kind in source_kinds():
+        if kind.name == "recording":
+            continue  # recordings are what an archive run writes, not what it reads
         with contextlib.suppress(Exception):
             if kind.probe(path):
                 return True

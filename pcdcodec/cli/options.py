@@ -38,7 +38,7 @@ def frame_size(
     from ..sources.base import detect_kind
 
     path = Path(src)
-    if path.is_file() and detect_kind(src) is None:
+    if path.is_file() and detect_kind(src) in (None, "recording"):
         from ..recording import open as open_recording
 
         with open_recording(path) as rec:
@@ -149,7 +149,8 @@ def source_options(args: argparse.Namespace) -> dict[str, Any]:
     if kind is None and folder.get("depth_pattern") is not None and Path(args.src).is_dir():
         kind = "folder"  # a folder of files named as the patterns say
     if kind == "folder":
-        opts["fps"] = args.fps
+        if getattr(args, "fps", None) is not None:
+            opts["fps"] = args.fps
         opts.update(folder)
     elif folder and kind is not None:
         names = ["--depth-only" if k == "color" else "--" + k.replace("_", "-") for k in folder]

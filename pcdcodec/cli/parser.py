@@ -161,7 +161,12 @@ def _encode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--depth", default=DEFAULT_DEPTH_CODEC, help="depth codec, e.g. depthac or zstd:level=9"
     )
-    p.add_argument("--fps", type=float, default=30.0, help="nominal frame rate")
+    p.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="nominal frame rate (default: a recording's own, else 30)",
+    )
     p.add_argument("--max-frames", type=int, default=None, help="encode only the first N")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress line")

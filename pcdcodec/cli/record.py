@@ -91,21 +91,14 @@ def cmd_encode(args: argparse.Namespace) -> int:
 
 
 def _several_cameras(args: argparse.Namespace) -> bool:
-    """Whether the one input is a bag of several cameras, read as a rig (unless a topic flag
-    or pass-through picks what to read of it)."""
-    from ..errors import PcdcodecError
-    from ..sources.base import detect_kind
-    from ..sources.rig import bag_cameras
+    """Whether the one input is read as a rig: a bag of several cameras (unless a topic flag
+    or pass-through picks what to read of it), or a recording of a rig."""
+    from ..sources.rig import reads_as_rig
 
     picked = [args.depth_topic, args.color_topic, args.info_topic, args.cloud_topic]
     if len(args.src) != 1 or args.passthrough or any(t is not None for t in picked):
         return False
-    if detect_kind(args.src[0]) != "rosbag":
-        return False
-    try:
-        return len(bag_cameras(args.src[0])) > 1
-    except PcdcodecError:
-        return False  # read as one camera, which says what is wrong
+    return reads_as_rig(args.src[0])
 
 
 def _cmd_encode_rig(args: argparse.Namespace) -> int:

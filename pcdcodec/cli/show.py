@@ -232,8 +232,8 @@ def cmd_info(args: argparse.Namespace) -> int:
 
     path = Path(args.input)
     # A ROS 2 bag stored as MCAP starts with the same magic as a recording: the readers'
-    # probes tell them apart by the MCAP profile.
-    if detect_kind(path) is not None:
+    # probes tell them apart by the MCAP profile. A recording is described as a recording.
+    if detect_kind(path) not in (None, "recording"):
         return _info_of_source(args)
     given = [
         "--" + key.replace("_", "-")

@@ -1,6 +1,8 @@
 """Recordings: one ``.pcdc`` file (MCAP) holding a color stream, a depth stream and the camera.
 
-See ``docs/format.md`` for the layout and :func:`open` for use.
+See ``docs/format.md`` for the layout and :func:`open` for use. A recording is also an input
+(the source kind ``"recording"``, :mod:`.source`), so ``encode`` writes it again with other
+codecs.
 """
 
 from __future__ import annotations
@@ -8,11 +10,13 @@ from __future__ import annotations
 import importlib
 import os
 import warnings
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, overload
 
 from ..errors import InputError
 from ..frame import Frame
-from ._index import FORMAT_VERSION
+from ..sources.base import read_magic, register_source
+from ._index import FORMAT_VERSION, MAGIC, PROFILE
 from .encode import EncodeSummary, encode
 from .recover import recover
 
@@ -156,3 +160,35 @@ def open(path: str | os.PathLike[str], mode: str = "r", **options: Any) -> Any:
             return RigWriter(path, **options)
         return RecordingWriter(path, **options)
     raise InputError(f"mode must be 'r' or 'w', got {mode!r}")
+
+
+def _is_recording(path: Path) -> bool:
+    """Whether ``path`` is a file that starts as a pcdcodec recording: MCAP whose header names
+    pcdcodec's profile (its first 64 bytes are read; a ROS 2 ``.mcap`` bag names ``ros2``)."""
+    from ..ros.bagfile import mcap_profile
+
+    if not path.is_file():
+        return False
+    head = read_magic(path, 64)
+    return head.startswith(MAGIC) and mcap_profile(head) == PROFILE
+
+
+def _open_source(path: Path, **options: Any) -> Any:
+    from .source import RecordingSource
+
+    return RecordingSource(path, **options)
+
+
+def _open_cameras(path: Path, **options: Any) -> Any:
+    from .source import recording_cameras
+
+    return recording_cameras(path, **options)
+
+
+register_source(
+    "recording",
+    _is_recording,
+    _open_source,
+    "a .pcdc recording, written again with other codecs (depth as stored, color decoded)",
+    cameras=_open_cameras,
+)

@@ -15,7 +15,7 @@ import numpy.typing as npt
 from .._validate import check_depth_scale
 from ..color.base import StreamCodec
 from ..errors import InputError, InputTypeError
-from ..frame import OPEN3D_DEPTH_SCALE
+from ..frame import OPEN3D_DEPTH_SCALE, Frame
 from ..geometry.camera import CameraIntrinsics
 from ..sources.base import Source
 
@@ -103,7 +103,7 @@ class FrameInputs:
         To record a whole source with its camera, use :meth:`write_source` (or
         :func:`pcdcodec.encode`).
         """
-        from ..frame import Frame, open3d_rgbd_kind
+        from ..frame import open3d_rgbd_kind
 
         count = 0
         for item in frames:
@@ -178,7 +178,10 @@ class FrameInputs:
         (checked by :meth:`write_source`; :func:`~pcdcodec.encode` opens the writer from the
         source)."""
         if source.has_color and self.color_codec is None:
-            frames: Iterable[Any] = ((None, f.depth, f.timestamp_ns) for f in source)
+            # The color is left out; the pose stays.
+            frames: Iterable[Any] = (
+                Frame(None, f.depth, f.timestamp_ns, pose=f.pose) for f in source
+            )
         else:
             frames = source
         return self.write_frames(frames, progress=progress)

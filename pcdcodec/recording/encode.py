@@ -62,7 +62,7 @@ def encode(
     depth: Any = DEFAULT_DEPTH_CODEC,
     intrinsics: Any = None,
     depth_scale: float | None = None,
-    fps: float = 30.0,
+    fps: float | None = None,
     metadata: dict[str, Any] | None = None,
     overwrite: bool = False,
     progress: Callable[[int], None] | None = None,
@@ -80,7 +80,10 @@ def encode(
     ``source_options`` go to :func:`~pcdcodec.open_source` (for bags: ``depth_topic``,
     ``color_topic``, ``info_topic``, ``cloud_topic``, ``max_frames``, ...). ``intrinsics`` and
     ``depth_scale`` replace what the source says; a source without color is recorded depth
-    only. The source's metadata (topics, distortion) is kept in the recording.
+    only. The source's metadata (topics, distortion) is kept in the recording. ``fps`` is the
+    nominal frame rate; without it, the rate the source records (a recording's), else 30.
+    A ``.pcdc`` recording is an input too: its frames are written again with the codecs
+    given, depth exactly as stored, color decoded and encoded again.
 
     Raises :class:`~pcdcodec.InputError` when the source has no camera and none is given, and
     whatever the source and the writer raise; an interrupted encode leaves a readable file
@@ -124,6 +127,7 @@ def encode(
                 "or give the input a camera (camera.json, a CameraInfo topic)"
             )
         meta = {**source.metadata, **(metadata or {})}
+        rate = fps if fps is not None else (source.fps if source.fps is not None else 30.0)
         target = Path(out)
         if target.exists() and not overwrite:
             raise InputError(f"{str(target)!r} already exists; pass overwrite=True to replace it")
@@ -142,7 +146,7 @@ def encode(
             start = time.perf_counter()
             if passthrough:
                 count, writer = _passthrough(
-                    source, partial, passthrough, depth=depth, fps=fps, metadata=meta,
+                    source, partial, passthrough, depth=depth, fps=rate, metadata=meta,
                     progress=progress,
                 )  # fmt: skip
             else:
@@ -152,10 +156,11 @@ def encode(
                     depth_scale=source.depth_scale,
                     color=color if source.has_color else None,
                     depth=depth,
-                    fps=fps,
+                    fps=rate,
                     metadata=meta,
                     color_intrinsics=source.color_intrinsics,
                     depth_to_color=source.depth_to_color,
+                    frame_id=source.frame_id or "camera",
                 ) as writer:
                     # Opened from the source: its camera is the recording's, checked once.
                     count = writer._write_source(source, progress)

@@ -176,7 +176,7 @@ def encode_rig(
     rig: Any = None,
     color: Any = DEFAULT_COLOR_CODEC,
     depth: Any = DEFAULT_DEPTH_CODEC,
-    fps: float = 30.0,
+    fps: float | None = None,
     metadata: dict[str, Any] | None = None,
     overwrite: bool = False,
     progress: Callable[[int], None] | None = None,
@@ -193,7 +193,10 @@ def encode_rig(
     identity, and a warning.
 
     ``color``, ``depth`` and ``fps`` apply to every camera but where the rig file sets its own;
-    ``source_options`` go to every source opened (``max_frames``, ``max_difference``, ...).
+    without ``fps``, each camera keeps the rate its input records (a recording's), else 30.
+    A recording of a rig gives its cameras with their names, rig poses and frame names, and
+    its rig frame and metadata. ``source_options`` go to every source opened
+    (``max_frames``, ``max_difference``, ...).
     Frames are written in timestamp order across cameras, on the stamps the inputs carry.
     Raises :class:`~pcdcodec.InputError` for a camera without intrinsics, an output that
     exists (without ``overwrite``), inputs that give no frames, and what the sources and the
@@ -223,9 +226,8 @@ def encode_rig(
         rig_frame = root or "rig"
     try:
         specs, warnings = rig_specs(cams, rig_frame, color=color, depth=depth, fps=fps)
-        meta: dict[str, Any] = {
-            f"{cam.name}.{k}": v for cam in cams for k, v in cam.source.metadata.items()
-        }
+        meta: dict[str, Any] = {k: v for cam in cams for k, v in cam.rig_metadata.items()}
+        meta.update({f"{cam.name}.{k}": v for cam in cams for k, v in cam.source.metadata.items()})
         meta.update(metadata or {})
         start = time.perf_counter()
         with atomic_output(target) as partial:
@@ -252,13 +254,19 @@ def encode_rig(
 
 
 def rig_specs(
-    cams: Sequence[CameraInput], rig_frame: str, *, color: Any, depth: Any, fps: float
+    cams: Sequence[CameraInput],
+    rig_frame: str,
+    *,
+    color: Any,
+    depth: Any,
+    fps: float | None,
 ) -> tuple[list[CameraSpec], list[str]]:
     """The :class:`~pcdcodec.recording.CameraSpec` of each camera: its source's camera and
     depth scale, the codecs and rate given (or the camera's own overrides; no color for a
-    source without it), its rig pose (the identity where none is known, with a warning when
-    the rig has several cameras) and its frame name (kept where the names differ). Raises
-    :class:`~pcdcodec.InputError` for a camera without intrinsics."""
+    source without it; without ``fps``, the rate its source records, else 30), its rig pose
+    (the identity where none is known, with a warning when the rig has several cameras) and
+    its frame name (kept where the names differ). Raises :class:`~pcdcodec.InputError` for a
+    camera without intrinsics."""
     from .rig import CameraSpec
 
     specs, warnings = [], []
@@ -284,7 +292,7 @@ def rig_specs(
                 cam.name,
                 src.intrinsics,
                 src.depth_scale,
-                fps=float(cam.overrides.get("fps", fps)),
+                fps=float(cam.overrides.get("fps", _rate(fps, src))),
                 color=chosen if src.has_color else None,
                 depth=cam.overrides.get("depth", depth),
                 color_intrinsics=src.color_intrinsics,
@@ -294,6 +302,13 @@ def rig_specs(
             )
         )
     return specs, warnings
+
+
+def _rate(fps: float | None, source: Source) -> float:
+    """The rate given, else the one the source records, else 30."""
+    if fps is not None:
+        return fps
+    return source.fps if source.fps is not None else 30.0
 
 
 def write_rig(

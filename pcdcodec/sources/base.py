@@ -36,6 +36,7 @@ __all__ = [
     "name_input",
     "open_source",
     "register_source",
+    "source_kind",
     "source_kinds",
 ]
 
@@ -89,6 +90,9 @@ class Source(abc.ABC):
       ``"camera-intrinsics.txt"``), a dataset's convention (``"TUM RGB-D dataset"``),
       ``"given"`` (an option), or the origin of the :class:`CameraDefaults` that filled it in.
     * ``camera_notes``: where :class:`CameraDefaults` contradicted what the input carries.
+    * ``fps`` and ``frame_id``: the nominal frame rate and the camera's frame name the input
+      records (both ``None`` where it does not say; :func:`pcdcodec.encode` then uses its own
+      ``fps`` and the writer's default frame name).
 
     Iterating yields frames one at a time, so a source of any length runs in bounded memory.
     A source is a context manager; :meth:`close` releases files it holds.
@@ -110,6 +114,8 @@ class Source(abc.ABC):
     intrinsics_origin: str = "input"
     depth_scale_origin: str = "input"
     camera_notes: tuple[str, ...] = ()
+    fps: float | None = None
+    frame_id: str | None = None
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -258,12 +264,19 @@ class _NamedIterator(Iterator[Any]):
 
 @dataclass(frozen=True)
 class SourceKind:
-    """A registered reader: ``probe(path)`` says from the content whether it reads ``path``."""
+    """A registered reader: ``probe(path)`` says from the content whether it reads ``path``.
+
+    ``cameras``, for inputs that may hold several cameras, opens them: ``cameras(path,
+    **options)`` gives a :class:`~pcdcodec.sources.rig.CameraInput` per camera and the name of
+    the frame their rig poses take points into, or ``None`` for an input of one camera (read
+    by ``opener``). :func:`pcdcodec.sources.rig.open_inputs` uses it.
+    """
 
     name: str
     probe: Callable[[Path], bool]
     opener: Callable[..., Source]
     description: str = ""
+    cameras: Callable[..., Any] | None = None
 
 
 _KINDS: dict[str, SourceKind] = {}
@@ -276,10 +289,12 @@ def register_source(
     description: str = "",
     *,
     first: bool = False,
+    cameras: Callable[..., Any] | None = None,
 ) -> None:
     """Register a source reader. Probes run in registration order; ``first`` puts this one
-    ahead of the others (a more specific reader, such as a RealSense bag, before plain ROS 1)."""
-    kind = SourceKind(name, probe, opener, description)
+    ahead of the others (a more specific reader, such as a RealSense bag, before plain ROS 1).
+    ``cameras`` opens the cameras of an input of several (see :class:`SourceKind`)."""
+    kind = SourceKind(name, probe, opener, description, cameras)
     _KINDS.pop(name, None)
     if first:
         items = [(name, kind), *_KINDS.items()]
@@ -293,6 +308,12 @@ def source_kinds() -> list[SourceKind]:
     """The registered readers, in the order :func:`open_source` tries them."""
     _load_builtin()
     return list(_KINDS.values())
+
+
+def source_kind(name: str) -> SourceKind | None:
+    """The registered reader called ``name`` (as :func:`detect_kind` names it), or ``None``."""
+    _load_builtin()
+    return _KINDS.get(name)
 
 
 def read_magic(path: Path, n: int = 16) -> bytes:

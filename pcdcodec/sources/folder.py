@@ -382,11 +382,12 @@ def _is_folder(path: Path) -> bool:
         return True  # color and depth: an RGB-D folder whatever else it holds
     # Depth alone (depth.txt, depth/, or files named *depth*) is an RGB-D folder only beside no
     # other input: a folder of bags with a depth/ of previews or a depth_preview.png is a
-    # folder of bags, to be searched, not frames of depth.
+    # folder of bags, to be searched, not frames of depth. A recording beside depth is what
+    # was made of it, as before recordings were inputs.
     flat, others = _flat_depth_and_others(path)
     if not (flat or (path / "depth.txt").is_file() or (path / "depth").is_dir()):
         return False
-    return not any(detect_kind(f) is not None for f in others)
+    return not any(detect_kind(f) not in (None, "recording") for f in others)
 
 
 register_source(

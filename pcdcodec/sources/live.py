@@ -314,7 +314,7 @@ class RealSenseLiveSource(Source):
                 # The next pass starts one frame period after the last frame of this one; a
                 # frame that would still come earlier (the file's first frames, missed in the
                 # first pass) is left out, as the frame counters keep their last stamps.
-                self._offset = last[1] + round(1e9 / self.fps) - first
+                self._offset = last[1] + round(1e9 / (self.fps or 30.0)) - first
                 continue
             d = frames.get_depth_frame()
             if d:

@@ -1,5 +1,6 @@
 """Several cameras as sources: the cameras of one bag (a camera per namespace), where the bag's
-``/tf_static`` mounts them, and the frames of several sources merged in time order.
+``/tf_static`` mounts them, the cameras of other inputs of several (a recording of a rig, opened
+by its reader's ``cameras``), and the frames of several sources merged in time order.
 
 A bag holds several cameras when its depth topics (or, without depth images, its organized
 clouds) lie in several namespaces (:func:`pcdcodec.ros.topics.camera_namespaces`):
@@ -37,6 +38,7 @@ __all__ = [
     "merge_by_time",
     "open_bag_cameras",
     "open_inputs",
+    "reads_as_rig",
 ]
 
 
@@ -49,7 +51,9 @@ class CameraInput:
     known). ``pose_from`` says where it came from (``"/tf_static"``, the rig file, ...).
     ``frame_id`` is the camera's frame name (a bag's depth ``frame_id``). ``overrides`` holds
     what replaces the recording's settings for this camera (``color``, ``depth``: codecs as
-    :func:`pcdcodec.encode` takes them, ``None`` for no color; ``fps``).
+    :func:`pcdcodec.encode` takes them, ``None`` for no color; ``fps``). ``rig_metadata`` is
+    metadata of the whole rig the input carried (a rig recording's own), kept as it is rather
+    than under the camera's name.
     """
 
     name: str
@@ -59,6 +63,7 @@ class CameraInput:
     frame_id: str | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
     owned: bool = True
+    rig_metadata: dict[str, str] = field(default_factory=dict)
 
 
 def camera_name(text: str, taken: Iterable[str] = ()) -> str:
@@ -67,7 +72,7 @@ def camera_name(text: str, taken: Iterable[str] = ()) -> str:
     ``2024-05 run.bag`` gives ``cam_2024_05_run``."""
     parts = [p for p in re.split(r"[/\\]", text) if p]
     base = parts[-1] if parts else "camera"
-    base = re.sub(r"\.(bag|db3|mcap|mkv)$", "", base, flags=re.IGNORECASE)
+    base = re.sub(r"\.(bag|db3|mcap|mkv|pcdc)$", "", base, flags=re.IGNORECASE)
     name = re.sub(r"[^A-Za-z0-9_]+", "_", base).strip("_") or "camera"
     if not name[0].isalpha():
         name = "cam_" + name
@@ -237,11 +242,12 @@ def open_inputs(
     inputs: Sequence[str | os.PathLike[str] | Source], **options: Any
 ) -> tuple[list[CameraInput], str | None]:
     """A :class:`CameraInput` per camera of ``inputs``: each camera of a bag of several
-    cameras (named by namespace, placed by ``/tf_static``), and one per other input (named by
+    cameras (named by namespace, placed by ``/tf_static``), each camera of another input of
+    several (a recording of a rig: its names and rig poses), and one per other input (named by
     its file, placed where its bag's ``/tf_static`` says, else not placed). ``options`` go to
-    every source opened. Returns the cameras and the root frame their ``/tf_static``
-    placements share (``None`` without any). Raises :class:`~pcdcodec.InputError` when two
-    inputs place their cameras in trees with different roots."""
+    every source opened. Returns the cameras and the root frame their placements share
+    (``None`` without any). Raises :class:`~pcdcodec.InputError` when two inputs place their
+    cameras in frames with different roots."""
     from .base import detect_kind, open_source
 
     cams: list[CameraInput] = []
@@ -254,9 +260,22 @@ def open_inputs(
                 cams.append(CameraInput(name, item, owned=False))
                 continue
             path = Path(item)
-            if detect_kind(path) != "rosbag":
-                name = camera_name(path.name, taken)
-                cams.append(CameraInput(name, open_source(path, **options)))
+            kind = detect_kind(path)
+            if kind != "rosbag":
+                several = _input_cameras(path, kind, options)
+                if several is None:
+                    name = camera_name(path.name, taken)
+                    cams.append(CameraInput(name, open_source(path, **options)))
+                    continue
+                opened, root = several
+                if root is not None:
+                    roots[str(path)] = root
+                for cam in opened:
+                    # Kept as named unless an earlier input took the name.
+                    if cam.name in taken:
+                        cam.name = camera_name(cam.name, taken)
+                    taken.append(cam.name)
+                    cams.append(cam)
                 continue
             found = bag_cameras(path)
             if found.root is not None:
@@ -272,10 +291,45 @@ def open_inputs(
         close_inputs(cams)
         where = ", ".join(f"{p!r}: {r!r}" for p, r in roots.items())
         raise InputError(
-            f"the inputs' /tf_static trees have different roots ({where}); give the cameras' "
-            "extrinsics in a rig file (--rig)"
+            f"the inputs place their cameras in frames with different roots ({where}: "
+            "/tf_static trees or recorded rigs); give the cameras' extrinsics in a rig file "
+            "(--rig)"
         )
     return cams, next(iter(roots.values()), None)
+
+
+def _input_cameras(
+    path: Path, kind: str | None, options: dict[str, Any]
+) -> tuple[list[CameraInput], str | None] | None:
+    """The cameras of an input of several whose reader opens them (its ``cameras``), or
+    ``None`` for an input read as one camera."""
+    from .base import source_kind
+
+    found = source_kind(kind) if kind is not None else None
+    if found is None or found.cameras is None:
+        return None
+    result: tuple[list[CameraInput], str | None] | None = found.cameras(path, **options)
+    return result
+
+
+def reads_as_rig(path: str | os.PathLike[str]) -> bool:
+    """Whether the input at ``path`` is read as a rig: a bag of cameras in several
+    namespaces, or an input whose reader opens several (a recording of a rig). An input that
+    cannot be read is not: read as one camera, its reader says what is wrong."""
+    from .base import detect_kind
+
+    p = Path(path)
+    try:
+        kind = detect_kind(p)
+        if kind == "rosbag":
+            return len(bag_cameras(p)) > 1
+        found = _input_cameras(p, kind, {})
+    except PcdcodecError:
+        return False
+    if found is None:
+        return False
+    close_inputs(found[0])
+    return True
 
 
 def close_inputs(cameras: Iterable[CameraInput]) -> None:
