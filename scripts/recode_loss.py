@@ -27,7 +27,7 @@ CODECS: dict[str, Any] = {
         "id": "av1",
         "gop": 1,
         "crf": 52,
-        "preset": 6,
+        "preset": 8,
         "low_delay": True,
     },
     "h264 (default)": "h264",
