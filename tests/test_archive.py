@@ -966,3 +966,13 @@ def test_delete_source_removes_links_not_their_targets(tmp_path: Path) -> None:
     kept = ArchiveItem("a", "out/a.pcdc", "verified", error="verified, but the source could not")
     text = ArchiveSummary([kept], 1.0, 1).to_text()
     assert "WARNING a: verified, but the source could not" in text
+
+
+def test_local_workers_run_without_the_stack_sampling_profiler() -> None:
+    """The workers of a run's own cluster do not sample every thread's stack: in thread workers
+    the sampling deadlocked against a garbage collection that freed an FFmpeg object."""
+    from pcdcodec.archive.run import _cluster
+
+    with _cluster(None, 1, False) as client:
+        sampling = client.run(lambda dask_worker: "profile" in dask_worker.periodic_callbacks)
+    assert list(sampling.values()) == [False]

@@ -231,7 +231,14 @@ def _cluster(scheduler: str | None, workers: int | None, processes: bool) -> Ite
             yield client
         return
     n = workers if workers is not None else (os.cpu_count() or 1)
+    dask: Any = importlib.import_module("dask")
     with (
+        # Dask's worker profiler samples every thread's stack (sys._current_frames) 100 times a
+        # second. CPython holds its thread-list lock while doing so, and a garbage collection
+        # run inside it that frees an FFmpeg object (which lets go of the GIL to free it)
+        # deadlocks against any thread starting at that moment: seen as a hung run with
+        # thread workers. The profile is of no use to a run, so its workers go without.
+        dask.config.set({"distributed.worker.profile.enabled": False}),
         dist.LocalCluster(
             n_workers=n,
             threads_per_worker=1,
