@@ -17,7 +17,8 @@ all of them:
   for the recording, also in order through ``IterableRecordingDataset``): frames per second
   from its first batch to its last.
 
-The bytes per frame of each way of storing the frames come with them.
+The bytes per frame of each way of storing the frames come with them, and the CPU time that
+writing each recording took per frame (every thread of the process: color and depth encoding).
 
     python benchmarks/dataloader_throughput.py --rounds 3
     python benchmarks/dataloader_throughput.py --variants training h264:gop=5 av1:gop=2 \
@@ -211,10 +212,12 @@ def measure(name: str, work: Path, args: argparse.Namespace, rng: random.Random)
     """Write set ``name`` each way into ``work``, measure, print its tables."""
     loader_gop = args.loader_variant or args.variants[0]
     seq = sequence(name)
-    recs = {
-        g: write_recording(seq, work / f"variant{k}.pcdc", args.frames, g)
-        for k, g in enumerate(args.variants)
-    }
+    recs: dict[str, Path] = {}
+    encode_ms: dict[str, float] = {}
+    for k, g in enumerate(args.variants):
+        c0 = time.process_time()  # every thread of the process: the encoders' too
+        recs[g] = write_recording(seq, work / f"variant{k}.pcdc", args.frames, g)
+        encode_ms[f"pcdc {g}"] = (time.process_time() - c0) * 1000 / args.frames
     quality = {f"pcdc {g}": color_quality(seq, p, args.frames) for g, p in recs.items()}
     png, npy = write_files(seq, work, args.frames)
     n = args.frames
@@ -261,17 +264,18 @@ def measure(name: str, work: Path, args: argparse.Namespace, rng: random.Random)
     print(f"\n## {name}: {n} frames of {seq.intrinsics.width}x{seq.intrinsics.height}")
     print(
         "\n| stored as | bytes/frame | PNG / this | npy / this | color PSNR, dB (lowest) "
-        "| random fps | in order fps | CPU: random fps | in order fps |"
+        "| random fps | in order fps | CPU: random fps | in order fps | encode CPU ms/frame |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for label, size in sizes.items():
         r, o = f"{label}|random", f"{label}|in order"
         mean, low = quality.get(label, (99.0, 99.0))
+        encode = f"{encode_ms[label]:.1f}" if label in encode_ms else "-"
         print(
             f"| {label} | {size:,.0f} | {sizes['PNG'] / size:.1f} | {sizes['npy'] / size:.1f} | "
             f"{mean:.2f} ({low:.2f}) | "
             f"{spread(wall[r])} | "
-            f"{spread(wall[o])} | {spread(cpu[r])} | {spread(cpu[o])} |"
+            f"{spread(wall[o])} | {spread(cpu[r])} | {spread(cpu[o])} | {encode} |"
         )
     if not args.workers:
         return
