@@ -128,6 +128,25 @@ def test_depth_only_and_float_metres(tmp_path: Path, sample: RGBDSequence) -> No
         assert len(points) == int(np.isfinite(metres[2]).sum())
 
 
+def test_a_recording_holds_one_depth_type(tmp_path: Path, sample: RGBDSequence) -> None:
+    """uint16 units and float32 values under one depth_scale would read back with one of them
+    scaled wrong: the second type is refused, and the frames written before are kept."""
+    metres = np.where(sample[0].depth > 0, sample[0].depth / 5000.0, np.nan).astype(np.float32)
+    for first, second in ((metres, sample[1].depth), (sample[1].depth, metres)):
+        path = tmp_path / f"{first.dtype}.pcdc"
+        with pcdcodec.open(
+            path, "w", intrinsics=sample.intrinsics, depth_scale=1.0, color=None, depth="zstd"
+        ) as w:
+            w.write(None, first, 1)
+            with pytest.raises(pcdcodec.InputError, match=f"{second.dtype}.*{first.dtype}"):
+                w.write(None, second, 2)
+            w.write(None, first, 3)
+        with pcdcodec.open(path) as rec:
+            assert len(rec) == 2
+            assert all(f.depth.dtype == first.dtype for f in rec)
+            assert np.array_equal(rec[1].depth, first, equal_nan=True)
+
+
 def test_float_metres_need_the_depth_scale_given(tmp_path: Path, sample: RGBDSequence) -> None:
     """Without depth_scale, float32 metres would be read at the uint16 default of 1000 units per
     metre, 1000x too near: the writer refuses the frame and keeps what was written."""

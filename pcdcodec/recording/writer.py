@@ -226,6 +226,7 @@ class RecordingWriter(FrameInputs):
             self._open_file(overwrite, video_format, user)
         self._encoder: VideoEncoder | None = None
         self._shape: tuple[int, int] | None = None
+        self._depth_dtype: np.dtype[Any] | None = None
         self._last_ts: int | None = None
         self._pipeline = Pipeline(in_flight, lambda: self._drain_one())
         self._sync: Any = None
@@ -460,10 +461,19 @@ class RecordingWriter(FrameInputs):
             self._start_stream(
                 d.shape[0], d.shape[1], timestamp, encoded=encoded, extradata=extradata
             )
+            self._depth_dtype = d.dtype
         elif d.shape != self._shape:
             raise InputError(
                 f"depth is {d.shape[1]}x{d.shape[0]}, but this recording's frames are "
                 f"{self._shape[1]}x{self._shape[0]} (width x height)"
+            )
+        elif d.dtype != self._depth_dtype:
+            # One depth_scale holds for the whole recording: uint16 units and float32 values
+            # mixed would read back with one of them scaled wrong.
+            raise InputError(
+                f"depth is {d.dtype}, but this recording's frames are {self._depth_dtype}: "
+                "one recording holds one depth type (convert with as_uint16_depth, or "
+                "astype(np.float32), before writing)"
             )
 
     def _enqueue(
