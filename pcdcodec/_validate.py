@@ -71,7 +71,14 @@ def check_depth(
     dname = _dtype_name(arr.dtype)
     if dname not in allowed:
         hint = ""
-        if "uint16" in allowed and arr.dtype.kind in "iuf":
+        if arr.dtype == np.float32 and "float32" not in allowed:
+            hint = (
+                "; float32 depth needs a codec that takes it (lz4, zstd, jpegxl, depthac), or "
+                "depth units: pcdcodec.as_uint16_depth(np.round(metres * depth_scale))"
+            )
+        elif arr.dtype.kind == "f" and "float32" in allowed:
+            hint = "; metres as float32: depth.astype(np.float32)"
+        elif "uint16" in allowed and arr.dtype.kind in "iuf":
             hint = "; pcdcodec.as_uint16_depth converts integer-valued arrays exactly"
         raise InputTypeError(f"{name} must be {' or '.join(allowed)}, got {arr.dtype}{hint}")
     out: npt.NDArray[Any] = np.ascontiguousarray(arr, dtype=_DEPTH_DTYPES[dname])
@@ -189,7 +196,9 @@ def check_int(
     if value is None and none_ok:
         return
     if isinstance(value, bool) or not isinstance(value, int):
-        raise InputTypeError(f"{owner} {name} must be an int, got {type(value).__name__}")
+        raise InputTypeError(
+            f"{owner} {name} must be an int, got {value!r} ({type(value).__name__})"
+        )
     if not lo <= value <= hi:
         raise InputError(f"{owner} {name} must be in {lo}..{hi}, got {value}")
 
@@ -197,14 +206,17 @@ def check_int(
 def check_number(owner: str, name: str, value: Any, lo: float, hi: float) -> None:
     """Check a codec parameter is a number in ``lo..hi``."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputTypeError(f"{owner} {name} must be a number, got {type(value).__name__}")
+        raise InputTypeError(
+            f"{owner} {name} must be a number, got {value!r} ({type(value).__name__})"
+        )
     if not lo <= value <= hi:
         raise InputError(f"{owner} {name} must be in {lo}..{hi}, got {value}")
 
 
 def check_choice(owner: str, name: str, value: Any, choices: tuple[Any, ...]) -> None:
-    """Check a codec parameter is one of ``choices``."""
-    if value not in choices:
+    """Check a codec parameter is one of ``choices`` (a bool only where the choices are bools:
+    ``1 == True``, but a recorded ``1`` is not the ``true`` a reader of the config expects)."""
+    if not any(isinstance(value, bool) == isinstance(c, bool) and value == c for c in choices):
         raise InputError(f"{owner} {name} must be one of {list(choices)}, got {value!r}")
 
 

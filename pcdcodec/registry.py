@@ -176,6 +176,8 @@ def parse_codec_spec(spec: str, kind: str | None = None) -> Codec:
         key, eq, value = item.partition("=")
         if not eq:
             raise InputError(f"codec option {item!r} in {spec!r} is not key=value")
+        if key.strip() in params:
+            raise InputError(f"codec option {key.strip()!r} is given twice in {spec!r}")
         try:
             params[key.strip()] = json.loads(value)
         except json.JSONDecodeError:

@@ -203,3 +203,28 @@ def test_import_does_not_load_heavy_backends() -> None:
     )
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+def test_codec_option_errors_name_the_value_given() -> None:
+    from pcdcodec.registry import parse_codec_spec
+
+    with pytest.raises(pcdcodec.InputTypeError, match=r"av1 gop must be an int, got '1;crf=52'"):
+        parse_codec_spec("av1:gop=1;crf=52", kind="color")
+    with pytest.raises(pcdcodec.InputTypeError, match=r"h264 crf must be a number, got 'abc'"):
+        parse_codec_spec("h264:crf=abc", kind="color")
+    with pytest.raises(pcdcodec.InputError, match="'gop' is given twice"):
+        parse_codec_spec("av1:gop=1,crf=40,gop=2", kind="color")
+    # A recorded config keeps true/false: 1 is not taken for True.
+    with pytest.raises(
+        pcdcodec.InputError, match=r"low_delay must be one of \[True, False\], got 1"
+    ):
+        parse_codec_spec("av1:low_delay=1", kind="color")
+    assert parse_codec_spec("av1:low_delay=true", kind="color").get_config()["low_delay"] is True
+
+
+def test_a_depth_type_the_codec_does_not_take_gets_a_way_out() -> None:
+    metres = np.full((4, 4), 1.5, np.float32)
+    with pytest.raises(pcdcodec.InputTypeError, match="lz4, zstd, jpegxl, depthac"):
+        pcdcodec.get_codec("rvl").encode(metres)
+    with pytest.raises(pcdcodec.InputTypeError, match=r"astype\(np.float32\)"):
+        pcdcodec.get_codec("zstd").encode(metres.astype(np.float64))
