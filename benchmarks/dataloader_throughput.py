@@ -46,7 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from torch.utils.data import DataLoader, Dataset
 
 import pcdcodec
-from benchmarks.random_access import PRESENT, looped, sequence
+from benchmarks.random_access import PRESENT, SETS, looped, sequence
 from pcdcodec.registry import parse_codec_spec
 from pcdcodec.torch import TRAINING_COLOR, IterableRecordingDataset, RecordingDataset
 
@@ -182,7 +182,7 @@ def spread(values: list[float], digits: int = 0) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sets", nargs="*", default=PRESENT)
+    parser.add_argument("--sets", nargs="*", default=PRESENT, choices=[*SETS, "sample"])
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--frames", type=int, default=FRAMES)
     parser.add_argument(

@@ -62,19 +62,26 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--batch", type=int, default=4)
     args = parser.parse_args()
-    sources = args.recordings or [record_sample(Path(tempfile.mkdtemp()))]
+    if args.recordings:
+        return run(args.recordings, args.workers, args.batch)
+    with tempfile.TemporaryDirectory() as folder:  # the sample's recording goes with it
+        return run([str(record_sample(Path(folder)))], args.workers, args.batch)
+
+
+def run(sources: list[str], workers: int, batch: int) -> int:
+    """Iterate the recordings shuffled and in order, printing the throughput of each."""
     fields = ["color", "depth_metres", "pose", "index"]
 
     shuffled = RecordingDataset(sources, fields)
     print(f"{shuffled}: {len(shuffled)} frames")
     item = shuffled[0]
     print("an item: " + ", ".join(f"{k} {getattr(v, 'shape', v)}" for k, v in item.items()))
-    loader = DataLoader(shuffled, batch_size=args.batch, shuffle=True, num_workers=args.workers)
-    epoch(loader, f"shuffled, {args.workers} workers")
+    loader = DataLoader(shuffled, batch_size=batch, shuffle=True, num_workers=workers)
+    epoch(loader, f"shuffled, {workers} workers")
 
     in_order = IterableRecordingDataset(sources, fields)
-    loader = DataLoader(in_order, batch_size=args.batch, num_workers=args.workers)
-    epoch(loader, f"in order, {args.workers} workers")
+    loader = DataLoader(in_order, batch_size=batch, num_workers=workers)
+    epoch(loader, f"in order, {workers} workers")
     return 0
 
 

@@ -367,7 +367,7 @@ def test_folder_flags_on_a_bag_are_named_as_given(
     )
     assert main(["info", str(bag), "--depth-only"]) == 1
     err = capsys.readouterr().err
-    assert "--depth-only apply to RGB-D folders" in err
+    assert "--depth-only applies to RGB-D folders" in err
     assert "--color-topic ''" in err
     assert "--color " not in err
 

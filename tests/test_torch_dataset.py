@@ -169,7 +169,9 @@ def test_bad_arguments_are_refused(recordings: Path, tmp_path: Path) -> None:
         pt.RecordingDataset(str(tmp_path / "*.pcdc"))
     with pytest.raises(InputTypeError):
         pt.RecordingDataset(3)
-    with pytest.raises(InputError, match="no recording has camera 'wrist'"):
+    with pytest.raises(
+        InputError, match=r"no recording has camera 'wrist'; their cameras are \['camera'\]"
+    ):
         pt.RecordingDataset(path, cameras=["wrist"])
     with pytest.raises(InputTypeError, match="transform"):
         pt.RecordingDataset(path, transform=3)

@@ -158,7 +158,8 @@ def source_options(args: argparse.Namespace) -> dict[str, Any]:
         if "color" in folder and kind == "rosbag":  # topic flags are for ROS bags only
             hint = " (a bag's depth alone: --color-topic '')"
         raise InputError(
-            f"{' '.join(names)} apply to RGB-D folders; {args.src!r} is a {kind}{hint}"
+            f"{' '.join(names)} {'applies' if len(names) == 1 else 'apply'} to RGB-D folders; "
+            f"{args.src!r} is a {kind}{hint}"
         )
     topics = {
         "depth_topic": args.depth_topic,

@@ -152,9 +152,11 @@ class RecordingDataset(Dataset[Any]):
 
     def _catalog(self, wanted: tuple[str, ...] | None) -> None:
         found: set[str] = set()
+        every: set[str] = set()
         for source in self.sources:
             rec = self._readers.recording(source)
             names = list(rec.camera_names)
+            every.update(names)
             chosen = names if wanted is None else [c for c in wanted if c in names]
             found.update(chosen)
             if self.framesets and wanted is not None and len(chosen) != len(wanted):
@@ -181,7 +183,9 @@ class RecordingDataset(Dataset[Any]):
         if wanted is not None:
             absent = [c for c in wanted if c not in found]
             if absent:
-                raise InputError(f"no recording has camera {absent[0]!r}")
+                raise InputError(
+                    f"no recording has camera {absent[0]!r}; their cameras are {sorted(every)}"
+                )
 
     def _matches(self, source: str, cameras: tuple[str, ...] | list[str]) -> npt.NDArray[np.int64]:
         """The complete frame sets of ``cameras`` in ``source``: sets × cameras frame indexes."""
