@@ -493,8 +493,11 @@ def held(*args):
         time.sleep(600)
     return out
 archive_run._encode_segment = held
-archive(sys.argv[1:-1], sys.argv[-1], workers=1, processes=False, segment_frames=3,
-        progress=False)
+summary = archive(sys.argv[1:-1], sys.argv[-1], workers=1, processes=False, segment_frames=3,
+                  progress=False)
+# Never reached while the hold works: say why the run ended.
+print(f"the run ended after {len(encoded)} segment(s):", summary.to_text(), file=sys.stderr)
+sys.exit(3)
 """
 
 
@@ -503,11 +506,14 @@ def test_whole_run_killed_then_resumed(tmp_path: Path, monkeypatch: pytest.Monke
     for n in names:
         make_input(tmp_path / "src" / n, 0, 9)
     out = tmp_path / "out"
-    run = subprocess.Popen(
-        [sys.executable, "-c", _RUN, str(tmp_path / "src"), str(out)],
-        env={**os.environ, "PYTHONPATH": str(REPO)},
-        start_new_session=True,
-    )
+    log = tmp_path / "run.log"
+    with log.open("wb") as err:
+        run = subprocess.Popen(
+            [sys.executable, "-c", _RUN, str(tmp_path / "src"), str(out)],
+            env={**os.environ, "PYTHONPATH": str(REPO)},
+            start_new_session=True,
+            stderr=err,
+        )
     try:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline and run.poll() is None:
@@ -516,7 +522,10 @@ def test_whole_run_killed_then_resumed(tmp_path: Path, monkeypatch: pytest.Monke
             if any(e.get("state") == "done" for e in entries.values()) and parts:
                 break
             time.sleep(0.02)
-        assert run.poll() is None, "the run ended before it could be killed"
+        assert run.poll() is None, (
+            f"the run ended (exit {run.returncode}) before it could be killed: "
+            + log.read_text(errors="replace")[-3000:]
+        )
         os.killpg(run.pid, signal.SIGKILL)
     finally:
         run.wait()
