@@ -8,8 +8,10 @@ cameras' clouds (numpy, legacy and tensor Open3D) in the rig frame.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+from itertools import accumulate
 from typing import Any, Protocol
 
 import numpy as np
@@ -212,41 +214,94 @@ def match_times(
     time (summed distance), ties broken the same way every time.
 
     Both lists are sorted, so some best matching never crosses (a later set never takes an
-    earlier frame than an earlier set); it is found set by set, keeping for each frame that
-    may still be taken the best matching so far whose last frame is that one.
+    earlier frame than an earlier set). It is found in one pass over the frames of both lists
+    in time order, in time linear in their number (:func:`_match_in_order`).
     """
     n, m = len(reference), len(other)
     out = np.full(n, -1, np.int64)
     if not n or not m:
         return out
-    lo = np.searchsorted(other, reference - tolerance_ns, side="left")
-    hi = np.searchsorted(other, reference + tolerance_ns, side="right")
-    ref, oth = reference.tolist(), other.tolist()
-    # last frame taken -> (sets filled, -summed distance), and the matching as a linked list
-    # of (set, frame, rest); -1: no frame taken yet, or only frames no later set can take.
-    best: dict[int, tuple[tuple[int, int], Any]] = {-1: ((0, 0), None)}
-    for k in range(n):
-        a, b = int(lo[k]), int(hi[k])
-        # Frames before this set's window can be taken by no later set either: fold them.
-        folded = [j for j in best if j < a]
-        if len(folded) > 1 or (folded and folded[0] != -1):
-            keep = max((best[j] for j in folded), key=lambda e: e[0])
-            for j in folded:
-                del best[j]
-            best[-1] = keep
-        taken: dict[int, tuple[tuple[int, int], Any]] = {}
-        for j in range(a, b):
-            prior = [e for u, e in best.items() if u < j]
-            (filled, dist), chain = max(prior, key=lambda e: e[0])
-            taken[j] = ((filled + 1, dist - abs(oth[j] - ref[k])), (k, j, chain))
-        for j, entry in taken.items():
-            if j not in best or entry[0] > best[j][0]:
-                best[j] = entry
-    _, chain = max(best.values(), key=lambda e: e[0])
-    while chain is not None:
-        k, j, chain = chain
+    for k, j in _match_in_order(reference.tolist(), other.tolist(), int(tolerance_ns)):
         out[k] = j
     return out
+
+
+# A state of the pass: frames of one list taken but not yet matched (a frame of the other list
+# closes the oldest); [oldest frame's index - the list's closes so far, sets filled, summed
+# distance (negated), each less the list's offsets; the pass's best before, first own index,
+# first index of the other list].
+_State = list[Any]
+
+
+def _match_in_order(ref: list[int], oth: list[int], tol: int) -> Iterator[tuple[int, int]]:
+    """The pairs (reference index, other index) of a best non-crossing matching.
+
+    The frames are walked in time order. In a best matching, the frames taken and not yet
+    matched are all of one list (else two pairs would cross), are that list's newest frames
+    (a skipped newer frame could take the place of an older one, nearer to every later frame),
+    and a frame of the other list that arrives while some wait is matched to the oldest of them
+    (shifting each waiting frame one frame earlier only brings it nearer). So a state is one
+    list's frames from an index on, and one arrival moves every state of a list alike: the
+    states of a list are kept in a deque with offsets added to all of them at once, each
+    state's value counted as if its waiting frames cost nothing yet. A waiting frame may be
+    dropped at no cost, so along a deque the values grow towards its newest state, and the
+    state with nothing waiting is the best of all: states whose oldest frame is out of
+    tolerance fall off the front, and only the newest state can become the best."""
+    times = (ref, oth)
+    sums = (list(accumulate(ref, initial=0)), list(accumulate(oth, initial=0)))
+    chains: tuple[deque[_State], deque[_State]] = (deque(), deque())
+    closes = [0, 0]
+    off_filled = [0, 0]
+    off_dist = [0, 0]
+    arrived = [0, 0]
+    best: tuple[int, int] = (0, 0)
+    # The best matching as a linked list of runs: (rest, side, first own, first other, count).
+    best_runs: Any = None
+    n = len(ref)
+    i = j = 0
+    while i < n or j < len(oth):
+        side = 0 if j == len(oth) or (i < n and ref[i] <= oth[j]) else 1
+        t = ref[i] if side == 0 else oth[j]
+        opp = 1 - side
+        chain, own = chains[opp], times[opp]
+        # States of the other list whose oldest waiting frame is too far back to be matched.
+        while chain and t - own[chain[0][0] + closes[opp]] > tol:
+            chain.popleft()
+        before, before_runs = best, best_runs
+        if chain:  # every state of the other list matches its oldest waiting frame to t
+            closes[opp] += 1
+            off_filled[opp] += 1
+            off_dist[opp] -= t
+            top = chain[-1]
+            start = top[0] + closes[opp]
+            value = (top[1] + off_filled[opp], top[2] + sums[opp][start] + off_dist[opp])
+            if value > best:
+                best = value
+                best_runs = (top[3], opp, top[4], top[5], start - top[4])
+            if start == arrived[opp]:
+                chain.pop()
+        # The state that takes this frame to wait, from the best before it.
+        k = arrived[side]
+        chains[side].append(
+            [
+                k - closes[side],
+                before[0] - off_filled[side],
+                before[1] - sums[side][k] - off_dist[side],
+                before_runs,
+                k,
+                arrived[opp],
+            ]
+        )
+        arrived[side] += 1
+        if side == 0:
+            i += 1
+        else:
+            j += 1
+    runs = best_runs
+    while runs is not None:
+        runs, side, first, first_other, count = runs
+        for c in range(count):
+            yield (first + c, first_other + c) if side == 0 else (first_other + c, first + c)
 
 
 def framesets(rig: _Rig, tolerance: float | None, reference: str | None) -> FrameSets:
