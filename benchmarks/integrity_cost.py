@@ -21,7 +21,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pcdcodec
-from tests.recording_rewrite import rewrite
+from pcdcodec.recording.rewrite import rewrite
 
 
 def timed(step: Callable[[], object]) -> float:

@@ -1,4 +1,4 @@
-"""Mutated ROS bags: what ``tests/test_fuzz_bags.py`` and ``scripts/fuzz_bags.py`` run.
+"""Mutated ROS bags: what ``tests/test_fuzz_bags.py`` and ``tests/run_fuzz_bags.py`` run.
 
 A small clean bag is built for each storage format (ROS 1, ROS 2 sqlite3, ROS 2 mcap) from the
 bundled sample at 40x30: a CameraInfo, depth as a 16UC1 Image, as a compressedDepth PNG and as a

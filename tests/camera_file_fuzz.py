@@ -1,7 +1,7 @@
 """Structural fuzzing of camera files: RealSense ``.bag`` and Azure Kinect ``.mkv``.
 
 Shared by ``tests/test_fuzz_camera_files.py`` (a few hundred seeded cases) and
-``scripts/fuzz_camera_files.py`` (thousands). Small clean files are built here the way the
+``tests/run_fuzz_camera_files.py`` (thousands). Small clean files are built here the way the
 cameras' own software writes them (librealsense's topics in a ROS 1 bag written with rosbags;
 k4arecorder's tracks, tags and attachment in a Matroska file written element by element), and
 the real files under ``/work/shared/data/bags`` are used too when present.

@@ -1,4 +1,4 @@
-"""Counting the outcomes of a long fuzz run: what ``scripts/fuzz_*.py`` share.
+"""Counting the outcomes of a long fuzz run: what ``tests/run_fuzz_*.py`` share.
 
 Each script runs seeded cases in worker processes and hands every result to a :class:`Tally`,
 which counts outcomes by group (codec pair, bag format, clean file) and by mutation kind, keeps

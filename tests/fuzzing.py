@@ -1,4 +1,4 @@
-"""Mutations of encoded depth frames, shared by the fuzz test and ``scripts/fuzz_depth.py``.
+"""Mutations of encoded depth frames, shared by the fuzz test and ``tests/run_fuzz_depth.py``.
 
 A decoder facing hostile bytes must raise :class:`pcdcodec.DecodeError` or give back exactly
 the original image: never crash, hang, or return a wrong image. The mutations hit the body

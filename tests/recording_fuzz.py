@@ -1,4 +1,4 @@
-"""Mutated recordings: what ``tests/test_fuzz_recording.py`` and ``scripts/fuzz_recordings.py`` run.
+"""Mutated recordings: what ``tests/test_fuzz_recording.py`` and ``run_fuzz_recordings.py`` run.
 
 A clean recording is written for each codec pair and decoded once. Each case changes its bytes
 (bit flips, overwrites, zeroed or special values, truncation, deletion, duplication), most of
@@ -33,8 +33,7 @@ from typing import Any
 import numpy as np
 
 import pcdcodec
-
-from .recording_rewrite import read, write
+from pcdcodec.recording.rewrite import read, write
 
 #: name -> writer options; small frames so a case takes milliseconds.
 CONFIGS: dict[str, dict[str, Any]] = {

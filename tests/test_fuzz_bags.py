@@ -6,7 +6,7 @@ bytes are changed; only pcdcodec's own errors naming the bag may come out, no da
 from the clean bag where the change could not legitimately alter it, memory stays within a
 bound that follows the declared camera (the address space is capped while a view reads), and
 nothing hangs (a watchdog dumps every thread's stack and stops the run).
-``scripts/fuzz_bags.py`` runs the same cases by the thousands.
+``tests/run_fuzz_bags.py`` runs the same cases by the thousands.
 """
 
 from __future__ import annotations

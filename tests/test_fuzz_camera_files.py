@@ -4,7 +4,7 @@ files (and of the real ones when present), each opened and read in full.
 Only pcdcodec's own errors naming the file may come out, nothing may hang (a watchdog dumps
 every thread's stack and stops the run), memory stays within a bound set by the cameras, and no
 frame may differ from the clean file's unless the mutation declares it (see
-``tests/camera_file_fuzz.py``). ``scripts/fuzz_camera_files.py`` runs the same cases by the
+``tests/camera_file_fuzz.py``). ``tests/run_fuzz_camera_files.py`` runs the same cases by the
 thousands.
 """
 

@@ -2,7 +2,7 @@
 
 Only pcdcodec's own errors may come out, nothing may hang (a watchdog dumps every thread's stack
 and stops the run), and no frame or setting may differ from the clean file's without an error.
-``scripts/fuzz_recordings.py`` runs the same cases by the tens of thousands.
+``tests/run_fuzz_recordings.py`` runs the same cases by the tens of thousands.
 """
 
 from __future__ import annotations

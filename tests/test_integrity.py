@@ -16,9 +16,9 @@ import pcdcodec
 from pcdcodec.cli import main
 from pcdcodec.datasets import load_sample
 from pcdcodec.recording import _index as fmt
+from pcdcodec.recording.rewrite import rewrite
 
 from .golden.make_recording_golden import GOLDEN, golden_frames
-from .recording_rewrite import rewrite
 
 W, H = 160, 120
 CAMERA = pcdcodec.CameraIntrinsics(W, H, 525.0, 525.0, 79.5, 59.5)

@@ -15,9 +15,8 @@ import pcdcodec
 from pcdcodec.recording import _index as fmt
 from pcdcodec.recording._readahead import ReadAhead
 from pcdcodec.recording.reader import READ_AHEAD
+from pcdcodec.recording.rewrite import Message, positions, rewrite, with_data
 from pcdcodec.registry import codec_class
-
-from .recording_rewrite import Message, positions, rewrite, with_data
 
 W, H = 64, 48
 CAMERA = pcdcodec.CameraIntrinsics(W, H, 52.5, 52.5, 31.5, 23.5)

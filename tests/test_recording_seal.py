@@ -2,7 +2,7 @@
 whose frames or colors are not what was written, are refused or reported, never read wrong.
 
 Each hostile file is a clean recording rewritten with the ``mcap`` library
-(``tests/recording_rewrite.py``), so every CRC and the summary match its new contents.
+(``pcdcodec/recording/rewrite.py``), so every CRC and the summary match its new contents.
 """
 
 from __future__ import annotations
@@ -17,8 +17,7 @@ import pcdcodec
 from pcdcodec.cli import main
 from pcdcodec.recording import _index as fmt
 from pcdcodec.recording.join import join
-
-from .recording_rewrite import (
+from pcdcodec.recording.rewrite import (
     Message,
     positions,
     read,
