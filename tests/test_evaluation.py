@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import pcdcodec
+from pcdcodec.bench.results import default_setting
 from pcdcodec.datasets import RGBDSequence, load_sample, sample_dir
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -248,3 +249,47 @@ def test_stream_rows_tell_a_bounded_depth_codec_from_the_lossless_one(tiny: RGBD
     assert rows["depthac"].lossless
     assert not rows["depthac (max_rel_error=0.01)"].lossless
     assert rows["depthac (max_rel_error=0.01)"].bytes_per_frame < rows["depthac"].bytes_per_frame
+
+
+def test_each_curve_passes_through_its_table_row_and_stars_the_default() -> None:
+    # 12 frames: more than a short sweep would take, so a curve measured on fewer frames than
+    # Table I would put its point elsewhere.
+    seq = load_sample(max_frames=12)
+    ev = pcdcodec.evaluate(seq, depth=["lz4"], color=["h264", {"id": "h265", "crf": 28}], frames=12)
+    h264, h265 = ev.color
+    assert h264.frames == h265.frames == 12
+    curves = {name: {p.setting: p for p in ev.rd if p.codec == name} for name in ("h264", "h265")}
+    # h264 at its default: the starred point is Table I's row.
+    star = curves["h264"][default_setting("h264") or ""]
+    assert (star.bits_per_pixel, star.psnr) == (h264.bits_per_pixel, h264.psnr)
+    # h265 measured at crf=28: that point is its row; its default (crf=24) is on the curve too.
+    assert default_setting("h265") == "crf=24"
+    assert (curves["h265"]["crf=28"].bits_per_pixel, curves["h265"]["crf=28"].psnr) == (
+        h265.bits_per_pixel,
+        h265.psnr,
+    )
+    default = curves["h265"]["crf=24"]
+    assert default.bits_per_pixel > h265.bits_per_pixel  # a lower crf spends more bits
+    assert sorted(curves["h265"]) == ["crf=16", "crf=22", "crf=24", "crf=28", "crf=34"]
+
+
+def test_the_color_codecs_people_choose_between_are_compared_by_default(tmp_path: Path) -> None:
+    available = pcdcodec.list_codecs("color", available_only=True)
+    expected = [name for name in ("h264", "h265", "av1") if name in available]
+    assert "h264" in expected
+    ev = pcdcodec.evaluate(load_sample(max_frames=2), depth=["lz4"], rd=False)
+    assert [c.codec for c in ev.color] == expected
+    assert [(s.color, s.depth) for s in ev.streams] == [(name, "lz4") for name in expected]
+    command = ["bench", str(sample_dir()), "--frames", "2", "--depth", "lz4", "--no-rd", "-q"]
+    result = subprocess.run(
+        [sys.executable, "-m", "pcdcodec", *command],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr
+    table = result.stdout.split("Table I:", 1)[1].split("Table II", 1)[0]
+    assert [line.split("|")[1].strip() for line in table.splitlines() if line.startswith("| ")][
+        1:
+    ] == expected

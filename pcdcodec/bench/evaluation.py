@@ -23,7 +23,6 @@ import numpy as np
 import numpy.typing as npt
 
 from ..codec import Codec
-from ..color import DEFAULT_COLOR_CODEC
 from ..color.base import StreamCodec, decode_packets, encode_frames
 from ..datasets import RGBDFrame, RGBDSequence, open_folder
 from ..depth.base import FrameCodec
@@ -32,22 +31,25 @@ from ..geometry.camera import CameraIntrinsics
 from ..geometry.projector import Projector
 from ..metrics import depth_error, point_to_point, psnr, ssim
 from ..recording import open as open_recording
-from ..registry import get_codec, list_codecs
+from ..registry import codec_class, get_codec, list_codecs
 from ..sources import open_source
 from ..sources.base import detect_kind
 from .peers import evaluate_peers
 from .report import Evaluation
 from .results import (
+    COMPARED_COLOR_CODECS,
     POINTCLOUD2_BYTES_PER_POINT,
     RD_SETTINGS,
     ColorRow,
     DepthRow,
     RDPoint,
     StreamRow,
+    rd_setting,
 )
 from .results import config_label as _label
 
 __all__ = [
+    "COMPARED_COLOR_CODECS",
     "POINTCLOUD2_BYTES_PER_POINT",
     "RD_SETTINGS",
     "ColorRow",
@@ -118,7 +120,7 @@ def evaluate(
     source: Any,
     *,
     depth: Sequence[str | dict[str, Any] | Codec] | None = None,
-    color: Sequence[str | dict[str, Any] | Codec] = (DEFAULT_COLOR_CODEC,),
+    color: Sequence[str | dict[str, Any] | Codec] | None = None,
     frames: int | None = 30,
     intrinsics: CameraIntrinsics | None = None,
     depth_scale: float | None = None,
@@ -130,12 +132,14 @@ def evaluate(
 
     ``source`` is an :class:`~pcdcodec.RGBDSequence`, an RGB-D folder (as ``pcdcodec encode``
     reads) or a ``.pcdc`` recording (its decoded frames are the reference). ``depth`` and
-    ``color`` name codecs or give configs (default: every available depth codec, and
-    ``h264``). ``frames`` limits the frames used (``None`` for all). ``rd`` adds the color
-    rate-distortion sweep (:data:`RD_SETTINGS`); ``peers`` adds the optional peer rows
-    (:mod:`pcdcodec.bench.peers`, when installed). ``progress`` is called with a short description
-    of
-    each step. Raises :class:`~pcdcodec.InputError` for an empty source or unknown codecs.
+    ``color`` name codecs or give configs (default: every available depth codec, and the
+    available ones of :data:`COMPARED_COLOR_CODECS`, h264, h265 and AV1). ``frames`` limits the
+    frames used (``None`` for all). ``rd`` adds the color rate-distortion sweep
+    (:data:`RD_SETTINGS`, on the same frames as the color rows: the point at a codec's own
+    setting is its color row); ``peers`` adds the optional peer rows
+    (:mod:`pcdcodec.bench.peers`, when installed). ``progress`` is called with a short
+    description of each step. Raises :class:`~pcdcodec.InputError` for an empty source or
+    unknown codecs.
     """
     say = progress or (lambda _msg: None)
     name, items, cam, scale = frames_of(source, frames, intrinsics, depth_scale)
@@ -153,6 +157,9 @@ def evaluate(
     depth_codecs = [
         get_codec(s, kind="depth") if isinstance(s, (str, dict)) else s for s in depth_specs
     ]
+    if color is None:
+        available = list_codecs("color", available_only=True)
+        color = [name for name in COMPARED_COLOR_CODECS if name in available]
     color_codecs = [get_codec(s, kind="color") if isinstance(s, (str, dict)) else s for s in color]
     for codec in depth_codecs:
         assert isinstance(codec, FrameCodec)
@@ -162,17 +169,10 @@ def evaluate(
         if not isinstance(codec, StreamCodec):
             raise InputError(f"color codec {codec.name!r} is not a stream codec")
         say(f"color {codec.name}")
-        result.color.append(_color_row(codec, colors))
+        row = _color_row(codec, colors)
+        result.color.append(row)
         if rd and codec.name in RD_SETTINGS and not codec.lossless:
-            key, values = RD_SETTINGS[codec.name]
-            for value in values:
-                say(f"color {codec.name} {key}={value}")
-                variant = get_codec({**codec.get_config(), key: value})
-                assert isinstance(variant, StreamCodec)
-                row = _color_row(variant, colors[: min(len(colors), 10)], quality=False)
-                result.rd.append(
-                    RDPoint(codec.name, f"{key}={value}", row.bits_per_pixel, row.psnr)
-                )
+            result.rd.extend(_rd_curve(codec, row, colors, say))
     raw_rgbd = width * height * 5
     pc2 = result.pointcloud2_bytes_per_frame
     for c in result.color:
@@ -191,6 +191,33 @@ def evaluate(
     if peers:
         result.peers = evaluate_peers(items, cam, scale)
     return result
+
+
+def _rd_curve(
+    codec: StreamCodec,
+    row: ColorRow,
+    colors: list[npt.NDArray[np.uint8]],
+    say: Callable[[str], None],
+) -> list[RDPoint]:
+    """``codec``'s rate-distortion points on the frames of its color row: the swept settings,
+    its default and its own; the point at its own setting is ``row`` itself, so the curve
+    passes through the table's row."""
+    key, values = RD_SETTINGS[codec.name]
+    config = codec.get_config()
+    default: float = codec_class(codec.name)().get_config()[key]
+    own: float = config[key]
+    points = []
+    for value in sorted({*values, default, own}):
+        setting = rd_setting(key, value)
+        if value == own:
+            measured = row
+        else:
+            say(f"color {codec.name} {setting}")
+            variant = get_codec({**config, key: value})
+            assert isinstance(variant, StreamCodec)
+            measured = _color_row(variant, colors, quality=False)
+        points.append(RDPoint(codec.name, setting, measured.bits_per_pixel, measured.psnr))
+    return points
 
 
 def _depth_row(

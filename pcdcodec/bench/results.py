@@ -11,6 +11,7 @@ from typing import Any
 from ..registry import codec_class
 
 __all__ = [
+    "COMPARED_COLOR_CODECS",
     "POINTCLOUD2_BYTES_PER_POINT",
     "RD_SETTINGS",
     "ColorRow",
@@ -18,13 +19,19 @@ __all__ = [
     "RDPoint",
     "StreamRow",
     "config_label",
+    "rd_setting",
 ]
 
 #: Bytes per point of a PointCloud2 with float32 x, y, z, packed RGB and padding, as ROS
 #: publishes RGB-D clouds (organized: one point per pixel).
 POINTCLOUD2_BYTES_PER_POINT = 32
 
-#: Quality settings swept for the color rate-distortion curves.
+#: The color codecs compared when none are named: the lossy video codecs people choose
+#: between (those of them that are available).
+COMPARED_COLOR_CODECS = ("h264", "h265", "av1")
+
+#: Quality settings swept for the color rate-distortion curves (each codec's default setting,
+#: and the setting of the codec measured, are added to its sweep).
 RD_SETTINGS: dict[str, tuple[str, tuple[int, ...]]] = {
     "h264": ("crf", (14, 18, 23, 28, 33)),
     "h265": ("crf", (16, 22, 28, 34)),
@@ -105,10 +112,17 @@ def config_label(config: dict[str, Any]) -> str:
     return f"{name} ({', '.join(changed)})" if changed else name
 
 
+def rd_setting(key: str, value: Any) -> str:
+    """``"crf=18"``: a swept setting as RD points name it (18.0 and 18 alike)."""
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    return f"{key}={value}"
+
+
 def default_setting(codec: str) -> str | None:
     """``"crf=23"``: the swept setting at the codec's default, as RD points name it."""
     if codec not in RD_SETTINGS:
         return None
     key = RD_SETTINGS[codec][0]
     cls = codec_class(codec)
-    return f"{key}={cls().get_config().get(key)}" if cls.is_available() else None
+    return rd_setting(key, cls().get_config().get(key)) if cls.is_available() else None

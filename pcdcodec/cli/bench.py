@@ -119,7 +119,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     result = evaluate(
         source,
         depth=parse_codec_specs(args.depth, "depth") if args.depth else None,
-        color=parse_codec_specs(args.color, "color"),
+        color=parse_codec_specs(args.color, "color") if args.color else None,
         frames=frames,
         intrinsics=intrinsics,
         depth_scale=depth_scale,

@@ -333,7 +333,11 @@ def _bench_options(p: argparse.ArgumentParser) -> None:
         "src", help="a .pcdc recording, or what `encode` accepts: a folder, bag or camera file"
     )
     p.add_argument("--depth", default=None, help="depth codecs, comma-separated (default: all)")
-    p.add_argument("--color", default=DEFAULT_COLOR_CODEC, help="color codecs, comma-separated")
+    p.add_argument(
+        "--color",
+        default=None,
+        help="color codecs, comma-separated (default: h264, h265, av1: those available)",
+    )
     p.add_argument("--frames", type=int, default=30, help="frames to use (default: %(default)s)")
     p.add_argument(
         "-o",
