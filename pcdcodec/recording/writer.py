@@ -123,10 +123,12 @@ class RecordingWriter(FrameInputs):
     until one is written, so memory stays bounded however long the recording. If the process
     dies, every frame whose messages were written (``frames_complete``) can be read back, and
     ``pcdcodec recover`` rewrites the file with an index. Lost are only the frames not yet
-    encoded (at 30 fps with the default codecs, at most the frame being handed in) and those a
-    video encoder holds back, which at the codecs' defaults (``low_delay=True``) is none, except
-    for AV1 (about 55; see ``docs/format.md``). An error while encoding or writing a frame in
-    the background is raised by the next :meth:`write`, :meth:`flush` or :meth:`close`.
+    encoded (at 30 fps with the default codecs, at most the frame being handed in, from the
+    first frame on: the codecs are made ready while the writer opens, see :attr:`ready`) and
+    those a video encoder holds back, which at the codecs' defaults (``low_delay=True``) is
+    none, except for AV1 (about 55; see ``docs/format.md``). An error while encoding or
+    writing a frame in the background is raised by the next :meth:`write`, :meth:`flush` or
+    :meth:`close`.
     """
 
     _file: IO[bytes]
