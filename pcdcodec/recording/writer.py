@@ -208,14 +208,6 @@ class RecordingWriter(FrameInputs):
         )
 
         video_format = self.color_codec.video_format if self.color_codec else None
-        self._encoder: VideoEncoder | None = None
-        self._pipeline = Pipeline(in_flight, lambda: self._drain_one())
-        # The codecs are made ready before the file is opened (a writer that fails to open
-        # leaves no file): depthac's compiled loops loaded, the video encoder open, the threads
-        # running. Else the first frames wait for them (most of a second), and a kill then
-        # loses every frame handed in meanwhile.
-        shape = (self.intrinsics.height, self.intrinsics.width)
-        self._pipeline.start(lambda: self.depth_codec.warm_up(shape), self._open_encoder)
         #: Whether this writer has the file alone (else it is one camera of a rig's file).
         self._owns_file = _shared is None
         if _shared is not None:
@@ -233,11 +225,21 @@ class RecordingWriter(FrameInputs):
                 shared=_shared,
             )
         else:
-            try:
-                self._open_file(overwrite, video_format, user)
-            except BaseException:
-                self._pipeline.abort()
-                raise
+            self._open_file(overwrite, video_format, user)
+        self._encoder: VideoEncoder | None = None
+        self._pipeline = Pipeline(in_flight, lambda: self._drain_one())
+        # The codecs are made ready now: depthac's compiled loops loaded, the video encoder
+        # open, the threads running. Else the first frames wait for them (most of a second),
+        # and a kill then loses every frame handed in meanwhile.
+        shape = (self.intrinsics.height, self.intrinsics.width)
+        try:
+            self._pipeline.start(lambda: self.depth_codec.warm_up(shape), self._open_encoder)
+        except BaseException:  # interrupted: no thread runs on, and no file is left behind
+            self._pipeline.abort()
+            if self._owns_file:
+                self._file.close()
+                self._writing.unlink(missing_ok=True)
+            raise
         self._shape: tuple[int, int] | None = None
         self._depth_dtype: np.dtype[Any] | None = None
         self._last_ts: int | None = None
