@@ -153,3 +153,56 @@ def test_playback_threads(
         play, args=(_written[name], threads, clouds), rounds=5, iterations=1, warmup_rounds=1
     )
     assert points == expected
+
+
+# A fresh process (one-off costs are paid once per process): open a writer, then write and flush
+# frames one at a time; prints how long open() took, the first frame's write() + flush(), and
+# the median of the next frames'.
+FIRST_FRAME = """
+import statistics, sys, time
+import pcdcodec
+seq = pcdcodec.load_sample(max_frames=12)
+began = time.perf_counter()
+rec = pcdcodec.open(sys.argv[1], "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale)
+took = [time.perf_counter() - began]
+for k, f in enumerate(seq):
+    began = time.perf_counter()
+    rec.write(f.color, f.depth, k * 33_333_333)
+    rec.flush()
+    took.append(time.perf_counter() - began)
+rec.close()
+print(took[0], took[1], statistics.median(took[3:]))
+"""
+
+
+def test_first_frame_against_a_steady_one(benchmark: Any, tmp_path: Path) -> None:
+    """How much longer a fresh writer's first frame takes to be written than a steady frame
+    (``extra_info["ratio"]``; the codecs are readied when the writer opens, so the ratio stays
+    near the cost of a keyframe), and how long ``open()`` takes (``open_ms``)."""
+    import subprocess
+    import sys
+
+    runs: list[tuple[float, ...]] = []
+
+    def run() -> None:
+        path = tmp_path / "first.pcdc"
+        path.unlink(missing_ok=True)
+        out = subprocess.run(
+            [sys.executable, "-c", FIRST_FRAME, str(path)],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=tmp_path,
+        ).stdout
+        runs.append(tuple(float(v) for v in out.split()))
+
+    benchmark.group = "recording: a fresh writer's first frame against a steady one"
+    benchmark.pedantic(run, rounds=5, iterations=1, warmup_rounds=1)
+    opened, first, steady = (float(np.median([r[i] for r in runs])) for i in range(3))
+    benchmark.extra_info.update(
+        kind="first-frame",
+        open_ms=round(opened * 1000, 1),
+        first_ms=round(first * 1000, 1),
+        steady_ms=round(steady * 1000, 1),
+        ratio=round(first / steady, 2),
+    )

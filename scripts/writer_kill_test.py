@@ -14,7 +14,8 @@ frame was handed in. On a machine too busy to encode 30 frames a second, frames 
 in the writer's queue, and a kill loses them too.
 
 * ``paced``: frames handed in at 30 fps, without pause. The kill comes 0.3 to 3 s after the
-  first frame is readable (past the codecs' start-up).
+  first frame is readable (past the codecs' start-up; ``scripts/writer_start_kill.py`` kills
+  from the first frame on).
 * ``idle``: bursts of 1 to 8 frames at 30 fps, each followed by an idle gap of 0.02 to 1 s; the
   kill comes at a random point of a random burst or gap. Kills 50 ms or more after the last
   ``write()`` returned are counted apart: there the writer is idle and should lose nothing.

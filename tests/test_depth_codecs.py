@@ -305,3 +305,23 @@ def test_float_value_table_falls_back_to_sorting(monkeypatch: pytest.MonkeyPatch
     assert got is not None
     np.testing.assert_array_equal(got[0], expected[0])
     np.testing.assert_array_equal(got[1], expected[1])
+
+
+@pytest.mark.parametrize("bound", [None, 0.01])
+def test_warm_up_codes_every_depth_type_and_changes_no_output(
+    codec: FrameCodec, sample_depths: list[Any], bound: float | None
+) -> None:
+    """A writer warms its depth codec up when it opens: that must work for every codec and
+    depth type it takes, bounded or not, and leave what the codec writes as it was."""
+    if bound is not None:
+        if "max_error" not in type(codec).param_names():
+            pytest.skip(f"{codec.name} takes no error bound")
+        codec = type(codec)(max_error=bound)  # type: ignore[call-arg]
+    depth = sample_depths[0]
+    before = codec.encode(depth)
+    codec.warm_up(depth.shape)
+    codec.warm_up((3, 5))  # another shape, odd sizes
+    assert codec.encode(depth) == before
+    back = codec.decode(before)
+    if bound is None:
+        assert_bit_exact(back, depth)

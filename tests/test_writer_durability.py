@@ -244,18 +244,19 @@ def test_abort_stops_the_writing_thread_before_closing_the_file(
 
 # Records the sample cut to 160x120, so the default codecs keep up with 30 fps on a busy
 # machine. Prints the number of each frame before handing it in; in "idle" mode, waits after
-# the last frame until the writer has written everything, then prints "idle".
+# the last frame until the writer has written everything, then prints "idle". Frames come at
+# most ``fps`` a second.
 KILLED_WRITER = textwrap.dedent(
     """
     import sys, time, pcdcodec
-    path, mode, count = sys.argv[1], sys.argv[2], int(sys.argv[3])
+    path, mode, count, fps = sys.argv[1], sys.argv[2], int(sys.argv[3]), float(sys.argv[4])
     seq = pcdcodec.load_sample()
     i0 = seq.intrinsics
     cam = pcdcodec.CameraIntrinsics(160, 120, i0.fx / 4, i0.fy / 4, i0.cx / 4, i0.cy / 4)
     frames = [(f.color[::4, ::4].copy(), f.depth[::4, ::4].copy()) for f in seq]
     with pcdcodec.open(path, "w", intrinsics=cam, depth_scale=seq.depth_scale) as rec:
         for k in range(count):
-            time.sleep(1 / 30)  # a frame every 33 ms at most, never a burst to catch up
+            time.sleep(1 / fps)  # never a burst to catch up
             print(k, flush=True)
             color, depth = frames[k % len(frames)]
             rec.write(color, depth, k * 33_000_000)
@@ -266,11 +267,14 @@ KILLED_WRITER = textwrap.dedent(
 )
 
 
-def _kill_writer(path: Path, mode: str, count: int, after: float) -> tuple[int, int]:
+def _kill_writer(
+    path: Path, mode: str, count: int, after: float, *, fps: float = 30, from_first: bool = False
+) -> tuple[int, int]:
     """Run the writer, kill it ``after`` seconds into its run (or once idle), and return how
-    many frames it had begun to hand in and how many a reader finds."""
+    many frames it had begun to hand in and how many a reader finds. ``from_first``: ``after``
+    counts from the first frame handed in, not from the first frame readable."""
     proc = subprocess.Popen(
-        [sys.executable, "-c", KILLED_WRITER, str(path), mode, str(count)],
+        [sys.executable, "-c", KILLED_WRITER, str(path), mode, str(count), str(fps)],
         stdout=subprocess.PIPE,
         text=True,
     )
@@ -281,7 +285,7 @@ def _kill_writer(path: Path, mode: str, count: int, after: float) -> tuple[int, 
         assert lines[0].strip() == "0", lines
         # Past the codecs' start-up (loading depthac's compiled kernels takes a while): the
         # kill comes while recording at a steady 30 fps.
-        assert _poll(lambda: _readable(path) >= 1, timeout=30)
+        assert from_first or _poll(lambda: _readable(path) >= 1, timeout=30)
         if mode == "idle":
             while lines[-1].strip() not in ("idle", ""):
                 lines.append(proc.stdout.readline())
@@ -304,6 +308,23 @@ def test_sigkill_at_30_fps_loses_at_most_the_frame_being_handed_in(
     rng = random.Random(kill)
     handed, readable = _kill_writer(tmp_path / "k.pcdc", "paced", 10_000, rng.uniform(0.2, 0.6))
     assert handed >= 5
+    assert handed - 1 <= readable <= handed
+
+
+@pytest.mark.parametrize("kill", range(3))
+def test_sigkill_from_the_first_frame_on_loses_at_most_the_frame_being_handed_in(
+    tmp_path: Path, kill: int
+) -> None:
+    """The codecs are ready when the writer opens, so its first frames are written as soon as
+    later ones: a kill a few frames in loses at most the frame being handed in. (Frames come at
+    10 a second, a margin for a busy machine; a writer that readied its codecs at its first
+    frame, most of a second, had then written none.)"""
+    rng = random.Random(kill)
+    path = tmp_path / "k.pcdc"
+    handed, readable = _kill_writer(
+        path, "paced", 10_000, rng.uniform(0.15, 0.45), fps=10, from_first=True
+    )
+    assert handed >= 2
     assert handed - 1 <= readable <= handed
 
 
@@ -506,3 +527,107 @@ def test_in_flight_can_be_changed_on_an_open_writer(tmp_path: Path, sample: RGBD
         rec.write(sample[0].color, sample[0].depth, sample[0].timestamp_ns)
     finally:
         rec.close()
+
+
+# -- the codecs are ready when the writer opens -----------------------------------------------
+
+# In a fresh interpreter (this one may have loaded depthac's loops in an earlier test): opens a
+# writer, or a rig of two cameras, and checks that the codecs are ready once open() returns.
+# Then no module may be imported, and no compiled loop loaded, while frames are written: the
+# first frames cost what later ones do, so none waits behind a one-off start-up.
+READY_AT_OPEN = textwrap.dedent(
+    """
+    import sys, threading
+    import pcdcodec
+    from pcdcodec.recording.rig import CameraSpec, RigWriter
+    path, rig = sys.argv[1], sys.argv[2] == "rig"
+    seq = pcdcodec.load_sample(max_frames=3)
+    assert "pcdcodec.depth._depthac_kernels" not in sys.modules
+    if rig:
+        specs = [CameraSpec(n, seq.intrinsics, seq.depth_scale) for n in ("a", "b")]
+        rec = RigWriter(path, specs)
+        writers = [rec.camera("a"), rec.camera("b")]
+    else:
+        rec = pcdcodec.open(path, "w", intrinsics=seq.intrinsics, depth_scale=seq.depth_scale)
+        writers = [rec]
+    kernels = sys.modules.get("pcdcodec.depth._depthac_kernels")
+    assert kernels is not None and kernels.encode_into.overloads, "depthac's loops not loaded"
+    loaded = len(kernels.encode_into.overloads)
+    assert all(w._encoder is not None for w in writers), "the video encoder is not open"
+    names = {t.name.rsplit("_", 1)[0] for t in threading.enumerate()}
+    assert {"pcdcodec-color", "pcdcodec-depth", "pcdcodec-write"} <= names, names
+    assert all(w.ready for w in writers)
+
+    class NoImports:
+        def find_spec(self, name, path=None, target=None):
+            raise ImportError(f"{name} imported while writing frames")
+
+    sys.meta_path.insert(0, NoImports())
+    for k, f in enumerate(seq):
+        for w in writers:
+            w.write(f.color, f.depth, k * 33_000_000)
+    for w in writers:
+        w.flush()  # raises what went wrong on the threads (an import refused)
+    sys.meta_path.pop(0)
+    assert len(kernels.encode_into.overloads) == loaded, "a loop was loaded at the first frame"
+    rec.close()
+    print("ok")
+    """
+)
+
+
+@pytest.mark.parametrize("kind", ["writer", "rig"])
+def test_the_codecs_are_ready_when_the_writer_opens(tmp_path: Path, kind: str) -> None:
+    done = subprocess.run(
+        [sys.executable, "-c", READY_AT_OPEN, str(tmp_path / "r.pcdc"), kind],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.strip() == "ok"
+    with pcdcodec.open(tmp_path / "r.pcdc") as back:
+        assert back.verify().ok
+
+
+class _NoEncoderH264(pcdcodec.color.H264):
+    """h264 whose encoder cannot open here, as NVENC on a machine without a GPU."""
+
+    def encoder(self, width: int, height: int, fps: float = 30.0) -> Any:
+        raise pcdcodec.CodecUnavailableError("no encoder on this machine")
+
+
+def test_an_encoder_that_cannot_open_is_named_by_the_first_write_not_by_open(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    rec = _writer(tmp_path / "n.pcdc", sample, color=_NoEncoderH264())
+    assert not rec.ready  # the encoder did not open; the writer still takes encoded packets
+    with pytest.raises(pcdcodec.CodecUnavailableError, match="no encoder"):
+        rec.write(sample[0].color, sample[0].depth, 0)
+    groups = _encoded_groups(sample, 3)
+    for i, group in enumerate(groups):
+        rec.write_encoded(group, sample[i].depth, i * STEP)
+    assert rec.ready
+    rec.close()
+    with pcdcodec.open(tmp_path / "n.pcdc") as back:
+        assert [p.data for p in back.packets()] == [g[0].data for g in groups]
+        assert back.verify().ok
+
+
+def test_a_writer_that_fails_to_open_leaves_no_thread_running(
+    tmp_path: Path, sample: RGBDSequence
+) -> None:
+    from pcdcodec.recording.rig import CameraSpec, RigWriter
+
+    before = set(threading.enumerate())
+    (tmp_path / "there.pcdc").write_bytes(b"")
+    with pytest.raises(pcdcodec.InputError, match="already exists"):
+        _writer(tmp_path / "there.pcdc", sample)
+    specs = [
+        CameraSpec("a", sample.intrinsics, sample.depth_scale),
+        CameraSpec("b", sample.intrinsics, sample.depth_scale, fps=-1),  # the second fails
+    ]
+    with pytest.raises(pcdcodec.InputError, match="fps"):
+        RigWriter(tmp_path / "rig.pcdc", specs)
+    assert not (tmp_path / "rig.pcdc").exists()
+    assert set(threading.enumerate()) <= before
