@@ -19,6 +19,19 @@ from ..registry import codec_class, list_codecs
 from .options import camera_from_args, mib, source_options
 
 
+def print_left_out(items: list[dict[str, Any]], indent: str = "  ") -> None:
+    """The lines that name what of an input a recording does not hold: every topic, track or
+    file left out, with its type and message count where known."""
+    if not items:
+        return
+    print(f"{indent}{'left out':12} {len(items)} of the input's topics/tracks (not recorded):")
+    width = max(len(str(item["name"])) for item in items)
+    for item in items:
+        count = item.get("messages")
+        msgs = "" if count is None else f", {count} msgs"
+        print(f"{indent}  {item['name']!s:{width}}  [{item['type']}{msgs}]")
+
+
 def _info(rec: Any) -> dict[str, Any]:
     """What ``info`` says of a recording, as JSON-ready values."""
     size = rec.path.stat().st_size
@@ -200,6 +213,7 @@ def _info_of_source(args: argparse.Namespace) -> int:
         )
     for note in info.get("notes", []):
         print(f"    note         {note}")
+    print_left_out(info.get("left_out", []))
     return 0
 
 
