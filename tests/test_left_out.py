@@ -338,3 +338,43 @@ def test_inputs_that_hold_nothing_else_leave_nothing_out(tmp_path: Path) -> None
     with open_source(rec) as src:
         assert src.left_out == ()
     assert "left out" not in _cli("info", str(rec))
+
+
+# -- info of a recording: poses, ratio, the effective gop --------------------------------------
+
+
+def test_info_shows_poses_ratio_and_the_effective_gop(tmp_path: Path) -> None:
+    import json
+
+    from pcdcodec.datasets import load_sample
+
+    seq = load_sample()
+    path = tmp_path / "posed.pcdc"
+    rng = np.random.default_rng(0)
+    with pcdcodec.RecordingWriter(
+        path, intrinsics=seq.intrinsics, depth_scale=seq.depth_scale, fps=30.0
+    ) as w:
+        for k, f in enumerate(list(seq)[:12]):
+            pose = np.eye(4)
+            pose[:3, 3] = rng.normal(size=3)
+            w.write(f.color, f.depth, 1_000_000_000 + k * 33_333_333, pose=pose if k else None)
+    info = json.loads(_cli("info", str(path), "--json"))
+    assert info["poses"]["count"] == 11  # every frame but the first
+    assert info["poses"]["first_ns"] == 1_033_333_333
+    assert info["poses"]["span_s"] == round(10 * 33_333_333 / 1e9, 3)
+    h, w_ = seq.intrinsics.shape
+    assert info["raw_rgbd_bytes"] == 12 * w_ * h * 5
+    assert info["ratio_raw_rgbd"] == round(12 * w_ * h * 5 / path.stat().st_size, 2)
+    assert info["codecs"]["color"]["gop"] is None  # as stored: the default
+    assert info["color_gop"]["gop"] == 10  # a third of a second at 30 fps
+    assert info["color_gop"]["keyframes"] >= 2
+    text = _cli("info", str(path))
+    assert "poses      11 of 12 frames" in text
+    assert f"{info['ratio_raw_rgbd']:g}x against raw RGB-D" in text
+    assert "gop 10 " in text
+
+    set_gop = tmp_path / "gop3.pcdc"
+    pcdcodec.encode(path, set_gop, color="h264:gop=3")
+    info = json.loads(_cli("info", str(set_gop), "--json"))
+    assert info["color_gop"] == {"gop": 3, "configured": 3, "keyframes": 4}
+    assert info["poses"]["count"] == 11  # re-encoding keeps them

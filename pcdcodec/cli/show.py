@@ -32,9 +32,49 @@ def print_left_out(items: list[dict[str, Any]], indent: str = "  ") -> None:
         print(f"{indent}  {item['name']!s:{width}}  [{item['type']}{msgs}]")
 
 
+def _raw_bytes(rec: Any) -> int:
+    """Raw RGB-D of the recording's frames, as the benchmarks count it: uint16 depth (2 bytes a
+    pixel) plus RGB24 color (3 bytes a pixel of the color camera; none without color)."""
+    h, w = rec.intrinsics.shape
+    per_frame = w * h * 2
+    if rec.color_codec is not None:
+        ch, cw = rec.color_shape
+        per_frame += cw * ch * 3
+    return int(len(rec) * per_frame)
+
+
+def _gop(rec: Any) -> dict[str, Any] | None:
+    """The color stream's keyframe interval as the encoder used it (a ``gop`` of ``null`` in
+    the codec's config is its default for the recording's rate) and the keyframes the file
+    holds; ``None`` without color."""
+    codec = rec.color_codec
+    if codec is None:
+        return None
+    interval = getattr(codec, "keyframe_interval", None)
+    return {
+        "gop": int(interval(rec.fps)) if callable(interval) else None,
+        "configured": (rec.codecs.get("color") or {}).get("gop"),
+        "keyframes": len(rec.keyframes),
+    }
+
+
+def _poses(rec: Any) -> dict[str, Any]:
+    """How many frames carry a pose, and the span of their stamps."""
+    times = rec.pose_timestamps
+    n = len(times)
+    return {
+        "count": n,
+        "frames": len(rec),
+        "first_ns": int(times[0]) if n else None,
+        "last_ns": int(times[-1]) if n else None,
+        "span_s": round((int(times[-1]) - int(times[0])) / 1e9, 3) if n else None,
+    }
+
+
 def _info(rec: Any) -> dict[str, Any]:
     """What ``info`` says of a recording, as JSON-ready values."""
     size = rec.path.stat().st_size
+    raw = _raw_bytes(rec)
     return {
         "path": str(rec.path),
         "format_version": rec.format_version,
@@ -51,6 +91,10 @@ def _info(rec: Any) -> dict[str, Any]:
         "indexed": rec.indexed,
         "metadata": rec.metadata,
         "first_timestamp_ns": int(rec.timestamps[0]) if len(rec) else None,
+        "poses": _poses(rec),
+        "raw_rgbd_bytes": raw,
+        "ratio_raw_rgbd": round(raw / size, 2) if size else None,
+        "color_gop": _gop(rec),
     }
 
 
@@ -292,8 +336,29 @@ def cmd_info(args: argparse.Namespace) -> int:
             )
             + f"; depth-to-color translation {t} mm"
         )
+    if info["ratio_raw_rgbd"] is not None and info["frames"]:
+        what = "uint16 depth + RGB24 color" if info["codecs"]["color"] else "uint16 depth"
+        print(
+            f"  ratio      {info['ratio_raw_rgbd']:g}x against raw RGB-D ({what} per pixel: "
+            f"{mib(info['raw_rgbd_bytes'])})"
+        )
     print(f"  color      {json.dumps(info['codecs']['color'])}")
+    gop = info["color_gop"]
+    if gop is not None and gop["gop"] is not None:
+        how = "as set" if gop["configured"] is not None else f"the default at {info['fps']} fps"
+        print(
+            f"             gop {gop['gop']} (a keyframe at least every {gop['gop']} frames, "
+            f"{how}); {gop['keyframes']} keyframes in the file"
+        )
     print(f"  depth      {json.dumps(info['codecs']['depth'])}")
+    poses = info["poses"]
+    if poses["count"]:
+        print(
+            f"  poses      {poses['count']} of {poses['frames']} frames, over {poses['span_s']} s "
+            f"({poses['first_ns'] / 1e9:.6f} s to {poses['last_ns'] / 1e9:.6f} s)"
+        )
+    else:
+        print("  poses      none")
     stamps = info["metadata"].get("timestamps", "")
     if stamps.startswith("not recorded"):
         print(f"  times      {stamps} (the input had no timestamps)")
