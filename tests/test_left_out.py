@@ -378,3 +378,44 @@ def test_info_shows_poses_ratio_and_the_effective_gop(tmp_path: Path) -> None:
     info = json.loads(_cli("info", str(set_gop), "--json"))
     assert info["color_gop"] == {"gop": 3, "configured": 3, "keyframes": 4}
     assert info["poses"]["count"] == 11  # re-encoding keeps them
+
+
+# -- folders -----------------------------------------------------------------------------------
+
+
+def test_a_folder_names_its_files_that_are_not_recorded(tmp_path: Path) -> None:
+    from .test_archive import make_input
+
+    folder = make_input(tmp_path / "tum", count=4)
+    (folder / "accelerometer.txt").write_text("# accelerometer data\n1.0 0.1 9.8 0.2\n")
+    (folder / "notes").mkdir()
+    with open_source(folder) as src:
+        assert [(s.name, s.type) for s in src.left_out] == [
+            ("accelerometer.txt", "file"),
+            ("notes", "folder"),
+        ]
+        assert {"rgb", "depth", "associations.txt", "camera.json"} <= src.recorded_streams()
+    summary = pcdcodec.encode(folder, tmp_path / "f.pcdc")
+    assert [s["name"] for s in summary.left_out] == ["accelerometer.txt", "notes"]
+    _listed(_cli("info", str(folder)), {"accelerometer.txt": None, "notes": None})
+
+
+def test_tum_folder_leaves_out_its_accelerometer_only() -> None:
+    tum = SHARED_DATA / "tum_fr1_rpy"
+    if not tum.exists():
+        pytest.skip(f"{tum} is not present")
+    with open_source(tum, depth_scale=5000) as src:
+        names = {s.name for s in src.left_out}
+        assert src.poses is not None  # groundtruth.txt is read: poses
+    assert "accelerometer.txt" in names
+    assert names.isdisjoint({"rgb", "depth", "rgb.txt", "depth.txt", "groundtruth.txt"})
+    assert names <= {"accelerometer.txt", "README.md"}  # the data's README, where present
+
+
+def test_7scenes_folder_reads_its_camera_and_pose_files() -> None:
+    scenes = SHARED_DATA / "7scenes_redkitchen"
+    if not scenes.exists():
+        pytest.skip(f"{scenes} is not present")
+    with open_source(scenes) as src:
+        assert {"rgb", "depth", "pose", "camera-intrinsics.txt"} <= src.recorded_streams()
+        assert {s.name for s in src.left_out} <= {"README.md"}
