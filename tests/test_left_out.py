@@ -419,3 +419,25 @@ def test_7scenes_folder_reads_its_camera_and_pose_files() -> None:
     with open_source(scenes) as src:
         assert {"rgb", "depth", "pose", "camera-intrinsics.txt"} <= src.recorded_streams()
         assert {s.name for s in src.left_out} <= {"README.md"}
+
+
+# -- live RealSense, played back from a .bag -----------------------------------------------------
+
+
+@pytest.mark.skipif(not REALSENSE.exists(), reason=f"{REALSENSE} is not present")
+def test_live_playback_names_the_bags_topics_it_does_not_record(tmp_path: Path) -> None:
+    pytest.importorskip("pyrealsense2")
+    from pcdcodec.sources import realsense_live
+    from pcdcodec.sources.realsense import RealSenseBagSource
+
+    with RealSenseBagSource(REALSENSE) as bag:
+        want = {s.name: s.count for s in bag.left_out}
+        color = {t for t in bag.recorded_streams() if "/Color_0/" in t}
+    with realsense_live(playback=REALSENSE) as live:
+        assert {s.name: s.count for s in live.left_out} == want
+        assert live.describe()["left_out"] == [s.to_dict() for s in live.left_out]
+    with realsense_live(playback=REALSENSE, color=False) as live:
+        got = {s.name for s in live.left_out}
+    assert got == set(want) | color | {"/device_0/sensor_0/Depth_0/tf/0"}
+    out = _cli("record", "-o", str(tmp_path / "live.pcdc"), "--playback", str(REALSENSE))
+    _listed(out, want)
