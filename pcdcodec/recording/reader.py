@@ -329,14 +329,6 @@ class Recording(PacketAccess, OneCamera):
         """Whether frames were written with a pose."""
         return bool(self._pose_at)
 
-    @property
-    def pose_timestamps(self) -> npt.NDArray[np.int64]:
-        """The timestamps (ns) of the frames written with a pose, in order, from the index
-        (no pose is read)."""
-        posed = set(self._pose_at) | set(self._pose_matrix_at)
-        times = [t for t in self._times.tolist() if int(t) in posed]
-        return np.asarray(times, np.int64)
-
     def _pose_messages(self, i: int, ts: int) -> dict[str, bytes]:
         """The frame's pose messages by topic, each read once, checked against its digest."""
         what = f"{str(self.path)!r}: frame {i} (t={ts} ns) pose"

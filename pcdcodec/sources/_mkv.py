@@ -17,6 +17,8 @@ __all__ = [
     "blocks_by_track",
     "declared_tag",
     "has_cluster",
+    "list_tracks",
+    "track_name",
     "walk_blocks",
 ]
 
@@ -184,3 +186,24 @@ def has_cluster(path: Path, limit: int = 1 << 24) -> bool:
     """Whether a Matroska Cluster element starts within the first ``limit`` bytes."""
     with path.open("rb") as f:
         return CLUSTER_ID in f.read(limit)
+
+
+def track_name(stream: Any) -> str:
+    """The name a track is listed by: its title (``COLOR``, ``DEPTH``, ``IR``, ``IMU``), else
+    ``track N``."""
+    return str(dict(stream.metadata).get("title") or f"track {stream.index + 1}")
+
+
+def list_tracks(streams: Any) -> list[tuple[int | None, str, str]]:
+    """``(track number, name, kind)`` of every track of a file PyAV opened, and ``(None,
+    file name, "attachment")`` of every attachment, in name order. A track's number is its
+    place among the tracks (PyAV's stream index + 1), as k4arecorder numbers them."""
+    out: list[tuple[int | None, str, str]] = []
+    for s in streams:
+        if s.type == "attachment":
+            out.append((None, str(dict(s.metadata).get("filename", "")), "attachment"))
+            continue
+        ctx = s.codec_context
+        codec = str(getattr(ctx, "codec_tag", "") or getattr(ctx, "name", "") or "")
+        out.append((s.index + 1, track_name(s), f"{s.type} {codec}".strip()))
+    return sorted(out, key=lambda t: t[1])

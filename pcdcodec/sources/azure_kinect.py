@@ -29,7 +29,8 @@ import numpy.typing as npt
 
 from ..errors import DecodeError, InputError
 from ..geometry.camera import CameraIntrinsics, as_intrinsics
-from ._mkv import EBML_MAGIC, blocks_by_track, declared_tag, has_cluster, walk_blocks
+from ._mkv import EBML_MAGIC, blocks_by_track, declared_tag, has_cluster, list_tracks, walk_blocks
+from ._mkv import track_name as _name
 from .base import InputStream, Source, read_magic, register_source
 
 __all__ = ["DEPTH_MODES", "AzureKinectSource", "open_azure_kinect"]
@@ -59,12 +60,6 @@ COLOR_MODES: dict[int, tuple[tuple[int, int], tuple[int, int], tuple[int, int]]]
 _COLOR_FORMATS = {"MJPG": "mjpeg", "NV12": "nv12", "YUY2": "yuyv422"}
 #: bytes of a raw color image of width w and height h
 _RAW_BYTES = {"nv12": lambda w, h: w * h * 3 // 2, "yuyv422": lambda w, h: w * h * 2}
-
-
-def _track_name(stream: Any) -> str:
-    """The name a track is listed by: its title (``COLOR``, ``DEPTH``, ``IR``, ``IMU``), else
-    ``track N``."""
-    return str(dict(stream.metadata).get("title") or f"track {stream.index + 1}")
 
 
 def _is_azure_kinect(path: Path) -> bool:
@@ -371,20 +366,9 @@ class AzureKinectSource(Source):
             self.metadata["color_mode"] = str(dict(color.metadata).get("K4A_COLOR_MODE", ""))
         self.has_color = color is not None
         self._count = int(depth.frames or 0)
-        # Every track and attachment, as (track number or None, name, kind); the tracks' block
-        # counts are read from the file's element heads when first asked for.
-        self._tracks: list[tuple[int | None, str, str]] = []
-        for s in container.streams:
-            meta = dict(s.metadata)
-            if s.type == "attachment":
-                self._tracks.append((None, str(meta.get("filename", "")), "attachment"))
-                continue
-            ctx = s.codec_context
-            codec = str(getattr(ctx, "codec_tag", "") or getattr(ctx, "name", "") or "")
-            self._tracks.append((s.index + 1, _track_name(s), f"{s.type} {codec}".strip()))
-        self._recorded = {_track_name(depth), "calibration.json"}
-        if color is not None:
-            self._recorded.add(_track_name(color))
+        # Every track and attachment (their block counts read when first asked for).
+        self._tracks = list_tracks(container.streams)
+        self._recorded = {_name(t) for t in (depth, color) if t is not None} | {"calibration.json"}
         self._blocks: dict[int, int] | None = None
 
     def _block_counts(self) -> dict[int, int]:
@@ -398,13 +382,10 @@ class AzureKinectSource(Source):
     def input_streams(self) -> list[InputStream]:
         """Every track (COLOR, DEPTH, IR, IMU) with its block count, and every attachment."""
         blocks = self._block_counts()
-        return sorted(
-            (
-                InputStream(name, kind, None if number is None else blocks.get(number))
-                for number, name, kind in self._tracks
-            ),
-            key=lambda s: s.name,
-        )
+        return [
+            InputStream(name, kind, None if number is None else blocks.get(number))
+            for number, name, kind in self._tracks
+        ]
 
     def recorded_streams(self) -> set[str]:
         """The DEPTH and COLOR tracks and the calibration; the IR and IMU tracks are left out."""
@@ -429,13 +410,9 @@ class AzureKinectSource(Source):
     def __len__(self) -> int:
         count = self._count
         if not count:
-            # The container states no frame count: a capture is a depth block (with its color
-            # block), counted from the element heads of an undamaged file.
-            blocks = self._block_counts()
-            numbers = [self._depth_index + 1]
-            if self._color_index is not None:
-                numbers.append(self._color_index + 1)
-            count = min(blocks.get(n, 0) for n in numbers)
+            # Unstated by the container: a capture is a depth block (and a color block).
+            tracks = (self._depth_index, self._color_index)
+            count = min(self._block_counts().get(t + 1, 0) for t in tracks if t is not None)
         if not count:
             raise TypeError("the depth track does not state its frame count")
         return count if self.max_frames is None else min(count, self.max_frames)
