@@ -441,3 +441,31 @@ def test_live_playback_names_the_bags_topics_it_does_not_record(tmp_path: Path) 
     assert got == set(want) | color | {"/device_0/sensor_0/Depth_0/tf/0"}
     out = _cli("record", "-o", str(tmp_path / "live.pcdc"), "--playback", str(REALSENSE))
     _listed(out, want)
+
+
+def test_info_of_a_rig_gives_each_cameras_poses_and_gop(tmp_path: Path) -> None:
+    import json
+
+    from pcdcodec.recording import encode_rig
+
+    from .test_rig_ingest import _cameras, write_rig_bag
+
+    cams = _cameras()[:2]
+    bag = write_rig_bag(tmp_path / "rig.bag", cams, ros2=False)
+    rig = tmp_path / "rig.pcdc"
+    encode_rig([bag], rig)
+    info = json.loads(_cli("info", str(rig), "--json"))
+    raw = 0
+    for cam, spec in zip(info["cameras"], cams, strict=True):
+        assert cam["poses"]["count"] == 0  # /tf_static mounts them: no trajectory
+        assert cam["color_gop"]["gop"] == 10  # the default at 30 fps
+        assert cam["color_gop"]["configured"] is None
+        h, w = spec.depths[0].shape
+        assert cam["raw_rgbd_bytes"] == len(spec.times) * w * h * 5
+        raw += cam["raw_rgbd_bytes"]
+    assert info["raw_rgbd_bytes"] == raw
+    assert info["ratio_raw_rgbd"] == round(raw / rig.stat().st_size, 2)
+    text = _cli("info", str(rig))
+    assert text.count("gop 10 ") == 2
+    assert text.count("poses      none") == 2
+    assert f"{info['ratio_raw_rgbd']:g}x against raw RGB-D" in text

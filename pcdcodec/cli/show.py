@@ -98,6 +98,36 @@ def _info(rec: Any) -> dict[str, Any]:
     }
 
 
+def _print_ratio(info: dict[str, Any], color: bool) -> None:
+    if info["ratio_raw_rgbd"] is None or not info["frames"]:
+        return
+    what = "uint16 depth + RGB24 color" if color else "uint16 depth"
+    print(
+        f"  ratio      {info['ratio_raw_rgbd']:g}x against raw RGB-D ({what} per pixel: "
+        f"{mib(info['raw_rgbd_bytes'])})"
+    )
+
+
+def _print_gop(gop: dict[str, Any] | None, fps: float, indent: str) -> None:
+    if gop is None or gop["gop"] is None:
+        return
+    how = "as set" if gop["configured"] is not None else f"the default at {fps} fps"
+    print(
+        f"{indent}           gop {gop['gop']} (a keyframe at least every {gop['gop']} frames, "
+        f"{how}); {gop['keyframes']} keyframes in the file"
+    )
+
+
+def _print_poses(poses: dict[str, Any], indent: str) -> None:
+    if not poses["count"]:
+        print(f"{indent}poses      none")
+        return
+    print(
+        f"{indent}poses      {poses['count']} of {poses['frames']} frames, over "
+        f"{poses['span_s']} s ({poses['first_ns'] / 1e9:.6f} s to {poses['last_ns'] / 1e9:.6f} s)"
+    )
+
+
 def _is_rig(rec: Any) -> bool:
     from ..recording.rig_reader import RigRecording
 
@@ -128,11 +158,17 @@ def _rig_info(rec: Any) -> dict[str, Any]:
                 "codecs": {"color": cam.color_codec, "depth": cam.depth_codec},
                 "rig_pose": cam.rig_pose.tolist(),
                 "first_timestamp_ns": int(frames.timestamps[0]) if len(frames) else None,
+                "poses": _poses(frames),
+                "raw_rgbd_bytes": _raw_bytes(frames),
+                "color_gop": _gop(frames),
             }
         )
+    raw = sum(c["raw_rgbd_bytes"] for c in cameras)
     return {
         "path": str(rec.path),
         "format_version": rec.format_version,
+        "ratio_raw_rgbd": round(raw / size, 2) if size else None,
+        "raw_rgbd_bytes": raw,
         "rig_frame_id": rec.rig_frame_id,
         "frames": sum(c["frames"] for c in cameras),
         "duration_s": round(rec.duration, 3),
@@ -154,6 +190,7 @@ def _print_rig(info: dict[str, Any], as_json: bool) -> int:
     )
     print(f"  frames     {info['frames']} over {info['duration_s']} s, all cameras")
     print(f"  size       {mib(info['size_bytes'])}")
+    _print_ratio(info, any(c["codecs"]["color"] for c in info["cameras"]))
     print(f"  rig frame  {info['rig_frame_id']}")
     for cam in info["cameras"]:
         intr = cam["intrinsics"]
@@ -175,7 +212,9 @@ def _print_rig(info: dict[str, Any], as_json: bool) -> int:
                 f"fy={color_cam['fy']} cx={color_cam['cx']} cy={color_cam['cy']}"
             )
         print(f"    color      {json.dumps(cam['codecs']['color'])}")
+        _print_gop(cam["color_gop"], cam["fps"], "    ")
         print(f"    depth      {json.dumps(cam['codecs']['depth'])}")
+        _print_poses(cam["poses"], "    ")
         print(f"    rig pose   translation {t} m, rotation {angle:.2f} deg")
     if info["metadata"]:
         print(f"  metadata   {json.dumps(info['metadata'])}")
@@ -336,29 +375,11 @@ def cmd_info(args: argparse.Namespace) -> int:
             )
             + f"; depth-to-color translation {t} mm"
         )
-    if info["ratio_raw_rgbd"] is not None and info["frames"]:
-        what = "uint16 depth + RGB24 color" if info["codecs"]["color"] else "uint16 depth"
-        print(
-            f"  ratio      {info['ratio_raw_rgbd']:g}x against raw RGB-D ({what} per pixel: "
-            f"{mib(info['raw_rgbd_bytes'])})"
-        )
+    _print_ratio(info, bool(info["codecs"]["color"]))
     print(f"  color      {json.dumps(info['codecs']['color'])}")
-    gop = info["color_gop"]
-    if gop is not None and gop["gop"] is not None:
-        how = "as set" if gop["configured"] is not None else f"the default at {info['fps']} fps"
-        print(
-            f"             gop {gop['gop']} (a keyframe at least every {gop['gop']} frames, "
-            f"{how}); {gop['keyframes']} keyframes in the file"
-        )
+    _print_gop(info["color_gop"], info["fps"], "  ")
     print(f"  depth      {json.dumps(info['codecs']['depth'])}")
-    poses = info["poses"]
-    if poses["count"]:
-        print(
-            f"  poses      {poses['count']} of {poses['frames']} frames, over {poses['span_s']} s "
-            f"({poses['first_ns'] / 1e9:.6f} s to {poses['last_ns'] / 1e9:.6f} s)"
-        )
-    else:
-        print("  poses      none")
+    _print_poses(info["poses"], "  ")
     stamps = info["metadata"].get("timestamps", "")
     if stamps.startswith("not recorded"):
         print(f"  times      {stamps} (the input had no timestamps)")
