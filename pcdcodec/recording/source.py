@@ -162,7 +162,8 @@ class RecordingSource(Source):
         if not isinstance(self._file, RigRecording):
             return []
         rig = self._file
-        return [InputStream(f"camera {n}", "camera", len(rig.frames(n))) for n in rig.camera_names]
+        names = sorted(rig.camera_names)
+        return [InputStream(f"camera {n}", "camera", len(rig.frames(n))) for n in names]
 
     def recorded_streams(self) -> set[str]:
         """This camera, of a rig's file."""
