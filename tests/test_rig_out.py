@@ -769,3 +769,28 @@ def test_recover_and_join_of_rig_mutants_give_right_frames_or_pcdcodec_errors(
                         assert np.array_equal(frame.depth, want[1]), (what, step, name, k)
     assert outcomes.get("recover wrote", 0) >= 10
     assert outcomes.get("recover refused", 0) + outcomes.get("join refused", 0) >= 10
+
+
+def test_an_exported_rig_bag_encodes_back_as_one_rig(
+    rig: tuple[Path, list[Cam]], tmp_path: Path
+) -> None:
+    """``encode`` reads every namespace of the bag at once, as a camera of one rig (not one
+    namespace at a time), each placed where the bag's /tf_static puts it."""
+    path, cams = rig
+    bag = tmp_path / "rig.bag"
+    pcdcodec.export_bag(path, bag, to="rosbag1")
+    out = tmp_path / "back.pcdc"
+    assert main(["encode", str(bag), "-o", str(out), "-q"]) == 0
+    with pcdcodec.open(out) as back:
+        assert isinstance(back, RigRecording)
+        assert set(back.camera_names) == {c.spec.name for c in cams}
+        for cam in cams:
+            rec = back.frames(cam.spec.name)
+            assert list(rec.timestamps) == cam.times
+            assert np.allclose(back.rig_poses[cam.spec.name], cam.pose, atol=1e-9)
+            for k, frame in enumerate(rec):
+                if cam.spec.depth_scale == 1000.0:
+                    assert np.array_equal(frame.depth, cam.depths[k])
+                else:
+                    expected = to_metres(cam.depths[k], cam.spec.depth_scale)
+                    assert np.array_equal(frame.depth, expected, equal_nan=True)

@@ -19,6 +19,7 @@ from typing import Any
 from ..errors import InputError
 from .capture import POINTCLOUD2_BYTES_PER_POINT, Camera, Capture, CaptureStats, file_bytes
 from .options import mib, parse_codec
+from .show import print_left_out
 
 __all__ = ["QUEUE_PER_CAMERA", "camera_names", "cmd_record"]
 
@@ -334,6 +335,11 @@ def _summary(
             f"depth / {drops['color']} color, dropped by us: {c['dropped_by_us']} "
             f"(timestamps: {domain})"
         )
+    for s in sources:
+        left_out = [item.to_dict() for item in s.left_out]
+        if left_out:
+            print(f"  input        {s.path}")
+            print_left_out(left_out, "    ")
     if any(c["dropped_by_us"] for c in stats.cameras):
         print("  note         compression did not keep up: frames were dropped before encoding")
     elif block:

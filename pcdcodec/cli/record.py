@@ -14,6 +14,7 @@ from typing import Any
 from .._progress import Progress
 from ..errors import InputError
 from .options import camera_from_args, mib, parse_codec, source_options
+from .show import print_left_out
 
 
 def cmd_encode(args: argparse.Namespace) -> int:
@@ -87,6 +88,7 @@ def cmd_encode(args: argparse.Namespace) -> int:
         print(f"  skipped      {info['out_of_order']} messages whose stamp did not increase")
     for note in info.get("notes", []):
         print(f"  note         {note}")
+    print_left_out(summary.left_out)
     return 0
 
 
@@ -180,6 +182,9 @@ def print_rig_summary(summary: Any, output: str) -> None:
             print(f"  overlap      {(end - start) / 1e9:.3f} s, every camera recording")
         else:
             print("  overlap      none")
+    for path, items in summary.left_out.items():
+        print(f"  input        {path}")
+        print_left_out(items, "    ")
     for line in summary.warnings:
         print(f"warning: {line}")
 

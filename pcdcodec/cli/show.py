@@ -19,9 +19,62 @@ from ..registry import codec_class, list_codecs
 from .options import camera_from_args, mib, source_options
 
 
+def print_left_out(items: list[dict[str, Any]], indent: str = "  ") -> None:
+    """The lines that name what of an input a recording does not hold: every topic, track or
+    file left out, with its type and message count where known."""
+    if not items:
+        return
+    print(f"{indent}{'left out':12} {len(items)} of the input's topics/tracks (not recorded):")
+    width = max(len(str(item["name"])) for item in items)
+    for item in items:
+        count = item.get("messages")
+        msgs = "" if count is None else f", {count} msgs"
+        print(f"{indent}  {item['name']!s:{width}}  [{item['type']}{msgs}]")
+
+
+def _raw_bytes(rec: Any) -> int:
+    """Raw RGB-D of the recording's frames, as the benchmarks count it: uint16 depth (2 bytes a
+    pixel) plus RGB24 color (3 bytes a pixel of the color camera; none without color)."""
+    h, w = rec.intrinsics.shape
+    per_frame = w * h * 2
+    if rec.color_codec is not None:
+        ch, cw = rec.color_shape
+        per_frame += cw * ch * 3
+    return int(len(rec) * per_frame)
+
+
+def _gop(rec: Any) -> dict[str, Any] | None:
+    """The color stream's keyframe interval as the encoder used it (a ``gop`` of ``null`` in
+    the codec's config is its default for the recording's rate) and the keyframes the file
+    holds; ``None`` without color."""
+    codec = rec.color_codec
+    if codec is None:
+        return None
+    interval = getattr(codec, "keyframe_interval", None)
+    return {
+        "gop": int(interval(rec.fps)) if callable(interval) else None,
+        "configured": (rec.codecs.get("color") or {}).get("gop"),
+        "keyframes": len(rec.keyframes),
+    }
+
+
+def _poses(rec: Any) -> dict[str, Any]:
+    """How many frames carry a pose, and the span of their stamps."""
+    times = rec.pose_timestamps
+    n = len(times)
+    return {
+        "count": n,
+        "frames": len(rec),
+        "first_ns": int(times[0]) if n else None,
+        "last_ns": int(times[-1]) if n else None,
+        "span_s": round((int(times[-1]) - int(times[0])) / 1e9, 3) if n else None,
+    }
+
+
 def _info(rec: Any) -> dict[str, Any]:
     """What ``info`` says of a recording, as JSON-ready values."""
     size = rec.path.stat().st_size
+    raw = _raw_bytes(rec)
     return {
         "path": str(rec.path),
         "format_version": rec.format_version,
@@ -38,7 +91,41 @@ def _info(rec: Any) -> dict[str, Any]:
         "indexed": rec.indexed,
         "metadata": rec.metadata,
         "first_timestamp_ns": int(rec.timestamps[0]) if len(rec) else None,
+        "poses": _poses(rec),
+        "raw_rgbd_bytes": raw,
+        "ratio_raw_rgbd": round(raw / size, 2) if size else None,
+        "color_gop": _gop(rec),
     }
+
+
+def _print_ratio(info: dict[str, Any], color: bool) -> None:
+    if info["ratio_raw_rgbd"] is None or not info["frames"]:
+        return
+    what = "uint16 depth + RGB24 color" if color else "uint16 depth"
+    print(
+        f"  ratio      {info['ratio_raw_rgbd']:g}x against raw RGB-D ({what} per pixel: "
+        f"{mib(info['raw_rgbd_bytes'])})"
+    )
+
+
+def _print_gop(gop: dict[str, Any] | None, fps: float, indent: str) -> None:
+    if gop is None or gop["gop"] is None:
+        return
+    how = "as set" if gop["configured"] is not None else f"the default at {fps} fps"
+    print(
+        f"{indent}           gop {gop['gop']} (a keyframe at least every {gop['gop']} frames, "
+        f"{how}); {gop['keyframes']} keyframes in the file"
+    )
+
+
+def _print_poses(poses: dict[str, Any], indent: str) -> None:
+    if not poses["count"]:
+        print(f"{indent}poses      none")
+        return
+    print(
+        f"{indent}poses      {poses['count']} of {poses['frames']} frames, over "
+        f"{poses['span_s']} s ({poses['first_ns'] / 1e9:.6f} s to {poses['last_ns'] / 1e9:.6f} s)"
+    )
 
 
 def _is_rig(rec: Any) -> bool:
@@ -71,11 +158,17 @@ def _rig_info(rec: Any) -> dict[str, Any]:
                 "codecs": {"color": cam.color_codec, "depth": cam.depth_codec},
                 "rig_pose": cam.rig_pose.tolist(),
                 "first_timestamp_ns": int(frames.timestamps[0]) if len(frames) else None,
+                "poses": _poses(frames),
+                "raw_rgbd_bytes": _raw_bytes(frames),
+                "color_gop": _gop(frames),
             }
         )
+    raw = sum(c["raw_rgbd_bytes"] for c in cameras)
     return {
         "path": str(rec.path),
         "format_version": rec.format_version,
+        "ratio_raw_rgbd": round(raw / size, 2) if size else None,
+        "raw_rgbd_bytes": raw,
         "rig_frame_id": rec.rig_frame_id,
         "frames": sum(c["frames"] for c in cameras),
         "duration_s": round(rec.duration, 3),
@@ -97,6 +190,7 @@ def _print_rig(info: dict[str, Any], as_json: bool) -> int:
     )
     print(f"  frames     {info['frames']} over {info['duration_s']} s, all cameras")
     print(f"  size       {mib(info['size_bytes'])}")
+    _print_ratio(info, any(c["codecs"]["color"] for c in info["cameras"]))
     print(f"  rig frame  {info['rig_frame_id']}")
     for cam in info["cameras"]:
         intr = cam["intrinsics"]
@@ -118,7 +212,9 @@ def _print_rig(info: dict[str, Any], as_json: bool) -> int:
                 f"fy={color_cam['fy']} cx={color_cam['cx']} cy={color_cam['cy']}"
             )
         print(f"    color      {json.dumps(cam['codecs']['color'])}")
+        _print_gop(cam["color_gop"], cam["fps"], "    ")
         print(f"    depth      {json.dumps(cam['codecs']['depth'])}")
+        _print_poses(cam["poses"], "    ")
         print(f"    rig pose   translation {t} m, rotation {angle:.2f} deg")
     if info["metadata"]:
         print(f"  metadata   {json.dumps(info['metadata'])}")
@@ -200,6 +296,7 @@ def _info_of_source(args: argparse.Namespace) -> int:
         )
     for note in info.get("notes", []):
         print(f"    note         {note}")
+    print_left_out(info.get("left_out", []))
     return 0
 
 
@@ -278,8 +375,11 @@ def cmd_info(args: argparse.Namespace) -> int:
             )
             + f"; depth-to-color translation {t} mm"
         )
+    _print_ratio(info, bool(info["codecs"]["color"]))
     print(f"  color      {json.dumps(info['codecs']['color'])}")
+    _print_gop(info["color_gop"], info["fps"], "  ")
     print(f"  depth      {json.dumps(info['codecs']['depth'])}")
+    _print_poses(info["poses"], "  ")
     stamps = info["metadata"].get("timestamps", "")
     if stamps.startswith("not recorded"):
         print(f"  times      {stamps} (the input had no timestamps)")

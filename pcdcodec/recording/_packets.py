@@ -47,6 +47,16 @@ class PacketAccess:
     _digest_times: npt.NDArray[np.int64]
     _digest_offsets: npt.NDArray[np.int64]
     _digest_of_time: dict[int, int]
+    _pose_at: dict[int, int]
+    _pose_matrix_at: dict[int, int]
+
+    @property
+    def pose_timestamps(self) -> npt.NDArray[np.int64]:
+        """The timestamps (ns) of the frames written with a pose, in order, from the index
+        (no pose is read)."""
+        posed = set(self._pose_at) | set(self._pose_matrix_at)
+        times = [t for t in self._times.tolist() if int(t) in posed]
+        return np.asarray(times, np.int64)
 
     @property
     def extradata(self) -> bytes | None:

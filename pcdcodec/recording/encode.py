@@ -18,7 +18,8 @@ __all__ = ["EncodeSummary", "encode"]
 
 @dataclass
 class EncodeSummary:
-    """What :func:`encode` did: frames written, sizes, and what the source dropped."""
+    """What :func:`encode` did: frames written, sizes, what the source dropped, and what of
+    the input the recording does not hold (:attr:`left_out`)."""
 
     path: Path
     frames: int
@@ -40,6 +41,14 @@ class EncodeSummary:
         value = self.source.get("dropped")
         return dict(value) if isinstance(value, dict) else {}
 
+    @property
+    def left_out(self) -> list[dict[str, Any]]:
+        """The input's topics, tracks or files the recording does not hold (IMU, infrared,
+        other cameras, device options, ...): ``name``, ``type`` and ``messages`` (``None``
+        where the input's index does not say), as :attr:`pcdcodec.Source.left_out` lists."""
+        value = self.source.get("left_out")
+        return [dict(item) for item in value] if isinstance(value, list) else []
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "path": str(self.path),
@@ -50,6 +59,7 @@ class EncodeSummary:
             "seconds": self.seconds,
             "fps": self.fps,
             "dropped": self.dropped,
+            "left_out": self.left_out,
             "source": self.source,
         }
 

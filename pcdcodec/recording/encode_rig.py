@@ -134,6 +134,9 @@ class RigSummary:
     cameras: dict[str, CameraSummary]
     clocks: ClockReport
     warnings: list[str] = field(default_factory=list)
+    #: per input path, its topics, tracks or cameras that no camera records (name, type,
+    #: messages), as :func:`pcdcodec.sources.rig.left_out_of` finds them
+    left_out: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
 
     @property
     def frames(self) -> int:
@@ -166,6 +169,7 @@ class RigSummary:
             "cameras": {n: c.to_dict() for n, c in self.cameras.items()},
             "clocks": self.clocks.to_dict(),
             "warnings": list(self.warnings),
+            "left_out": {k: list(v) for k, v in self.left_out.items()},
         }
 
 
@@ -204,7 +208,7 @@ def encode_rig(
     intact).
     """
     from .._atomic import atomic_output  # not loaded by `import pcdcodec`
-    from ..sources.rig import close_inputs, open_inputs
+    from ..sources.rig import close_inputs, left_out_of, open_inputs
     from ..sources.rigfile import RigFile, open_rig, read_rig
 
     if out is None:
@@ -238,8 +242,11 @@ def encode_rig(
                 )
         seconds = time.perf_counter() - start
         for done, cam in zip(summaries, cams, strict=True):
-            done.source = cam.source.describe()
+            # What a camera leaves out of its input is the rig's to say (other cameras read
+            # the rest of a bag): see RigSummary.left_out.
+            done.source = {k: v for k, v in cam.source.describe().items() if k != "left_out"}
         clocks = ClockReport.of(summaries)
+        left_out = {path: [s.to_dict() for s in items] for path, items in left_out_of(cams).items()}
         return RigSummary(
             target,
             target.stat().st_size,
@@ -248,6 +255,7 @@ def encode_rig(
             {s.name: s for s in summaries},
             clocks,
             warnings + clocks.warnings,
+            left_out,
         )
     finally:
         close_inputs(cams)

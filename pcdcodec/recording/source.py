@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import DecodeError, InputError
 from ..geometry.camera import as_intrinsics
-from ..sources.base import Source
+from ..sources.base import InputStream, Source
 
 if TYPE_CHECKING:
     from ..frame import Frame
@@ -153,6 +153,21 @@ class RecordingSource(Source):
         if start >= stop:
             return iter(())
         return itertools.islice(self._rec._in_order(start), stop - start)
+
+    def input_streams(self) -> list[InputStream]:
+        """Of a rig's file, its cameras (``camera NAME``, with their frame counts); a
+        one-camera recording is read whole."""
+        from .rig_reader import RigRecording
+
+        if not isinstance(self._file, RigRecording):
+            return []
+        rig = self._file
+        names = sorted(rig.camera_names)
+        return [InputStream(f"camera {n}", "camera", len(rig.frames(n))) for n in names]
+
+    def recorded_streams(self) -> set[str]:
+        """This camera, of a rig's file."""
+        return {f"camera {self.camera}"} if self.camera is not None else set()
 
     def describe(self) -> dict[str, Any]:
         """As :meth:`Source.describe`, with the codecs the recording was written with, its

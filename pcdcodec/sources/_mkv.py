@@ -11,7 +11,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-__all__ = ["CLUSTER_ID", "EBML_MAGIC", "declared_tag", "has_cluster", "walk_blocks"]
+__all__ = [
+    "CLUSTER_ID",
+    "EBML_MAGIC",
+    "blocks_by_track",
+    "declared_tag",
+    "has_cluster",
+    "list_tracks",
+    "track_name",
+    "walk_blocks",
+]
 
 #: the EBML header's ID, which starts every Matroska file
 EBML_MAGIC = b"\x1a\x45\xdf\xa3"
@@ -86,39 +95,64 @@ def _misplaced(f: Any, eid: int, body: int, size: int, seen: set[int]) -> str | 
     return None
 
 
+def _track(f: Any, body: int) -> int:
+    """The track number a Block or SimpleBlock at ``body`` belongs to (0 when unreadable)."""
+    f.seek(body)
+    head: bytes = f.read(8)
+    if not head or head[0] == 0:
+        return 0
+    n = 8 - head[0].bit_length() + 1
+    if len(head) < n:
+        return 0
+    return int.from_bytes(head[:n], "big") & ((1 << (7 * n)) - 1)
+
+
 def walk_blocks(path: Path) -> tuple[int, str | None]:
     """The number of blocks the Segment's clusters hold, and the first structural problem met
     (an element cut short or overrunning its parent, a stray element), walked from the element
     heads alone (bodies are skipped, so this reads a few bytes per block)."""
+    tracks, problem = blocks_by_track(path)
+    return sum(tracks.values()), problem
+
+
+def blocks_by_track(path: Path) -> tuple[dict[int, int], str | None]:
+    """The blocks the Segment's clusters hold per track number, and the first structural
+    problem met (see :func:`walk_blocks`): a track's message count, from the element heads and
+    each block's first bytes."""
+    tracks: dict[int, int] = {}
+
+    def count(body: int) -> None:
+        number = _track(f, body)
+        tracks[number] = tracks.get(number, 0) + 1
+
     file_size = path.stat().st_size
     with path.open("rb") as f:
         first = _element(f, 0)
         second = None if first is None or first[1] is None else _element(f, first[2] + first[1])
         if second is None or second[0] != _SEGMENT:
-            return 0, "no Segment after the EBML header"
+            return tracks, "no Segment after the EBML header"
         end = file_size if second[1] is None else second[2] + second[1]
         problem = None
         if end > file_size:
             problem = f"it is cut short: its Segment declares {end} bytes, the file has {file_size}"
             end = file_size
-        blocks = 0
         seen: set[int] = set()
         pos = second[2]
         while pos < end:
             el = _element(f, pos)
             if el is None or el[0] not in _TOP_LEVEL:
                 what = "a cut or damaged element" if el is None else f"element 0x{el[0]:X}"
-                return blocks, problem or f"byte {pos} holds {what}, not a top-level element"
+                return tracks, problem or f"byte {pos} holds {what}, not a top-level element"
             eid, size, body = el
             stop = end if size is None else body + size
             if stop > end:
-                return blocks, problem or f"the element at byte {pos} runs past the Segment"
+                return tracks, problem or f"the element at byte {pos} runs past the Segment"
             if eid != _CLUSTER:
                 if size is None:
-                    return blocks, problem or f"the element at byte {pos} has no size"
+                    return tracks, problem or f"the element at byte {pos} has no size"
                 odd = _misplaced(f, eid, body, size, seen)
                 if odd:
-                    return blocks, problem or f"the element at byte {pos} {odd}"
+                    return tracks, problem or f"the element at byte {pos} {odd}"
                 seen.add(eid)
                 pos = stop
                 continue
@@ -126,28 +160,50 @@ def walk_blocks(path: Path) -> tuple[int, str | None]:
             while p < stop:
                 child = _element(f, p)
                 if child is None:
-                    return blocks, problem or f"byte {p} in a cluster holds no element"
+                    return tracks, problem or f"byte {p} in a cluster holds no element"
                 cid, csize, cbody = child
                 if size is None and cid in _TOP_LEVEL:
                     break  # a cluster of unknown size ends where the next top-level one starts
                 if csize is None or cbody + csize > stop:
-                    return blocks, problem or f"the element at byte {p} runs past its cluster"
+                    return tracks, problem or f"the element at byte {p} runs past its cluster"
                 if cid == _SIMPLE_BLOCK:
-                    blocks += 1
+                    count(cbody)
                 elif cid == _BLOCK_GROUP:
                     q = cbody
                     while q < cbody + csize:
                         inner = _element(f, q)
                         if inner is None or inner[1] is None:
                             break
-                        blocks += inner[0] == _BLOCK
+                        if inner[0] == _BLOCK:
+                            count(inner[2])
                         q = inner[2] + inner[1]
                 p = cbody + csize
             pos = p if size is None else stop
-    return blocks, problem
+    return tracks, problem
 
 
 def has_cluster(path: Path, limit: int = 1 << 24) -> bool:
     """Whether a Matroska Cluster element starts within the first ``limit`` bytes."""
     with path.open("rb") as f:
         return CLUSTER_ID in f.read(limit)
+
+
+def track_name(stream: Any) -> str:
+    """The name a track is listed by: its title (``COLOR``, ``DEPTH``, ``IR``, ``IMU``), else
+    ``track N``."""
+    return str(dict(stream.metadata).get("title") or f"track {stream.index + 1}")
+
+
+def list_tracks(streams: Any) -> list[tuple[int | None, str, str]]:
+    """``(track number, name, kind)`` of every track of a file PyAV opened, and ``(None,
+    file name, "attachment")`` of every attachment, in name order. A track's number is its
+    place among the tracks (PyAV's stream index + 1), as k4arecorder numbers them."""
+    out: list[tuple[int | None, str, str]] = []
+    for s in streams:
+        if s.type == "attachment":
+            out.append((None, str(dict(s.metadata).get("filename", "")), "attachment"))
+            continue
+        ctx = s.codec_context
+        codec = str(getattr(ctx, "codec_tag", "") or getattr(ctx, "name", "") or "")
+        out.append((s.index + 1, track_name(s), f"{s.type} {codec}".strip()))
+    return sorted(out, key=lambda t: t[1])

@@ -29,8 +29,9 @@ import numpy.typing as npt
 
 from ..errors import DecodeError, InputError
 from ..geometry.camera import CameraIntrinsics, as_intrinsics
-from ._mkv import EBML_MAGIC, declared_tag, has_cluster, walk_blocks
-from .base import Source, read_magic, register_source
+from ._mkv import EBML_MAGIC, blocks_by_track, declared_tag, has_cluster, list_tracks, walk_blocks
+from ._mkv import track_name as _name
+from .base import InputStream, Source, read_magic, register_source
 
 __all__ = ["DEPTH_MODES", "AzureKinectSource", "open_azure_kinect"]
 
@@ -365,6 +366,30 @@ class AzureKinectSource(Source):
             self.metadata["color_mode"] = str(dict(color.metadata).get("K4A_COLOR_MODE", ""))
         self.has_color = color is not None
         self._count = int(depth.frames or 0)
+        # Every track and attachment (their block counts read when first asked for).
+        self._tracks = list_tracks(container.streams)
+        self._recorded = {_name(t) for t in (depth, color) if t is not None} | {"calibration.json"}
+        self._blocks: dict[int, int] | None = None
+
+    def _block_counts(self) -> dict[int, int]:
+        """The blocks each track holds, from the element heads (read once), or none when the
+        file's structure is damaged (its counts would not be the captures')."""
+        if self._blocks is None:
+            counts, problem = blocks_by_track(self.path)
+            self._blocks = {} if problem else counts
+        return self._blocks
+
+    def input_streams(self) -> list[InputStream]:
+        """Every track (COLOR, DEPTH, IR, IMU) with its block count, and every attachment."""
+        blocks = self._block_counts()
+        return [
+            InputStream(name, kind, None if number is None else blocks.get(number))
+            for number, name, kind in self._tracks
+        ]
+
+    def recorded_streams(self) -> set[str]:
+        """The DEPTH and COLOR tracks and the calibration; the IR and IMU tracks are left out."""
+        return set(self._recorded)
 
     @property
     def dropped(self) -> dict[str, int]:
@@ -383,9 +408,14 @@ class AzureKinectSource(Source):
         return out
 
     def __len__(self) -> int:
-        if not self._count:
+        count = self._count
+        if not count:
+            # Unstated by the container: a capture is a depth block (and a color block).
+            tracks = (self._depth_index, self._color_index)
+            count = min(self._block_counts().get(t + 1, 0) for t in tracks if t is not None)
+        if not count:
             raise TypeError("the depth track does not state its frame count")
-        return self._count if self.max_frames is None else min(self._count, self.max_frames)
+        return count if self.max_frames is None else min(count, self.max_frames)
 
     def _drop(self, reason: str, pts: int, color: int, depth: int) -> None:
         self.drop_reasons[reason] = self.drop_reasons.get(reason, 0) + 1

@@ -30,6 +30,7 @@ if TYPE_CHECKING:
 __all__ = [
     "CameraDefaults",
     "FrameIndex",
+    "InputStream",
     "Source",
     "SourceKind",
     "detect_kind",
@@ -38,6 +39,7 @@ __all__ = [
     "register_source",
     "source_kind",
     "source_kinds",
+    "streams_by_name",
 ]
 
 
@@ -72,6 +74,33 @@ class FrameIndex:
         return FrameIndex(self.rows[start:stop].copy(), self.first + start)
 
 
+@dataclass(frozen=True)
+class InputStream:
+    """A topic, track or file of an input, as its index or listing states it: ``name`` (the
+    topic, the track's title), ``type`` (the message type, the track's kind) and ``count``,
+    the messages (or blocks) it holds where the index says so without reading them (``None``
+    where only reading them would tell)."""
+
+    name: str
+    type: str
+    count: int | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "type": self.type, "messages": self.count}
+
+
+def streams_by_name(items: Any) -> list[InputStream]:
+    """One :class:`InputStream` per name from ``(name, type, count)`` items (a ROS 1 bag has a
+    connection per publisher: their counts add up, their types are joined), in name order."""
+    found: dict[str, tuple[list[str], int | None]] = {}
+    for name, kind, count in items:
+        types, total = found.get(name, ([], 0))
+        if kind not in types:
+            types.append(kind)
+        found[name] = types, None if total is None or count is None else total + int(count)
+    return [InputStream(n, " | ".join(t), c) for n, (t, c) in sorted(found.items())]
+
+
 class Source(abc.ABC):
     """Timestamped RGB-D frames with the camera that took them.
 
@@ -93,6 +122,11 @@ class Source(abc.ABC):
     * ``fps`` and ``frame_id``: the nominal frame rate and the camera's frame name the input
       records (both ``None`` where it does not say; :func:`pcdcodec.encode` then uses its own
       ``fps`` and the writer's default frame name).
+    * :attr:`left_out`: the topics, tracks or files of the input whose content a recording of
+      it does not hold (IMU, infrared, device options, ...), as :class:`InputStream` items.
+      A reader says what its input holds (:meth:`input_streams`) and which of those it records
+      (:meth:`recorded_streams`); every reader reports through these two, and
+      :meth:`describe` (so an ``encode`` summary and ``info``) lists what is left out.
 
     Iterating yields frames one at a time, so a source of any length runs in bounded memory.
     A source is a context manager; :meth:`close` releases files it holds.
@@ -167,8 +201,28 @@ class Source(abc.ABC):
         except TypeError:
             return None
 
+    def input_streams(self) -> list[InputStream]:
+        """Every topic, track or file the input holds, from its index or listing
+        (never by reading the messages). Readers override it; the default, no streams,
+        is for inputs whose every part a recording holds."""
+        return []
+
+    def recorded_streams(self) -> set[str]:
+        """The names, among :meth:`input_streams`, of those whose content a recording of this
+        source holds: the frames' images, and the topics the camera, the depth scale, the
+        poses and the metadata come from."""
+        return set()
+
+    @property
+    def left_out(self) -> tuple[InputStream, ...]:
+        """The input's topics, tracks or files that a recording of it does not hold: every
+        :meth:`input_streams` item not in :meth:`recorded_streams`, in name order."""
+        kept = self.recorded_streams()
+        return tuple(s for s in self.input_streams() if s.name not in kept)
+
     def describe(self) -> dict[str, Any]:
-        """What an ``encode`` summary prints: the reader, camera and depth scale used."""
+        """What an ``encode`` summary prints: the reader, camera and depth scale used, and
+        what of the input is left out (``left_out``: name, type, messages)."""
         return {
             "source": type(self).__name__,
             "path": str(self.path),
@@ -178,6 +232,7 @@ class Source(abc.ABC):
             "color_intrinsics": self.color_intrinsics.to_dict()
             if self.color_intrinsics is not None
             else None,
+            "left_out": [s.to_dict() for s in self.left_out],
         }
 
     def close(self) -> None:  # noqa: B027 - optional hook, most sources hold nothing open

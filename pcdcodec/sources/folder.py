@@ -63,7 +63,7 @@ from ._folder_layouts import (
     Pair,
     folder_pairs,
 )
-from .base import Source, detect_kind, register_source
+from .base import InputStream, Source, detect_kind, register_source
 
 if TYPE_CHECKING:
     from ..geometry.camera import CameraIntrinsics
@@ -158,10 +158,33 @@ class FolderSource(Source):
     depth_to_color: Any = None
     has_color: bool = True
     camera_notes: tuple[str, ...] = ()
+    #: The folder's own entries a recording of it holds: the image folders (or files), the
+    #: time lists, the camera and pose files it read.
+    read_entries: frozenset[str] = frozenset()
 
     @property
     def path(self) -> Path:  # type: ignore[override]
         return self.root
+
+    def input_streams(self) -> list[InputStream]:
+        """The folder's own files and subfolders (not its images: those are the frames), from
+        its listing."""
+        try:
+            entries = sorted(os.scandir(self.root), key=lambda e: e.name)
+        except OSError:
+            return []
+        images = DEPTH_SUFFIXES + IMAGE_SUFFIXES
+        return [
+            InputStream(e.name, "folder" if e.is_dir() else "file")
+            for e in entries
+            if not e.name.startswith(".")
+            and (e.is_dir() or os.path.splitext(e.name)[1].lower() not in images)
+        ]
+
+    def recorded_streams(self) -> set[str]:
+        """The image folders, the time lists, and the camera and pose files read (a TUM
+        folder's ``accelerometer.txt``, say, is left out)."""
+        return set(self.read_entries)
 
     def __len__(self) -> int:
         return len(self.pairs)
@@ -349,7 +372,29 @@ def open_folder(
     source.metadata["timestamps"] = note
     if camera_from not in ("", "given", "camera.json"):
         source.metadata["intrinsics_file"] = camera_from
+    source.read_entries = _read_entries(root, pairs, is_tum_pairs, poses is not None, camera_from)
     return source
+
+
+def _read_entries(
+    root: Path, pairs: list[Pair], tum: bool, posed: bool, camera_from: str
+) -> frozenset[str]:
+    """The names of the folder's own entries that opening it read or its frames come from."""
+    read: set[str] = set()
+    for _, c, d in pairs:
+        for f in (c, d):
+            parts = f.relative_to(root).parts if f is not None and f.is_relative_to(root) else ()
+            if parts:
+                read.add(parts[0])
+    if tum:
+        read |= {n for n in ("rgb.txt", "depth.txt", "associations.txt") if (root / n).is_file()}
+    if (root / "camera.json").is_file():
+        read.add("camera.json")
+    if camera_from not in ("", "given", "camera.json"):
+        read.add(camera_from)
+    if posed:
+        read.add("groundtruth.txt" if tum and (root / "groundtruth.txt").is_file() else "pose")
+    return frozenset(read)
 
 
 def _flat_depth_and_others(path: Path) -> tuple[bool, list[str]]:

@@ -32,7 +32,7 @@ import numpy.typing as npt
 
 from ..errors import DecodeError, InputError, PcdcodecError
 from ..geometry.camera import CameraIntrinsics
-from .base import Source
+from .base import InputStream, Source
 
 __all__ = ["RealSenseLiveSource", "connected_serials", "realsense_live"]
 
@@ -414,6 +414,41 @@ class RealSenseLiveSource(Source):
                 return
             if self.duration is not None and time.monotonic() - start >= self.duration:
                 return
+
+    def _played_bag(self) -> Any:
+        """The played-back ``.bag`` read by pcdcodec's own reader, for its topics (``None`` for a
+        camera, or a bag that reader refuses)."""
+        if not self.playback:
+            return None
+        found = getattr(self, "_bag_topics", None)
+        if found is None:
+            from .realsense import RealSenseBagSource
+
+            try:
+                found = RealSenseBagSource(self.path)
+            except PcdcodecError:
+                found = False
+            self._bag_topics = found
+        return found or None
+
+    def input_streams(self) -> list[InputStream]:
+        """Of a played-back ``.bag``, its topics (a camera's other streams, infrared and IMU,
+        are never opened: nothing of them is read)."""
+        bag = self._played_bag()
+        return [] if bag is None else bag.input_streams()
+
+    def recorded_streams(self) -> set[str]:
+        """The topics a played-back ``.bag`` gives the frames, camera and depth units from
+        (without color, not the color stream's)."""
+        bag = self._played_bag()
+        if bag is None:
+            return set()
+        kept: set[str] = bag.recorded_streams()
+        if not self.has_color and bag.color_topic:
+            color = bag.color_topic[: -len("/image/data")]
+            depth = bag.depth_topic[: -len("/image/data")]
+            kept = {t for t in kept if not t.startswith(color + "/") and t != f"{depth}/tf/0"}
+        return kept
 
     def describe(self) -> dict[str, Any]:
         out = super().describe()

@@ -20,6 +20,7 @@ camera's size. Each depth frame is paired with the color frame nearest to it in 
 
 from __future__ import annotations
 
+import json
 import re
 from collections import deque
 from collections.abc import Iterator
@@ -34,7 +35,7 @@ from ..errors import DecodeError, InputError, PcdcodecError
 from ..geometry.camera import CameraIntrinsics, as_intrinsics
 from ..ros.bagfile import ROS1_MAGIC
 from ..ros.bagindex import check_ros1_index
-from .base import FrameIndex, Source, read_magic, register_source
+from .base import FrameIndex, InputStream, Source, read_magic, register_source, streams_by_name
 
 __all__ = ["RealSenseBagSource", "open_realsense"]
 
@@ -313,11 +314,23 @@ class RealSenseBagSource(Source):
 
         self.intrinsics: CameraIntrinsics | None = camera(depth_prefix)
         self._shapes = {True: self.intrinsics.shape, False: (0, 0)}
+        # What the recording holds of the bag: the images, the cameras, the device's info, and
+        # the extrinsics and depth units where they are used.
+        conns_all = reader.connections
+        self._streams = streams_by_name((c.topic, c.msgtype, c.msgcount) for c in conns_all)
+        self._recorded = {self.depth_topic, f"{depth_prefix}/info/camera_info", f"{device}/info"}
         if color is not None:
             self.color_intrinsics = camera(color[0])
             self._shapes[False] = self.color_intrinsics.shape
             self.depth_to_color = tf(color[0]) @ np.linalg.inv(tf(depth_prefix))
+            self._recorded |= {
+                f"{color[0]}/image/data",
+                f"{color[0]}/info/camera_info",
+                f"{color[0]}/tf/0",
+                f"{depth_prefix}/tf/0",
+            }
         if depth_scale is None:
+            self._recorded.add(units_topic)
             units = found.get(units_topic)
             if units is None:
                 raise InputError(
@@ -346,6 +359,8 @@ class RealSenseBagSource(Source):
         ):
             if key in info:
                 self.metadata[label] = info[key]
+        if info:  # every key of the device's info, as the bag holds them
+            self.metadata["device_info"] = json.dumps(info, sort_keys=True)
         counts = {c.topic: c.msgcount for c in reader.connections}
         self._count = int(counts.get(self.depth_topic, 0))
 
@@ -388,6 +403,16 @@ class RealSenseBagSource(Source):
 
     def _image_topics(self) -> set[str]:
         return _image_topics(self)
+
+    def input_streams(self) -> list[InputStream]:
+        """Every topic of the bag, with its type and message count from the bag's index."""
+        return list(self._streams)
+
+    def recorded_streams(self) -> set[str]:
+        """The image topics, their camera infos, the device's info, and the extrinsics and the
+        Depth Units option where they are used; IMU, infrared, the other options, the
+        per-frame metadata and the stream infos are left out."""
+        return set(self._recorded)
 
     @contextmanager
     def _reader(self) -> Iterator[Any]:

@@ -27,7 +27,7 @@ import numpy.typing as npt
 
 from ..errors import InputError, PcdcodecError
 from ..ros import bagfile, tf, topics
-from .base import Source
+from .base import InputStream, Source
 
 __all__ = [
     "BagCameras",
@@ -35,6 +35,7 @@ __all__ = [
     "bag_cameras",
     "camera_name",
     "close_inputs",
+    "left_out_of",
     "merge_by_time",
     "open_bag_cameras",
     "open_inputs",
@@ -330,6 +331,24 @@ def reads_as_rig(path: str | os.PathLike[str]) -> bool:
         return False
     close_inputs(found[0])
     return True
+
+
+def left_out_of(cameras: Iterable[CameraInput]) -> dict[str, list[InputStream]]:
+    """What a recording of these cameras leaves out of each input: per input path, the
+    topics, tracks or cameras that no camera read from it records (the cameras of one bag each
+    read their own namespace's topics; what none of them reads is left out). Inputs that
+    leave nothing out are not listed. A bag's ``/tf_static`` that placed a camera on the rig
+    is recorded (as its rig pose)."""
+    found: dict[str, list[InputStream]] = {}
+    for cam in cameras:
+        key = str(cam.source.path)
+        placed = cam.pose_from.startswith("/tf_static")
+        mine = [s for s in cam.source.left_out if not (placed and s.name == "/tf_static")]
+        if key in found:
+            names = {s.name for s in mine}
+            mine = [s for s in found[key] if s.name in names]
+        found[key] = mine
+    return {k: v for k, v in found.items() if v}
 
 
 def close_inputs(cameras: Iterable[CameraInput]) -> None:

@@ -55,7 +55,7 @@ from ..ros.topics import (
     TopicCandidate,
 )
 from ..sync import Synchronizer
-from .base import FrameIndex, Source, read_magic, register_source
+from .base import FrameIndex, InputStream, Source, read_magic, register_source, streams_by_name
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
 
@@ -202,6 +202,8 @@ class RosbagSource(Source):
         self.depth_topic: str | None = None
         self.cloud_topic: str | None = None
 
+        conns = self._reader.connections
+        self._streams = streams_by_name((c.topic, c.msgtype, c.msgcount) for c in conns)
         cands = self.candidates()
         self.mode = topics.choose_mode(cands, depth_topic, cloud_topic, str(self.path))
         first_pts = None
@@ -369,6 +371,22 @@ class RosbagSource(Source):
         return metadata
 
     # -- the Source protocol ------------------------------------------------------------------
+
+    def input_streams(self) -> list[InputStream]:
+        """Every topic of the bag, with its type and message count from the bag's index."""
+        return list(self._streams)
+
+    def recorded_streams(self) -> set[str]:
+        """The topics read (depth or cloud, color or video, camera info, and any other topic
+        the recording's metadata names as read), and ``/tf`` and ``/tf_static``, read for the
+        camera's poses: once read, they count as left out when they gave the camera none."""
+        topics = {self.depth_topic, self.color_topic, self.info_topic, self.cloud_topic}
+        topics |= {
+            v for k, v in self.metadata.items() if k.startswith("ros_") and k.endswith("_topic")
+        }
+        if self._tf is not False:
+            topics |= {s.name for s in self._streams if "/" + s.name.lstrip("/") in tf.TF_TOPICS}
+        return {t for t in topics if t}
 
     @property
     def dropped(self) -> dict[str, int]:
