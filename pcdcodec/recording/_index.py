@@ -210,6 +210,32 @@ def camera_view(index: FileIndex, name: str) -> FileIndex:
     )
 
 
+def ends_early(index: FileIndex) -> str | None:
+    """Why the file of ``index`` ends before its writer closed it, or ``None`` when it was
+    closed: it has its summary, the end of its data section, or a seal (written on closing)."""
+    if index.indexed or index.data_crc is not None:
+        return None
+    if any(name == SEAL_NAME or name.startswith(SEAL_NAME + ".") for name in index.metadata):
+        return None
+    if index.truncated_at is not None:
+        return (
+            f"it is cut short: the record at byte offset {index.truncated_at} runs past its "
+            f"end, at byte {index.size}"
+        )
+    return (
+        "it ends without the records a writer adds on closing: its writer was stopped, or "
+        "it was cut short"
+    )
+
+
+def incomplete_message(name: str, reason: str, frames: str) -> str:
+    """What a reader says of a file that :func:`ends_early`: ``frames`` is what can be read."""
+    return (
+        f"{name!r} is incomplete ({reason}); {frames} can be read. `pcdcodec recover {name} -o "
+        "OUT` copies them into a closed recording"
+    )
+
+
 def load(f: IO[bytes]) -> FileIndex:
     """The index of a recording: from its summary when that is intact, else from a scan."""
     problem: str | None = None

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+import warnings
 import weakref
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -15,7 +16,14 @@ import numpy.typing as npt
 
 from ..color.base import StreamCodec
 from ..depth.base import FrameCodec, read_header
-from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
+from ..errors import (
+    DecodeError,
+    IncompleteRecordingWarning,
+    InputError,
+    InputTypeError,
+    PcdcodecError,
+    UnknownCodecError,
+)
 from ..frame import Frame
 from ..geometry.camera import CameraIntrinsics
 from ..geometry.projector import Projector
@@ -102,6 +110,14 @@ class Recording(PacketAccess, OneCamera):
         except BaseException:
             self._file.close()
             raise
+        reason = fmt.ends_early(self.index)
+        if reason is not None and self.camera is None:  # (a rig's reader says it once)
+            message = fmt.incomplete_message(str(self.path), reason, f"{len(self)} frames")
+            try:
+                warnings.warn(message, IncompleteRecordingWarning, stacklevel=3)
+            except BaseException:  # a filter that turns warnings into errors
+                self._file.close()
+                raise
 
     #: The camera of a rig's file this reads (``None``: a one-camera file).
     camera: str | None = None
@@ -138,10 +154,7 @@ class Recording(PacketAccess, OneCamera):
             )
         meta = index.metadata.get(fmt.METADATA_NAME)
         if not header.is_recording(index) or meta is None:
-            raise DecodeError(
-                f"{name!r} is an MCAP file but not a pcdcodec recording "
-                f"(profile {index.profile!r}, no {fmt.METADATA_NAME!r} metadata)"
-            )
+            raise header.not_a_recording(self._file, index, name)
         fmt.check_metadata(index, repr(name))
         cameras = fmt.rig_cameras(index, repr(name))
         if cameras is not None:
@@ -306,6 +319,14 @@ class Recording(PacketAccess, OneCamera):
     def indexed(self) -> bool:
         """False for a file whose writer did not finish (read by scanning; see ``recover``)."""
         return self.index.indexed
+
+    @property
+    def complete(self) -> bool:
+        """False for a file that ends before its writer closed it (cut short, or its writer was
+        stopped): its frames are those before that end, and opening it warned with
+        :class:`~pcdcodec.errors.IncompleteRecordingWarning`. ``pcdcodec recover`` copies them
+        into a closed file."""
+        return fmt.ends_early(self.index) is None
 
     @property
     def projector(self) -> Projector:

@@ -70,7 +70,7 @@ def _copy(f: IO[bytes], tmp: Path, src_path: Path) -> None:
     except Exception as exc:
         raise DecodeError(f"could not be read ({type(exc).__name__}: {exc})") from exc
     if not header.is_recording(index):
-        raise DecodeError(f"{str(src_path)!r} is not a pcdcodec recording")
+        raise header.not_a_recording(f, index, str(src_path))
     if index.loose_messages:
         raise DecodeError(
             f"{str(src_path)!r} holds {index.loose_messages} message(s) outside chunks (an "

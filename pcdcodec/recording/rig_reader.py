@@ -9,13 +9,14 @@ one-camera recording gets (digests, seal, CRCs, frame digests) runs per camera.
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 from typing import IO
 
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import DecodeError, InputError
+from ..errors import DecodeError, IncompleteRecordingWarning, InputError
 from . import _header as header
 from . import _index as fmt
 from .framesets import FrameSet, FrameSets, RigCamera, framesets, match_times
@@ -128,6 +129,21 @@ class RigRecording:
         except BaseException:
             self.close()
             raise
+        reason = fmt.ends_early(index)
+        if reason is not None:
+            frames = ", ".join(f"{len(r)} of camera {c!r}" for c, r in self._recordings.items())
+            message = fmt.incomplete_message(name, reason, f"frames ({frames})")
+            try:
+                warnings.warn(message, IncompleteRecordingWarning, stacklevel=3)
+            except BaseException:  # a filter that turns warnings into errors
+                self.close()
+                raise
+
+    @property
+    def complete(self) -> bool:
+        """False for a file that ends before its writer closed it (see
+        :attr:`Recording.complete <pcdcodec.Recording.complete>`)."""
+        return fmt.ends_early(self.index) is None
 
     @property
     def camera_names(self) -> list[str]:
@@ -215,6 +231,6 @@ def load_index(f: IO[bytes], name: str) -> fmt.FileIndex:
             "`pcdcodec recover` copies the frames before the damage into a new file"
         )
     if not header.is_recording(index):
-        raise DecodeError(f"{name!r} is an MCAP file but not a pcdcodec recording")
+        raise header.not_a_recording(f, index, name)
     fmt.check_metadata(index, repr(name))
     return index
