@@ -91,6 +91,28 @@ SEALED_TOPICS = (
 )
 
 
+#: The metadata record ``pcdcodec recover`` writes when it kept frames whose color was lost:
+#: listed in ``metadata_records`` and sealed like the others.
+RECOVERED_NAME = "pcdcodec.recovered"
+#: In the recovered record: JSON list of the times (ns) of the frames kept without their color.
+COLOR_MISSING_KEY = "color_missing"
+
+
+def color_missing(index: FileIndex, what: str) -> frozenset[int]:
+    """The times (ns) of the frames ``recover`` kept without color (its record, checked)."""
+    record = index.metadata.get(RECOVERED_NAME)
+    if record is None or COLOR_MISSING_KEY not in record:
+        return frozenset()
+    times = parse_json(record[COLOR_MISSING_KEY], f"{what}: {RECOVERED_NAME!r}")
+    if not isinstance(times, list) or not all(
+        isinstance(t, int) and not isinstance(t, bool) and 0 <= t < 1 << 64 for t in times
+    ):
+        raise DecodeError(
+            f"{what}: {RECOVERED_NAME!r} {COLOR_MISSING_KEY!r} is not a list of frame times (ns)"
+        )
+    return frozenset(times)
+
+
 # -- several cameras in one file (format version 3) -------------------------------------------
 
 #: The format version of recordings with several cameras: each camera's messages and records
@@ -127,6 +149,11 @@ def camera_record(name: str) -> str:
 def camera_seal(name: str) -> str:
     """The seal record of camera ``name`` of a rig."""
     return f"{SEAL_NAME}.{name}"
+
+
+def camera_recovered(name: str) -> str:
+    """The recovered record (:data:`RECOVERED_NAME`) of camera ``name`` of a rig."""
+    return f"{RECOVERED_NAME}.{name}"
 
 
 def camera_topic(topic: str, name: str) -> str:
@@ -183,18 +210,25 @@ def camera_view(index: FileIndex, name: str) -> FileIndex:
         for cid, info in index.channels.items()
         if info.topic in topics
     }
-    renamed = {camera_record(name): METADATA_NAME, camera_seal(name): SEAL_NAME}
+    renamed = {
+        camera_record(name): METADATA_NAME,
+        camera_seal(name): SEAL_NAME,
+        camera_recovered(name): RECOVERED_NAME,
+    }
     if USER_METADATA_NAME in index.metadata:
         renamed[USER_METADATA_NAME] = USER_METADATA_NAME
+    listed = [
+        seen
+        for real, seen in renamed.items()
+        if seen in (USER_METADATA_NAME, RECOVERED_NAME) and real in index.metadata
+    ]
     metadata: dict[str, dict[str, str]] = {}
     offsets: dict[str, int] = {}
     for real, seen in renamed.items():
         if real in index.metadata:
             data = dict(index.metadata[real])
             if seen == METADATA_NAME:
-                data[RECORDS_KEY] = json.dumps(
-                    [USER_METADATA_NAME] if USER_METADATA_NAME in renamed else []
-                )
+                data[RECORDS_KEY] = json.dumps(listed)
             metadata[seen] = seal(seen, data) if DIGEST_KEY in data else data
             if real in index.metadata_offsets:
                 offsets[seen] = index.metadata_offsets[real]

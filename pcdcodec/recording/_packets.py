@@ -47,6 +47,7 @@ class PacketAccess:
     _digest_times: npt.NDArray[np.int64]
     _digest_offsets: npt.NDArray[np.int64]
     _digest_of_time: dict[int, int]
+    _color_missing: frozenset[int]
 
     @property
     def extradata(self) -> bytes | None:

@@ -239,6 +239,8 @@ class Recording(PacketAccess, OneCamera):
         self._packet_group: npt.NDArray[np.int64] = np.zeros(0, np.int64)
         self._groups_checked: set[int] = set()
         self._packet_cache: dict[int, Any] = {}
+        #: Frames ``recover`` kept without their color (lost to damage): their color is None.
+        self._color_missing = fmt.color_missing(index, repr(name)) if color_codec else frozenset()
         if self.integrity and self._seal is None:
             # Written before the writer stopped: a frame is complete with its digest message.
             has = [i for i, t in enumerate(d_times.tolist()) if int(t) in self._digest_of_time]
@@ -267,10 +269,13 @@ class Recording(PacketAccess, OneCamera):
             good = [
                 i
                 for i, t in enumerate(d_times.tolist())
-                if t in self._packet_of_pts
-                and first_key is not None
-                and self._packet_of_pts[t] >= self._keyframes[0]
-                and self._packet_group[self._packet_of_pts[t]] != unchecked
+                if t in self._color_missing
+                or (
+                    t in self._packet_of_pts
+                    and first_key is not None
+                    and self._packet_of_pts[t] >= self._keyframes[0]
+                    and self._packet_group[self._packet_of_pts[t]] != unchecked
+                )
             ]
             # Frames after the last complete one were in flight when the writer stopped. One
             # missing its packet before that is damage: it stays, and reading it fails. In a
@@ -319,6 +324,14 @@ class Recording(PacketAccess, OneCamera):
     def indexed(self) -> bool:
         """False for a file whose writer did not finish (read by scanning; see ``recover``)."""
         return self.index.indexed
+
+    @property
+    def color_missing(self) -> list[int]:
+        """The frames (indices) kept by ``pcdcodec recover`` whose color was lost to damage:
+        their ``color`` is ``None``, their depth is as recorded. Empty in other files."""
+        if not self._color_missing:
+            return []
+        return [i for i, t in enumerate(self._times.tolist()) if t in self._color_missing]
 
     @property
     def complete(self) -> bool:
