@@ -146,6 +146,13 @@ def _chunk_messages(content: bytes, offset: int, what: str) -> tuple[list[Any], 
 
     try:
         chunk = Chunk.read(_stream(content))
+        # The record's length must be that of its fields: a damaged length would move the
+        # next record.
+        fields = _CHUNK_HEAD.size + len(chunk.compression.encode()) + 8 + len(chunk.data)
+        if fields != len(content):
+            raise DecodeError(
+                f"the record is {len(content)} bytes long, its fields take {fields} bytes"
+            )
         if chunk.compression == "":
             # MCAP skips the check when the stored CRC is 0; pcdcodec always writes one.
             crc = zlib.crc32(chunk.data)

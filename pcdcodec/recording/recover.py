@@ -416,7 +416,10 @@ def _decide(lane: _Lane, index: fmt.FileIndex) -> None:
             lane.kept_packets.add(j)
             if pts in lane.keyframes:
                 lane.kept_keyframes.add(pts)
-    frames = set(lane.depth) | set(lane.records)
+    # Every time a frame's message was found at: a frame whose depth and digest are both lost
+    # is still reported, by its color packet or pose.
+    frames = set(lane.depth) | set(lane.records) | set(lane.poses)
+    frames |= {pts for pts, _ in lane.packets}
     lane.order = sorted(frames)
     last_record = max(lane.records, default=None)
     for t in lane.order:
