@@ -8,8 +8,7 @@ flipped bytes fall in, and which frames, color groups and keyframes those chunks
 from __future__ import annotations
 
 import random
-import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +16,7 @@ import numpy as np
 import pytest
 
 import pcdcodec
+from pcdcodec.bench.damage import Layout, expected, flip
 from pcdcodec.bench.sequences import SEQUENCES
 from pcdcodec.cli import main
 from pcdcodec.recording import _index as fmt
@@ -26,21 +26,9 @@ pytestmark = pytest.mark.shared_data
 
 
 @dataclass
-class Original:
-    path: Path
-    times: list[int]
-    depth: dict[int, Any]
-    color: dict[int, Any]
-    #: chunk offset -> end (the record's last byte + 1)
-    extent: dict[int, int]
-    #: per topic: time -> chunk offset
-    at: dict[str, dict[int, int]]
-    #: color packets in file order: (pts, chunk offset, group)
-    packets: list[tuple[int, int, int]]
-    #: the chunk offset of each frame digest, in file order
-    digests: list[int]
-    keyframes: set[int]
-    data: bytes
+class Original(Layout):
+    depth: dict[int, Any] = field(default_factory=dict)
+    color: dict[int, Any] = field(default_factory=dict)
 
 
 @pytest.fixture(scope="module")
@@ -51,66 +39,16 @@ def tum(tmp_path_factory: pytest.TempPathFactory) -> Original:
     path = tmp_path_factory.mktemp("recover") / "tum.pcdc"
     with pcdcodec.open_source(seq.root, **seq.reader_options()) as source:
         pcdcodec.encode(source, path)
-    data = path.read_bytes()
-    extent, pos = {}, 8
-    while pos + 9 <= len(data) and data[pos] != 0x0F:
-        (length,) = struct.unpack_from("<Q", data, pos + 1)
-        extent[pos] = pos + 9 + length
-        pos += 9 + length
+    orig = Original(**vars(Layout.of(path)))
     with pcdcodec.open(path) as rec:
         assert len(rec) == 100
-        times = rec.timestamps.tolist()
-        depth = {t: rec.depth(i) for i, t in enumerate(times)}
-        color = {f.timestamp_ns: f.color for f in rec}
-        index = rec.index
-    at = {
-        topic: dict(zip(index.times[topic], index.offsets[topic], strict=True))
-        for topic in index.times
-    }
-    digests = sorted(index.offsets[fmt.TOPIC_FRAME_DIGEST])
-    packets = [
-        (pts, o, int(np.searchsorted(digests, o)))
-        for pts, o in sorted(at[fmt.TOPIC_COLOR].items(), key=lambda p: p[1])
-    ]
-    keyframes = set(index.times[fmt.TOPIC_KEYFRAMES])
-    return Original(path, times, depth, color, extent, at, packets, digests, keyframes, data)
-
-
-def damage(orig: Original, path: Path, at: list[int]) -> Path:
-    data = bytearray(orig.data)
-    for offset in at:
-        data[offset] ^= 0x20
-    path.write_bytes(bytes(data))
-    return path
-
-
-def expected(orig: Original, flips: list[int]) -> tuple[set[int], set[int]]:
-    """(times of the frames that must be left out, of those kept without color)."""
-
-    def hit(offset: int | None) -> bool:
-        return offset is not None and any(offset <= p < orig.extent[offset] for p in flips)
-
-    frame_topics = (fmt.TOPIC_DEPTH, fmt.TOPIC_FRAME_DIGEST, fmt.TOPIC_POSE, fmt.TOPIC_POSE_MATRIX)
-    dropped = {t for t in orig.times if any(hit(orig.at[k].get(t)) for k in frame_topics)}
-    # A color group fails when one of its packets, their keyframe markers or its digest is hit.
-    bad_groups = {g for g, o in enumerate(orig.digests) if hit(o)}
-    for pts, offset, g in orig.packets:
-        if hit(offset) or hit(orig.at[fmt.TOPIC_KEYFRAMES].get(pts)):
-            bad_groups.add(g)
-    decodes, chain = set(), False
-    for pts, _, g in orig.packets:
-        if g in bad_groups:
-            chain = False
-            continue
-        chain = chain or pts in orig.keyframes
-        if chain:
-            decodes.add(pts)
-    no_color = {t for t in orig.times if t not in dropped and t not in decodes}
-    return dropped, no_color
+        orig.depth = {int(t): rec.depth(i) for i, t in enumerate(rec.timestamps.tolist())}
+        orig.color = {f.timestamp_ns: f.color for f in rec}
+    return orig
 
 
 def check(orig: Original, flips: list[int], tmp_path: Path) -> Recovered:
-    src = damage(orig, tmp_path / "damaged.pcdc", flips)
+    src = flip(orig, tmp_path / "damaged.pcdc", flips)
     out = tmp_path / "recovered.pcdc"
     got = pcdcodec.recover(src, out)
     dropped, no_color = expected(orig, flips)
@@ -139,8 +77,7 @@ def check(orig: Original, flips: list[int], tmp_path: Path) -> Recovered:
 def test_one_flipped_byte_costs_the_color_of_one_group_only(
     tum: Original, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    flip = 2_000_000
-    got = check(tum, [flip], tmp_path)
+    got = check(tum, [2_000_000], tmp_path)
     # Before, recover kept the 43 frames before the damage and said nothing of the rest.
     assert got == 100
     assert got.dropped == 0
@@ -158,7 +95,7 @@ def test_many_flipped_bytes_lose_only_the_frames_they_reach(
 ) -> None:
     rng = random.Random(seed)
     # Over the frames' chunks (the settings and the seal are the file's own, not a frame's).
-    first, last = min(tum.at[fmt.TOPIC_DEPTH].values()), max(tum.extent.values())
+    first, last = tum.frames_span
     flips = sorted(rng.randrange(first, last) for _ in range(30))
     got = check(tum, flips, tmp_path)
     assert got.dropped > 0

@@ -15,9 +15,11 @@ import hashlib
 import json
 import re
 import struct
+import warnings
+from collections.abc import Callable
 from typing import IO, Any
 
-from ..errors import DecodeError, PcdcodecError
+from ..errors import DecodeError, IncompleteRecordingWarning, PcdcodecError
 from ._scan import (
     MAGIC,
     ChannelInfo,
@@ -262,12 +264,17 @@ def ends_early(index: FileIndex) -> str | None:
     )
 
 
-def incomplete_message(name: str, reason: str, frames: str) -> str:
-    """What a reader says of a file that :func:`ends_early`: ``frames`` is what can be read."""
-    return (
-        f"{name!r} is incomplete ({reason}); {frames} can be read. `pcdcodec recover {name} -o "
-        "OUT` copies them into a closed recording"
-    )
+def warn_if_incomplete(index: FileIndex, name: str, frames: Callable[[], str]) -> None:
+    """Warn (:class:`~pcdcodec.errors.IncompleteRecordingWarning`) when the file ``name`` of
+    ``index`` :func:`ends_early`, saying which ``frames()`` can be read and what to do."""
+    reason = ends_early(index)
+    if reason is not None:
+        warnings.warn(
+            f"{name!r} is incomplete ({reason}); {frames()} can be read. `pcdcodec recover "
+            f"{name} -o OUT` copies them into a closed recording",
+            IncompleteRecordingWarning,
+            stacklevel=4,
+        )
 
 
 def load(f: IO[bytes]) -> FileIndex:

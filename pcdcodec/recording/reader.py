@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import threading
 import time
-import warnings
 import weakref
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -16,14 +15,7 @@ import numpy.typing as npt
 
 from ..color.base import StreamCodec
 from ..depth.base import FrameCodec, read_header
-from ..errors import (
-    DecodeError,
-    IncompleteRecordingWarning,
-    InputError,
-    InputTypeError,
-    PcdcodecError,
-    UnknownCodecError,
-)
+from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
 from ..frame import Frame
 from ..geometry.camera import CameraIntrinsics
 from ..geometry.projector import Projector
@@ -110,14 +102,12 @@ class Recording(PacketAccess, OneCamera):
         except BaseException:
             self._file.close()
             raise
-        reason = fmt.ends_early(self.index)
-        if reason is not None and self.camera is None:  # (a rig's reader says it once)
-            message = fmt.incomplete_message(str(self.path), reason, f"{len(self)} frames")
-            try:
-                warnings.warn(message, IncompleteRecordingWarning, stacklevel=3)
-            except BaseException:  # a filter that turns warnings into errors
-                self._file.close()
-                raise
+        try:
+            if self.camera is None:  # (a rig's reader says it once, for every camera)
+                fmt.warn_if_incomplete(self.index, str(self.path), lambda: f"{len(self)} frames")
+        except BaseException:  # a filter that turns the warning into an error
+            self._file.close()
+            raise
 
     #: The camera of a rig's file this reads (``None``: a one-camera file).
     camera: str | None = None
@@ -327,18 +317,13 @@ class Recording(PacketAccess, OneCamera):
 
     @property
     def color_missing(self) -> list[int]:
-        """The frames (indices) kept by ``pcdcodec recover`` whose color was lost to damage:
-        their ``color`` is ``None``, their depth is as recorded. Empty in other files."""
-        if not self._color_missing:
-            return []
+        """The frames ``recover`` kept without their color, lost to damage (``color`` None)."""
         return [i for i, t in enumerate(self._times.tolist()) if t in self._color_missing]
 
     @property
     def complete(self) -> bool:
-        """False for a file that ends before its writer closed it (cut short, or its writer was
-        stopped): its frames are those before that end, and opening it warned with
-        :class:`~pcdcodec.errors.IncompleteRecordingWarning`. ``pcdcodec recover`` copies them
-        into a closed file."""
+        """False for a file that ends before its writer closed it (cut short, or its writer
+        stopped): opening it warned (``IncompleteRecordingWarning``); see ``recover``."""
         return fmt.ends_early(self.index) is None
 
     @property

@@ -9,14 +9,13 @@ one-camera recording gets (digests, seal, CRCs, frame digests) runs per camera.
 from __future__ import annotations
 
 import os
-import warnings
 from pathlib import Path
 from typing import IO
 
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import DecodeError, IncompleteRecordingWarning, InputError
+from ..errors import DecodeError, InputError
 from . import _header as header
 from . import _index as fmt
 from .framesets import FrameSet, FrameSets, RigCamera, framesets, match_times
@@ -129,15 +128,12 @@ class RigRecording:
         except BaseException:
             self.close()
             raise
-        reason = fmt.ends_early(index)
-        if reason is not None:
-            frames = ", ".join(f"{len(r)} of camera {c!r}" for c, r in self._recordings.items())
-            message = fmt.incomplete_message(name, reason, f"frames ({frames})")
-            try:
-                warnings.warn(message, IncompleteRecordingWarning, stacklevel=3)
-            except BaseException:  # a filter that turns warnings into errors
-                self.close()
-                raise
+        counts = ", ".join(f"{len(r)} of camera {c!r}" for c, r in self._recordings.items())
+        try:
+            fmt.warn_if_incomplete(index, name, lambda: f"frames ({counts})")
+        except BaseException:  # a filter that turns the warning into an error
+            self.close()
+            raise
 
     @property
     def complete(self) -> bool:
