@@ -19,10 +19,11 @@ import pcdcodec
 from pcdcodec.bench.damage import Layout, expected, flip
 from pcdcodec.bench.sequences import SEQUENCES
 from pcdcodec.cli import main
+from pcdcodec.recording import CameraSpec
 from pcdcodec.recording import _index as fmt
 from pcdcodec.recording.recover import Recovered
 
-pytestmark = pytest.mark.shared_data
+from .test_integrity import CAMERA, small_frames
 
 
 @dataclass
@@ -74,6 +75,7 @@ def check(orig: Original, flips: list[int], tmp_path: Path) -> Recovered:
     return got
 
 
+@pytest.mark.shared_data
 def test_one_flipped_byte_costs_the_color_of_one_group_only(
     tum: Original, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -89,6 +91,7 @@ def test_one_flipped_byte_costs_the_color_of_one_group_only(
         assert loss.describe() in out
 
 
+@pytest.mark.shared_data
 @pytest.mark.parametrize("seed", [1, 2])
 def test_many_flipped_bytes_lose_only_the_frames_they_reach(
     tum: Original, tmp_path: Path, seed: int
@@ -102,9 +105,73 @@ def test_many_flipped_bytes_lose_only_the_frames_they_reach(
     assert got.damage
 
 
+@pytest.mark.shared_data
 def test_a_damaged_record_header_is_passed_over(tum: Original, tmp_path: Path) -> None:
     """A flipped record type or length: reading goes on at the next whole chunk."""
     depth = sorted(tum.at[fmt.TOPIC_DEPTH].values())
     flips = [depth[10], depth[40] + 3, tum.extent[depth[60]] + 4]  # type, length, message index
     got = check(tum, flips, tmp_path)
     assert got.dropped == 2
+
+
+def test_a_damaged_rig_keeps_each_cameras_frames(tmp_path: Path) -> None:
+    """Camera 'a' loses the frame whose depth chunk is damaged; camera 'b' keeps every frame,
+    those whose color decodes from a damaged packet without color."""
+    frames = small_frames(8)
+    specs = [CameraSpec("a", CAMERA, 5000.0, color=None), CameraSpec("b", CAMERA, 5000.0)]
+    path = tmp_path / "rig.pcdc"
+    with pcdcodec.open(path, "w", cameras=specs) as w:
+        for color, depth, ts in frames:
+            w.write("a", None, depth, ts)
+            w.write("b", color, depth, ts + 1000)
+    with pcdcodec.open(path) as rig:
+        a, b = rig.frames("a"), rig.frames("b")
+        depth_at = sorted(a.index.offsets[fmt.TOPIC_DEPTH])
+        color_at = sorted(b.index.offsets[fmt.TOPIC_COLOR])
+        colors = [f.color for f in b]
+    data = bytearray(path.read_bytes())
+    data[depth_at[4] + 200] ^= 0x20
+    data[color_at[2] + 200] ^= 0x20
+    damaged = tmp_path / "damaged.pcdc"
+    damaged.write_bytes(bytes(data))
+    got = pcdcodec.recover(damaged, tmp_path / "back.pcdc")
+    assert got == 15
+    assert [(loss.camera, loss.stream, loss.frames) for loss in got.lost] == [
+        ("a", "frame", (4,)),
+        ("b", "color", (2,)),
+        ("b", "color", (3, 4, 5, 6, 7)),
+    ]
+    with pcdcodec.open(tmp_path / "back.pcdc") as rig:
+        assert rig.verify().ok
+        a, b = rig.frames("a"), rig.frames("b")
+        assert [f.timestamp_ns for f in a] == [ts for i, (_, _, ts) in enumerate(frames) if i != 4]
+        assert b.color_missing == [2, 3, 4, 5, 6, 7]
+        for i, f in enumerate(b):
+            np.testing.assert_array_equal(f.depth, frames[i][1])
+            if i < 2:
+                np.testing.assert_array_equal(f.color, colors[i])
+            else:
+                assert f.color is None
+
+
+def test_frames_without_color_are_said_and_not_written_again_as_colored(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "one.pcdc"
+    with pcdcodec.open(path, "w", intrinsics=CAMERA, depth_scale=5000.0) as w:
+        for color, depth, ts in small_frames(6):
+            w.write(color, depth, ts)
+    with pcdcodec.open(path) as rec:
+        color_at = sorted(rec.index.offsets[fmt.TOPIC_COLOR])
+    data = bytearray(path.read_bytes())
+    data[color_at[3] + 200] ^= 0x20
+    damaged = tmp_path / "damaged.pcdc"
+    damaged.write_bytes(bytes(data))
+    back = tmp_path / "back.pcdc"
+    got = pcdcodec.recover(damaged, back)
+    assert got == 6
+    assert got.color_missing == 3
+    assert main(["info", str(back)]) == 0
+    assert "3 frame(s) kept by `pcdcodec recover` without their color" in capsys.readouterr().out
+    with pytest.raises(pcdcodec.DecodeError, match=r"frames 3, 4, 5\): they cannot be written"):
+        pcdcodec.encode(back, tmp_path / "again.pcdc")

@@ -38,6 +38,7 @@ def _info(rec: Any) -> dict[str, Any]:
         "indexed": rec.indexed,
         "metadata": rec.metadata,
         "first_timestamp_ns": int(rec.timestamps[0]) if len(rec) else None,
+        "frames_without_color": rec.color_missing,
     }
 
 
@@ -280,6 +281,12 @@ def cmd_info(args: argparse.Namespace) -> int:
         )
     print(f"  color      {json.dumps(info['codecs']['color'])}")
     print(f"  depth      {json.dumps(info['codecs']['depth'])}")
+    lost = info["frames_without_color"]
+    if lost:
+        print(
+            f"  no color   {len(lost)} frame(s) kept by `pcdcodec recover` without their color, "
+            f"lost to damage (first: frame {lost[0]})"
+        )
     stamps = info["metadata"].get("timestamps", "")
     if stamps.startswith("not recorded"):
         print(f"  times      {stamps} (the input had no timestamps)")
