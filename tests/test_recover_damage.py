@@ -175,3 +175,41 @@ def test_frames_without_color_are_said_and_not_written_again_as_colored(
     assert "3 frame(s) kept by `pcdcodec recover` without their color" in capsys.readouterr().out
     with pytest.raises(pcdcodec.DecodeError, match=r"frames 3, 4, 5\): they cannot be written"):
         pcdcodec.encode(back, tmp_path / "again.pcdc")
+
+
+def test_a_file_written_before_digests_loses_color_from_any_damage_on(tmp_path: Path) -> None:
+    """Without digests nothing says what a damaged chunk held: the color stream is taken as
+    broken from there to the next keyframe, and every frame keeps its depth."""
+    from .recording_rewrite import rewrite
+
+    path = tmp_path / "new.pcdc"
+    frames = small_frames(6)
+    with pcdcodec.open(path, "w", intrinsics=CAMERA, depth_scale=5000.0) as w:
+        for color, depth, ts in frames:
+            w.write(color, depth, ts)
+    old = tmp_path / "old.pcdc"
+    rewrite(path, old, strip_integrity=True)
+    with pcdcodec.open(old) as rec:
+        assert not rec.integrity
+        depth_at = sorted(rec.index.offsets[fmt.TOPIC_DEPTH])
+        colors = [f.color for f in rec]
+    data = bytearray(old.read_bytes())
+    data[depth_at[2] + 200] ^= 0x20
+    damaged = tmp_path / "damaged.pcdc"
+    damaged.write_bytes(bytes(data))
+    got = pcdcodec.recover(damaged, tmp_path / "back.pcdc")
+    assert got == 5
+    assert [(loss.stream, loss.frames) for loss in got.lost] == [
+        ("frame", (2,)),
+        ("color", (3, 4, 5)),
+    ]
+    with pcdcodec.open(tmp_path / "back.pcdc") as rec:
+        assert rec.verify().ok
+        kept = [0, 1, 3, 4, 5]
+        assert rec.timestamps.tolist() == [frames[i][2] for i in kept]
+        for k, f in zip(kept, rec, strict=True):
+            np.testing.assert_array_equal(f.depth, frames[k][1])
+            if k < 2:
+                np.testing.assert_array_equal(f.color, colors[k])
+            else:
+                assert f.color is None

@@ -75,6 +75,9 @@ class Recovered(int):
         out.damage = tuple(damage)
         return out
 
+    def __reduce__(self) -> Any:
+        return (type(self), (int(self), self.color_missing, list(self.lost), list(self.damage)))
+
     @property
     def frames(self) -> int:
         return int(self)
@@ -313,7 +316,9 @@ def _read(
         lane, topic = found
         t = int(m.log_time)
         if topic == fmt.TOPIC_COLOR:
-            packet = (len(lane.packets), t, int(m.publish_time), t in lane.keyframes, bytes(m.data))
+            # (the data only where a digest will check it: a file without digests has none)
+            data = bytes(m.data) if lane.integrity else b""
+            packet = (len(lane.packets), t, int(m.publish_time), t in lane.keyframes, data)
             groups[id(lane)].append(packet)
             lane.packets.append((t, offset))
             lane.bad.append(None)
