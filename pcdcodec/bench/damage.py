@@ -17,13 +17,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..recording import _index as fmt
 from ..recording.reader import Recording
 
 __all__ = ["Layout", "expected", "flip"]
 
+# The topics of a one-camera recording (docs/format.md).
+DEPTH, COLOR, KEYFRAMES = "/camera/depth", "/camera/color", "/camera/color/keyframes"
+FRAME_DIGEST = "/camera/frame_digest"
 #: A frame's own messages: one of them hit, the frame is lost.
-FRAME_TOPICS = (fmt.TOPIC_DEPTH, fmt.TOPIC_FRAME_DIGEST, fmt.TOPIC_POSE, fmt.TOPIC_POSE_MATRIX)
+FRAME_TOPICS = (DEPTH, FRAME_DIGEST, "/camera/pose", "/camera/pose/matrix")
 
 
 @dataclass
@@ -58,19 +60,19 @@ class Layout:
             topic: dict(zip(index.times[topic], index.offsets[topic], strict=True))
             for topic in index.times
         }
-        digests = sorted(index.offsets.get(fmt.TOPIC_FRAME_DIGEST, []))
+        digests = sorted(index.offsets.get(FRAME_DIGEST, []))
         packets = [
             (pts, o, int(np.searchsorted(digests, o)))
-            for pts, o in sorted(at.get(fmt.TOPIC_COLOR, {}).items(), key=lambda p: p[1])
+            for pts, o in sorted(at.get(COLOR, {}).items(), key=lambda p: p[1])
         ]
-        keyframes = set(index.times.get(fmt.TOPIC_KEYFRAMES, []))
+        keyframes = set(index.times.get(KEYFRAMES, []))
         return cls(path, times, extent, at, packets, digests, keyframes, data)
 
     @property
     def frames_span(self) -> tuple[int, int]:
         """The bytes that hold the frames' chunks (not the settings, nor the seal)."""
         ends = [self.extent[o] for topic in self.at.values() for o in topic.values()]
-        return min(self.at[fmt.TOPIC_DEPTH].values()), max(ends)
+        return min(self.at[DEPTH].values()), max(ends)
 
 
 def harmless(layout: Layout, chunk: int, at: int, mask: int) -> bool:
@@ -112,7 +114,7 @@ def expected(layout: Layout, flips: list[int], mask: int = 0x20) -> tuple[set[in
         return dropped, set()
     bad_groups = {g for g, o in enumerate(layout.digests) if hit(o)}
     for pts, offset, g in layout.packets:
-        if hit(offset) or hit(layout.at.get(fmt.TOPIC_KEYFRAMES, {}).get(pts)):
+        if hit(offset) or hit(layout.at.get(KEYFRAMES, {}).get(pts)):
             bad_groups.add(g)
     decodes, chain = set(), False
     for pts, _, g in layout.packets:
