@@ -12,9 +12,11 @@ __all__ = [
     "CodecUnavailableError",
     "DecodeError",
     "DiskFullError",
+    "IncompleteRecordingWarning",
     "InputError",
     "InputTypeError",
     "PcdcodecError",
+    "PcdcodecWarning",
     "UnknownCodecError",
     "VerificationError",
 ]
@@ -58,3 +60,13 @@ class DiskFullError(PcdcodecError, OSError):
 
 class VerificationError(PcdcodecError, ValueError):
     """A written recording does not give back what its source holds."""
+
+
+class PcdcodecWarning(UserWarning):
+    """Root of every warning pcdcodec gives: something a caller should know, that is no error."""
+
+
+class IncompleteRecordingWarning(PcdcodecWarning):
+    """A recording opened for reading ends before its writer closed it (cut short, or its
+    writer was stopped): only the frames before that end are read. ``pcdcodec recover`` copies
+    them into a closed file."""

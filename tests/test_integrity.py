@@ -216,7 +216,9 @@ def test_zeroed_channel_record_in_the_summary(
     assert not report.ok
 
 
-def test_damaged_chunk_with_a_damaged_summary_is_an_error(tmp_path: Path, clean: Path) -> None:
+def test_damaged_chunk_with_a_damaged_summary_is_an_error(
+    tmp_path: Path, clean: Path, decoded: list[Any]
+) -> None:
     data = bytearray(clean.read_bytes())
     with pcdcodec.open(clean) as rec:
         offset = int(rec._offsets[5])
@@ -227,13 +229,14 @@ def test_damaged_chunk_with_a_damaged_summary_is_an_error(tmp_path: Path, clean:
     with pytest.raises(pcdcodec.DecodeError, match=f"damaged at byte offset {offset}.*recover"):
         pcdcodec.open(path)
     recovered = tmp_path / "r.pcdc"
-    # Frames before the damage whose color packets were written before it (x264's lookahead
-    # holds packets back, so possibly none).
+    # Every frame but the one whose depth chunk is damaged, each as written.
     count = pcdcodec.recover(path, recovered)
-    assert count <= 5
-    with pcdcodec.open(recovered) as rec:
-        assert len(rec) == count
-        assert rec.verify().ok
+    assert count == 9
+    assert [(loss.stream, loss.frames) for loss in count.lost] == [("frame", (5,))]
+    assert "depth message is lost" in count.lost[0].reason
+    frames, report = read_all(recovered)
+    assert report.ok
+    assert_same(frames, decoded[:5] + decoded[6:])
 
 
 def test_verify_counts_frames_from_the_file_not_the_index(

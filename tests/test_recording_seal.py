@@ -152,11 +152,17 @@ def test_removed_last_color_packet_recovers_the_other_frames(
     clean: Path, tmp_path: Path, decoded: dict[int, tuple[Any, Any]]
 ) -> None:
     path = hostile(clean, tmp_path / "nolast.pcdc", drop_last_color_packet)
-    assert pcdcodec.recover(path, tmp_path / "back.pcdc") == 4
+    got = pcdcodec.recover(path, tmp_path / "back.pcdc")
+    assert got == 5  # the last frame keeps its depth; its color alone is lost
+    assert got.color_missing == 1
+    assert [(loss.stream, loss.frames) for loss in got.lost] == [("color", (4,))]
     with pcdcodec.open(tmp_path / "back.pcdc") as rec:
         assert rec.verify().ok
+        assert rec.color_missing == [4]
         for f in rec:
-            np.testing.assert_array_equal(f.color, decoded[f.timestamp_ns][0])
+            color = None if f.index == 4 else decoded[f.timestamp_ns][0]
+            np.testing.assert_array_equal(f.color, color)
+            np.testing.assert_array_equal(f.depth, decoded[f.timestamp_ns][1])
 
 
 def test_removed_last_color_packet_in_a_file_without_seal_fails_verify(

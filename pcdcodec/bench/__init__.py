@@ -8,6 +8,8 @@ never imports this package.
 * :mod:`~pcdcodec.bench.depth_rd`: rate-distortion of lossy depth against its peers.
 * :mod:`~pcdcodec.bench.roundtrip`: ``pcdcodec demo``'s write-and-read measurement.
 * :mod:`~pcdcodec.bench.pytest_plugin`: the pytest-benchmark plugin (fixtures, summary table).
+* :mod:`~pcdcodec.bench.damage`: what ``recover`` must give back of a recording with flipped
+  bytes, worked out from the undamaged file (the tests and ``scripts/recover_damage.py``).
 * :mod:`~pcdcodec.bench.sequences` and :mod:`~pcdcodec.bench.sparse`: the sequences the
   repository's tests and benchmarks run on, and sparse depth made from them.
 """

@@ -12,9 +12,11 @@ into the library's arguments.
 from __future__ import annotations
 
 import sys
+import warnings
 from collections.abc import Sequence
+from typing import Any, TextIO
 
-from ..errors import PcdcodecError
+from ..errors import PcdcodecError, PcdcodecWarning
 from .options import cli_message, parse_codec
 from .parser import build_parser, parse_args
 
@@ -22,8 +24,30 @@ __all__ = ["build_parser", "cli_message", "main", "parse_args", "parse_codec"]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status."""
+    """Run the command line; returns the exit status. pcdcodec's warnings (a recording cut
+    short, ...) are printed to stderr as ``warning: …`` lines."""
     args = parse_args(argv)
+    with warnings.catch_warnings():  # (restores the caller's filters and showwarning)
+        warnings.simplefilter("always", PcdcodecWarning)
+        warnings.showwarning = _show_warning
+        return _run(args)
+
+
+def _show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
+    if issubclass(category, PcdcodecWarning):
+        print(f"warning: {cli_message(str(message))}", file=sys.stderr)
+    else:
+        sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+
+def _run(args: Any) -> int:
     try:
         status: int = args.func(args)
     except PcdcodecError as exc:

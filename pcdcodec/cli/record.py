@@ -264,9 +264,14 @@ def cmd_recover(args: argparse.Namespace) -> int:
     """``pcdcodec recover REC -o OUT``: a damaged or unfinished recording rewritten."""
     from ..recording import recover
 
-    count = recover(args.input, args.output, overwrite=args.overwrite)
-    print(f"recovered {count} frames into {args.output}")
+    got = recover(args.input, args.output, overwrite=args.overwrite)
+    without = f", {got.color_missing} of them without color" if got.color_missing else ""
+    print(f"recovered {got.frames} frames into {args.output}{without}")
     _per_camera(args.output)
+    if got.lost or got.damage:
+        print(f"  left out: {got.dropped} frame(s); color lost: {got.color_missing} frame(s)")
+    for line in got.summary():
+        print(f"  {line}")
     return 0
 
 

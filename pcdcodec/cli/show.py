@@ -95,6 +95,7 @@ def _info(rec: Any) -> dict[str, Any]:
         "raw_rgbd_bytes": raw,
         "ratio_raw_rgbd": round(raw / size, 2) if size else None,
         "color_gop": _gop(rec),
+        "frames_without_color": rec.color_missing,
     }
 
 
@@ -380,6 +381,12 @@ def cmd_info(args: argparse.Namespace) -> int:
     _print_gop(info["color_gop"], info["fps"], "  ")
     print(f"  depth      {json.dumps(info['codecs']['depth'])}")
     _print_poses(info["poses"], "  ")
+    lost = info["frames_without_color"]
+    if lost:
+        print(
+            f"  no color   {len(lost)} frame(s) kept by `pcdcodec recover` without their color, "
+            f"lost to damage (first: frame {lost[0]})"
+        )
     stamps = info["metadata"].get("timestamps", "")
     if stamps.startswith("not recorded"):
         print(f"  times      {stamps} (the input had no timestamps)")

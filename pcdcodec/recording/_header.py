@@ -156,6 +156,38 @@ def is_recording(index: fmt.FileIndex) -> bool:
     return index.profile == fmt.PROFILE and fmt.METADATA_NAME in index.metadata
 
 
+def not_a_recording(f: IO[bytes], index: fmt.FileIndex, name: str) -> DecodeError:
+    """The error for an MCAP file in which no recording's settings were found: a pcdcodec
+    recording cut short or damaged before its settings record, when its first bytes (the MCAP
+    header's profile) show it is one, else an MCAP file of another kind."""
+    if index.profile != fmt.PROFILE:
+        # A file cut inside its header record: the profile's first bytes, where they are.
+        f.seek(0)
+        head = f.read(_PROFILE_AT + len(fmt.PROFILE))
+        f.seek(0)
+        seen = head[_PROFILE_AT:]
+        if index.profile or not seen or not fmt.PROFILE.encode().startswith(seen):
+            return DecodeError(
+                f"{name!r} is an MCAP file but not a pcdcodec recording "
+                f"(profile {index.profile!r}, no {fmt.METADATA_NAME!r} metadata)"
+            )
+    where = (
+        f"cut short at byte {index.size}"
+        if index.truncated_at is not None
+        else "damaged"
+        + (f" at byte offset {index.damaged_at}" if index.damaged_at is not None else "")
+    )
+    return DecodeError(
+        f"{name!r} is a pcdcodec recording {where}, before its settings record "
+        f"({fmt.METADATA_NAME!r}) was written whole: nothing can be recovered from it, "
+        "as the camera, depth scale and codecs are lost"
+    )
+
+
+#: Where the MCAP header's profile string starts: magic, opcode, length, the string's length.
+_PROFILE_AT = 8 + 1 + 8 + 4
+
+
 def copy_channels(writer: Any, index: fmt.FileIndex) -> dict[int, int]:
     """Register the schemas and channels of ``index`` with ``writer``, in their order; the
     channel ids of ``index`` -> those of ``writer``."""

@@ -15,9 +15,11 @@ import hashlib
 import json
 import re
 import struct
+import warnings
+from collections.abc import Callable
 from typing import IO, Any
 
-from ..errors import DecodeError, PcdcodecError
+from ..errors import DecodeError, IncompleteRecordingWarning, PcdcodecError
 from ._scan import (
     MAGIC,
     ChannelInfo,
@@ -91,6 +93,28 @@ SEALED_TOPICS = (
 )
 
 
+#: The metadata record ``pcdcodec recover`` writes when it kept frames whose color was lost:
+#: listed in ``metadata_records`` and sealed like the others.
+RECOVERED_NAME = "pcdcodec.recovered"
+#: In the recovered record: JSON list of the times (ns) of the frames kept without their color.
+COLOR_MISSING_KEY = "color_missing"
+
+
+def color_missing(index: FileIndex, what: str) -> frozenset[int]:
+    """The times (ns) of the frames ``recover`` kept without color (its record, checked)."""
+    record = index.metadata.get(RECOVERED_NAME)
+    if record is None or COLOR_MISSING_KEY not in record:
+        return frozenset()
+    times = parse_json(record[COLOR_MISSING_KEY], f"{what}: {RECOVERED_NAME!r}")
+    if not isinstance(times, list) or not all(
+        isinstance(t, int) and not isinstance(t, bool) and 0 <= t < 1 << 64 for t in times
+    ):
+        raise DecodeError(
+            f"{what}: {RECOVERED_NAME!r} {COLOR_MISSING_KEY!r} is not a list of frame times (ns)"
+        )
+    return frozenset(times)
+
+
 # -- several cameras in one file (format version 3) -------------------------------------------
 
 #: The format version of recordings with several cameras: each camera's messages and records
@@ -127,6 +151,11 @@ def camera_record(name: str) -> str:
 def camera_seal(name: str) -> str:
     """The seal record of camera ``name`` of a rig."""
     return f"{SEAL_NAME}.{name}"
+
+
+def camera_recovered(name: str) -> str:
+    """The recovered record (:data:`RECOVERED_NAME`) of camera ``name`` of a rig."""
+    return f"{RECOVERED_NAME}.{name}"
 
 
 def camera_topic(topic: str, name: str) -> str:
@@ -183,18 +212,25 @@ def camera_view(index: FileIndex, name: str) -> FileIndex:
         for cid, info in index.channels.items()
         if info.topic in topics
     }
-    renamed = {camera_record(name): METADATA_NAME, camera_seal(name): SEAL_NAME}
+    renamed = {
+        camera_record(name): METADATA_NAME,
+        camera_seal(name): SEAL_NAME,
+        camera_recovered(name): RECOVERED_NAME,
+    }
     if USER_METADATA_NAME in index.metadata:
         renamed[USER_METADATA_NAME] = USER_METADATA_NAME
+    listed = [
+        seen
+        for real, seen in renamed.items()
+        if seen in (USER_METADATA_NAME, RECOVERED_NAME) and real in index.metadata
+    ]
     metadata: dict[str, dict[str, str]] = {}
     offsets: dict[str, int] = {}
     for real, seen in renamed.items():
         if real in index.metadata:
             data = dict(index.metadata[real])
             if seen == METADATA_NAME:
-                data[RECORDS_KEY] = json.dumps(
-                    [USER_METADATA_NAME] if USER_METADATA_NAME in renamed else []
-                )
+                data[RECORDS_KEY] = json.dumps(listed)
             metadata[seen] = seal(seen, data) if DIGEST_KEY in data else data
             if real in index.metadata_offsets:
                 offsets[seen] = index.metadata_offsets[real]
@@ -208,6 +244,37 @@ def camera_view(index: FileIndex, name: str) -> FileIndex:
         offsets={topics[t]: v for t, v in index.offsets.items() if t in topics},
         damaged_chunks=list(index.damaged_chunks),
     )
+
+
+def ends_early(index: FileIndex) -> str | None:
+    """Why the file of ``index`` ends before its writer closed it, or ``None`` when it was
+    closed: it has its summary, the end of its data section, or a seal (written on closing)."""
+    if index.indexed or index.data_crc is not None:
+        return None
+    if any(name == SEAL_NAME or name.startswith(SEAL_NAME + ".") for name in index.metadata):
+        return None
+    if index.truncated_at is not None:
+        return (
+            f"it is cut short: the record at byte offset {index.truncated_at} runs past its "
+            f"end, at byte {index.size}"
+        )
+    return (
+        "it ends without the records a writer adds on closing: its writer was stopped, or "
+        "it was cut short"
+    )
+
+
+def warn_if_incomplete(index: FileIndex, name: str, frames: Callable[[], str]) -> None:
+    """Warn (:class:`~pcdcodec.errors.IncompleteRecordingWarning`) when the file ``name`` of
+    ``index`` :func:`ends_early`, saying which ``frames()`` can be read and what to do."""
+    reason = ends_early(index)
+    if reason is not None:
+        warnings.warn(
+            f"{name!r} is incomplete ({reason}); {frames()} can be read. `pcdcodec recover "
+            f"{name} -o OUT` copies them into a closed recording",
+            IncompleteRecordingWarning,
+            stacklevel=4,
+        )
 
 
 def load(f: IO[bytes]) -> FileIndex:

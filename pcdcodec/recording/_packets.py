@@ -49,6 +49,7 @@ class PacketAccess:
     _digest_of_time: dict[int, int]
     _pose_at: dict[int, int]
     _pose_matrix_at: dict[int, int]
+    _color_missing: frozenset[int]
 
     @property
     def pose_timestamps(self) -> npt.NDArray[np.int64]:

@@ -91,6 +91,8 @@ class ColorStream:
             return None
         name = str(rec.path)
         ts = int(rec._times[i])
+        if ts in rec._color_missing:
+            return None  # lost to damage: ``recover`` kept the frame's depth alone
         j = rec._packet_of_pts.get(ts, -1)
         if j < 0 or j < rec._keyframes[0]:
             raise DecodeError(

@@ -146,6 +146,13 @@ def _chunk_messages(content: bytes, offset: int, what: str) -> tuple[list[Any], 
 
     try:
         chunk = Chunk.read(_stream(content))
+        # The record's length must be that of its fields: a damaged length would move the
+        # next record.
+        fields = _CHUNK_HEAD.size + len(chunk.compression.encode()) + 8 + len(chunk.data)
+        if fields != len(content):
+            raise DecodeError(
+                f"the record is {len(content)} bytes long, its fields take {fields} bytes"
+            )
         if chunk.compression == "":
             # MCAP skips the check when the stored CRC is 0; pcdcodec always writes one.
             crc = zlib.crc32(chunk.data)
@@ -345,14 +352,18 @@ def _single(ci: Any) -> bool:
     return bool(ci.message_index_length == 1 + 8 + 2 + 4 + 16)
 
 
-def scan(f: IO[bytes], *, skip_damaged_chunks: bool = False) -> FileIndex:
+def scan(f: IO[bytes], *, skip_damaged_chunks: bool = False, resync: bool = False) -> FileIndex:
     """Read every record from the start of the file, checking every CRC on the way.
 
     Stops at the end of the data section, at a record the file ends inside of
     (``truncated_at``) or at a damaged record (``damaged_at`` and ``damage``). With
     ``skip_damaged_chunks``, a chunk that fails its CRC is listed in ``damaged_chunks`` and
-    passed over instead (its messages are missing from the index).
+    passed over instead (its messages are missing from the index). With ``resync`` (which
+    implies it), a damaged record, or one whose length runs past the end of the file, is
+    passed over too: reading goes on at the next chunk whose CRC holds, and the bytes passed
+    over are listed in ``damaged_chunks``; only when no such chunk follows does the scan stop.
     """
+    skip_damaged_chunks = skip_damaged_chunks or resync
     from mcap.records import Channel, DataEnd, Header, Metadata, Schema
 
     size = file_size(f)
@@ -362,6 +373,9 @@ def scan(f: IO[bytes], *, skip_damaged_chunks: bool = False) -> FileIndex:
     schemas: dict[int, str] = {}
     seen: set[tuple[int, int]] = set()
     crc = zlib.crc32(MAGIC)
+    # Where the last chunk whose CRC held ends: a record after it with a damaged length may
+    # have made the scan step over good chunks, so a resync searches from here.
+    anchor = 8
     pos = 8
     f.seek(pos)
     while True:
@@ -370,21 +384,44 @@ def scan(f: IO[bytes], *, skip_damaged_chunks: bool = False) -> FileIndex:
             index.truncated_at = pos if head else None
             break
         opcode, length = head[0], struct.unpack_from("<Q", head, 1)[0]
+        problem = ""
         if opcode not in _DATA_OPCODES:
-            index.damaged_at, index.damage = pos, f"unknown record type {opcode:#04x}"
-            break
-        if pos + 9 + length > size:
+            problem = f"unknown record type {opcode:#04x}"
+        elif pos + 9 + length > size:
+            problem = "cut short"
+        elif resync and opcode != _OP_CHUNK and length > _MAX_OTHER_RECORD:
+            problem = f"a record of type {opcode:#04x} claims {length} bytes"
+        if problem and resync:
+            found = _next_chunk(f, max(anchor, 9), size)
+            if found is not None:
+                anchor = found + 1
+                index.damaged_chunks.append(
+                    (
+                        pos,
+                        f"a damaged record at byte offset {pos} ({problem}): reading goes on "
+                        f"at the next whole chunk, at byte offset {found}",
+                    )
+                )
+                pos = found
+                f.seek(pos)
+                continue
+        if problem == "cut short":
             index.truncated_at = pos
+            break
+        if problem:
+            index.damaged_at, index.damage = pos, problem
             break
         content = f.read(length)
         try:
             if opcode == _OP_CHUNK:
                 try:
                     messages, others = _chunk_messages(content, pos, "scan")
+                    anchor = pos + 9 + length
                 except DecodeError as exc:
                     if not skip_damaged_chunks:
                         raise
-                    index.damaged_chunks.append((pos, str(exc)))
+                    if all(pos != at for at, _ in index.damaged_chunks):
+                        index.damaged_chunks.append((pos, str(exc)))
                     messages, others = [], []
                 # Channels and schemas may sit inside the chunk too.
                 for record in others:
@@ -429,8 +466,61 @@ def scan(f: IO[bytes], *, skip_damaged_chunks: bool = False) -> FileIndex:
                 index.metadata_offsets[meta.name] = pos
         except Exception as exc:
             text = str(exc) if isinstance(exc, DecodeError) else f"{type(exc).__name__}: {exc}"
-            index.damaged_at, index.damage = pos, f"a damaged record ({text})"
-            break
+            found = _next_chunk(f, max(anchor, 9), size) if resync else None
+            if found is None:
+                index.damaged_at, index.damage = pos, f"a damaged record ({text})"
+                break
+            anchor = found + 1
+            index.damaged_chunks.append((pos, f"a damaged record ({text}); passed over"))
+            pos = found
+            f.seek(pos)
+            continue
         crc = zlib.crc32(content, zlib.crc32(head, crc))
         pos += 9 + length
+        f.seek(pos)
     return index
+
+
+#: Records other than chunks that pcdcodec writes are small; a longer one is damage (resync).
+_MAX_OTHER_RECORD = 16 << 20
+#: A chunk record's fixed fields: start and end time, uncompressed size, CRC, and the length of
+#: its compression name.
+_CHUNK_HEAD = struct.Struct("<QQQII")
+_SEARCH_BLOCK = 1 << 20
+
+
+def _next_chunk(f: IO[bytes], start: int, size: int) -> int | None:
+    """The byte offset of the first chunk record at or after ``start`` whose fields hold
+    together and whose CRC matches, or ``None``."""
+    pos = start
+    while pos < size:
+        f.seek(pos)
+        block = f.read(_SEARCH_BLOCK + 64)
+        k = block.find(b"\x06")
+        while 0 <= k < min(len(block), _SEARCH_BLOCK):
+            if _is_chunk(f, pos + k, block[k:], size):
+                return pos + k
+            k = block.find(b"\x06", k + 1)
+        pos += _SEARCH_BLOCK
+    return None
+
+
+def _is_chunk(f: IO[bytes], at: int, head: bytes, size: int) -> bool:
+    if len(head) < 9 + _CHUNK_HEAD.size:
+        return False
+    (length,) = struct.unpack_from("<Q", head, 1)
+    start, end, _raw, _crc, name_len = _CHUNK_HEAD.unpack_from(head, 9)
+    if at + 9 + length > size or start > end or name_len > 16:
+        return False
+    fixed = _CHUNK_HEAD.size + name_len + 8
+    if len(head) < 9 + fixed or length < fixed:
+        return False
+    (records,) = struct.unpack_from("<Q", head, 9 + _CHUNK_HEAD.size + name_len)
+    if records != length - fixed:
+        return False
+    f.seek(at + 9)
+    try:
+        _chunk_messages(f.read(length), at, "scan")
+    except DecodeError:
+        return False
+    return True

@@ -102,6 +102,12 @@ class Recording(PacketAccess, OneCamera):
         except BaseException:
             self._file.close()
             raise
+        try:
+            if self.camera is None:  # (a rig's reader says it once, for every camera)
+                fmt.warn_if_incomplete(self.index, str(self.path), lambda: f"{len(self)} frames")
+        except BaseException:  # a filter that turns the warning into an error
+            self._file.close()
+            raise
 
     #: The camera of a rig's file this reads (``None``: a one-camera file).
     camera: str | None = None
@@ -138,10 +144,7 @@ class Recording(PacketAccess, OneCamera):
             )
         meta = index.metadata.get(fmt.METADATA_NAME)
         if not header.is_recording(index) or meta is None:
-            raise DecodeError(
-                f"{name!r} is an MCAP file but not a pcdcodec recording "
-                f"(profile {index.profile!r}, no {fmt.METADATA_NAME!r} metadata)"
-            )
+            raise header.not_a_recording(self._file, index, name)
         fmt.check_metadata(index, repr(name))
         cameras = fmt.rig_cameras(index, repr(name))
         if cameras is not None:
@@ -226,6 +229,8 @@ class Recording(PacketAccess, OneCamera):
         self._packet_group: npt.NDArray[np.int64] = np.zeros(0, np.int64)
         self._groups_checked: set[int] = set()
         self._packet_cache: dict[int, Any] = {}
+        #: Frames ``recover`` kept without their color (lost to damage): their color is None.
+        self._color_missing = fmt.color_missing(index, repr(name)) if color_codec else frozenset()
         if self.integrity and self._seal is None:
             # Written before the writer stopped: a frame is complete with its digest message.
             has = [i for i, t in enumerate(d_times.tolist()) if int(t) in self._digest_of_time]
@@ -254,10 +259,13 @@ class Recording(PacketAccess, OneCamera):
             good = [
                 i
                 for i, t in enumerate(d_times.tolist())
-                if t in self._packet_of_pts
-                and first_key is not None
-                and self._packet_of_pts[t] >= self._keyframes[0]
-                and self._packet_group[self._packet_of_pts[t]] != unchecked
+                if t in self._color_missing
+                or (
+                    t in self._packet_of_pts
+                    and first_key is not None
+                    and self._packet_of_pts[t] >= self._keyframes[0]
+                    and self._packet_group[self._packet_of_pts[t]] != unchecked
+                )
             ]
             # Frames after the last complete one were in flight when the writer stopped. One
             # missing its packet before that is damage: it stays, and reading it fails. In a
@@ -306,6 +314,17 @@ class Recording(PacketAccess, OneCamera):
     def indexed(self) -> bool:
         """False for a file whose writer did not finish (read by scanning; see ``recover``)."""
         return self.index.indexed
+
+    @property
+    def color_missing(self) -> list[int]:
+        """The frames ``recover`` kept without their color, lost to damage (``color`` None)."""
+        return [i for i, t in enumerate(self._times.tolist()) if t in self._color_missing]
+
+    @property
+    def complete(self) -> bool:
+        """False for a file that ends before its writer closed it (cut short, or its writer
+        stopped): opening it warned (``IncompleteRecordingWarning``); see ``recover``."""
+        return fmt.ends_early(self.index) is None
 
     @property
     def projector(self) -> Projector:

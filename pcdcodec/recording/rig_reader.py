@@ -128,6 +128,18 @@ class RigRecording:
         except BaseException:
             self.close()
             raise
+        counts = ", ".join(f"{len(r)} of camera {c!r}" for c, r in self._recordings.items())
+        try:
+            fmt.warn_if_incomplete(index, name, lambda: f"frames ({counts})")
+        except BaseException:  # a filter that turns the warning into an error
+            self.close()
+            raise
+
+    @property
+    def complete(self) -> bool:
+        """False for a file that ends before its writer closed it (see
+        :attr:`Recording.complete <pcdcodec.Recording.complete>`)."""
+        return fmt.ends_early(self.index) is None
 
     @property
     def camera_names(self) -> list[str]:
@@ -215,6 +227,6 @@ def load_index(f: IO[bytes], name: str) -> fmt.FileIndex:
             "`pcdcodec recover` copies the frames before the damage into a new file"
         )
     if not header.is_recording(index):
-        raise DecodeError(f"{name!r} is an MCAP file but not a pcdcodec recording")
+        raise header.not_a_recording(f, index, name)
     fmt.check_metadata(index, repr(name))
     return index

@@ -98,6 +98,16 @@ class RecordingSource(Source):
                     "did not finish; `pcdcodec recover` copies the frames it can read into a "
                     "complete recording, which can then be encoded again"
                 )
+            lost = rec.color_missing
+            if lost:
+                # A recording with color takes a color image with every frame.
+                shown = ", ".join(str(i) for i in lost[:8]) + (", ..." if len(lost) > 8 else "")
+                raise DecodeError(
+                    f"{str(self.path)!r} holds {len(lost)} frame(s) that `pcdcodec recover` "
+                    f"kept without their color, lost to damage (frames {shown}): they cannot "
+                    "be written again into a recording with color; read them with "
+                    "pcdcodec.open() (their color is None)"
+                )
         except BaseException:
             if self._owns:
                 opened.close()

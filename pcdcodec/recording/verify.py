@@ -56,12 +56,14 @@ def structure_problems(
     intrinsics: CameraIntrinsics,
     camera: str | None = None,
     elsewhere: frozenset[int] = frozenset(),
+    color_missing: frozenset[int] = frozenset(),
 ) -> list[str]:
     """Problems found by reading every record of ``f``, compared with the ``index`` the frames
     use (of a file written with ``integrity`` records, with color or not, of a camera with
     ``intrinsics``; ``camera``: of that camera of a rig, whose ``index`` is its
     :func:`~pcdcodec.recording._index.camera_view`, and ``elsewhere`` the chunks of the other
-    cameras, whose damage is theirs). The caller holds whatever lock guards ``f``."""
+    cameras, whose damage is theirs; ``color_missing``: the times of frames ``recover`` kept
+    without color). The caller holds whatever lock guards ``f``."""
     try:
         scanned = fmt.scan(f, skip_damaged_chunks=True)
         if camera is not None:
@@ -131,7 +133,7 @@ def structure_problems(
         errors.extend(f"the file does not hold what was sealed: {p}" for p in problems)
     if has_color:
         pts = set(scanned.times.get(fmt.TOPIC_COLOR, []))
-        orphans = [int(t) for t in depth.tolist() if t not in pts]
+        orphans = [int(t) for t in depth.tolist() if t not in pts and t not in color_missing]
         # At the end of an unfinished file they were in flight; a closed file has none.
         if orphans and (index.indexed or orphans != depth.tolist()[-len(orphans) :]):
             errors.append(
@@ -157,6 +159,7 @@ def verify_recording(rec: Any) -> VerifyReport:
                 intrinsics=rec.intrinsics,
                 camera=rec.camera,
                 elsewhere=rec.other_chunks,
+                color_missing=rec._color_missing,
             )
         )
     if rec.integrity and rec.color_codec is not None:
