@@ -124,9 +124,11 @@ class RigWriter:
         self._writing, file = open_output(self.path, overwrite)
         self._shared = SharedFile(file, self._writing)
         self._closed = False
+        self._cameras: dict[str, RecordingWriter] = {}
         try:
-            self._cameras: dict[str, RecordingWriter] = {
-                s.name: RecordingWriter(
+            for s in specs:
+                # Each camera's codecs are made ready (and its threads started) as it opens.
+                self._cameras[s.name] = RecordingWriter(
                     self.path,
                     intrinsics=s.intrinsics,
                     depth_scale=s.depth_scale,
@@ -141,12 +143,13 @@ class RigWriter:
                     _shared=self._shared,
                     _camera=s.name,
                 )
-                for s in specs
-            }
             self.rig_poses: dict[str, npt.NDArray[np.float64]] = poses
             self._start(user)
         except BaseException:
-            # A writer that never started leaves nothing behind, so a retry finds no file.
+            # A writer that never started leaves nothing behind, so a retry finds no file,
+            # and no camera's threads run on.
+            for cam in self._cameras.values():
+                cam.abort()
             file.close()
             self._writing.unlink(missing_ok=True)
             raise
