@@ -14,6 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..color.base import StreamCodec
+from ..color.fork import check_not_inherited, inherited, keep_in_child
 from ..depth.base import FrameCodec, read_header
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
 from ..frame import Frame
@@ -87,6 +88,7 @@ class Recording(PacketAccess, OneCamera):
         if self.path.is_dir():
             raise InputError(f"{str(self.path)!r} is a folder, not a recording")
         self._file: IO[bytes] = open(self.path, "rb")  # noqa: SIM115 - closed by close()
+        keep_in_child(self)  # a forked process never frees it (color/fork.py)
         self._lock = threading.RLock()
         self._read_aheads: weakref.WeakSet[ReadAhead[Frame]] = weakref.WeakSet()
         try:
@@ -404,6 +406,7 @@ class Recording(PacketAccess, OneCamera):
 
     def _index_of(self, i: int) -> int:
         """Frame ``i`` as an index from 0, checked (once per call from outside)."""
+        check_not_inherited(self, f"the reader of {str(self.path)!r}")
         n = len(self)
         if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
             raise InputTypeError(f"frame index must be an int, got {type(i).__name__}")
@@ -586,6 +589,8 @@ class Recording(PacketAccess, OneCamera):
 
     def close(self) -> None:
         """Stop the threads reading ahead (if any), then close the file."""
+        if inherited(self):  # in a forked process: the parent's threads are not here
+            return
         for ahead in list(self._read_aheads):
             ahead.close()
         self._file.close()
