@@ -299,21 +299,6 @@ class FrameCodec(Codec):
         image = check_depth(depth, allowed=self.dtypes, name=f"depth for codec {self.name!r}")
         return self.encode_checked(image)
 
-    def warm_up(self, shape: tuple[int, int] = (8, 8)) -> None:
-        """Pay the codec's one-off start-up costs now, not at the first real frame: encode a
-        made-up frame of ``shape`` (height, width) in each dtype the codec takes, and discard
-        it. For ``depthac`` this loads its compiled loops (from numba's disk cache, or compiles
-        them when it is cold) and sizes the calling thread's working arrays for ``shape``. A
-        recording's writer calls it on its depth thread when it opens, so the first frame
-        handed in is written as soon as any other. Raises what :meth:`encode_checked` raises."""
-        height, width = shape
-        # A ramp with holes: the coding paths a real frame takes, not only the empty one.
-        ramp = (np.arange(height * width, dtype=np.int64) % 4096 + 400).reshape(height, width)
-        ramp[:, 0] = 0
-        for dtype in self.dtypes:
-            image = ramp.astype(np.uint16) if dtype == "uint16" else ramp.astype(dtype) / 1000
-            self.encode_checked(np.ascontiguousarray(image, dtype=dtype))
-
     def encode_checked(self, image: npt.NDArray[Any]) -> bytes:
         """:meth:`encode` past its checks, for a caller that checked the image already: ``image``
         is what :func:`pcdcodec._validate.check_depth` returned for this codec's :attr:`dtypes`

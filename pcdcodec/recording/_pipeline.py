@@ -44,19 +44,6 @@ class Pipeline:
         self._unwritten = 0
         self._errors: list[BaseException] = []
         self.aborted = False
-        #: Whether :meth:`start` has run: the threads are up and the codecs warmed.
-        self.started = False
-
-    def start(self, warm_depth: Callable[[], None], warm_color: Callable[[], None]) -> None:
-        """Start the three threads and have the codecs ready before the first frame: run
-        ``warm_depth`` on the depth thread and ``warm_color`` on the color thread (each pays
-        its codec's one-off costs, such as loading compiled loops), and wait for both. What
-        they raise is not kept: a frame that meets the same trouble raises it."""
-        warmed = [self._depth_pool.submit(warm_depth), self._color_pool.submit(warm_color)]
-        self._mux_pool.submit(lambda: None)
-        for future in warmed:
-            future.exception()
-        self.started = True
 
     def encode_color(self, encode: Callable[..., list[Packet]], *args: Any) -> Future[list[Packet]]:
         """Run a color encode on the color thread."""

@@ -126,11 +126,9 @@ class RigWriter:
         self._shared = SharedFile(file, self._writing)
         self._closed = False
         keep_in_child(self)  # a forked process never frees or finishes it (color/fork.py)
-        self._cameras: dict[str, RecordingWriter] = {}
         try:
-            for s in specs:
-                # Each camera's codecs are made ready (and its threads started) as it opens.
-                self._cameras[s.name] = RecordingWriter(
+            self._cameras: dict[str, RecordingWriter] = {
+                s.name: RecordingWriter(
                     self.path,
                     intrinsics=s.intrinsics,
                     depth_scale=s.depth_scale,
@@ -145,13 +143,12 @@ class RigWriter:
                     _shared=self._shared,
                     _camera=s.name,
                 )
+                for s in specs
+            }
             self.rig_poses: dict[str, npt.NDArray[np.float64]] = poses
             self._start(user)
         except BaseException:
-            # A writer that never started leaves nothing behind, so a retry finds no file,
-            # and no camera's threads run on.
-            for cam in self._cameras.values():
-                cam.abort()
+            # A writer that never started leaves nothing behind, so a retry finds no file.
             file.close()
             self._writing.unlink(missing_ok=True)
             raise

@@ -208,14 +208,6 @@ class RecordingWriter(FrameInputs):
 
         video_format = self.color_codec.video_format if self.color_codec else None
         keep_in_child(self)  # a forked process never frees or finishes it (color/fork.py)
-        self._encoder: VideoEncoder | None = None
-        self._pipeline = Pipeline(in_flight, lambda: self._drain_one())
-        # The codecs are made ready before the file is opened (a writer that fails to open
-        # leaves no file): depthac's compiled loops loaded, the video encoder open, the threads
-        # running. Else the first frames wait for them (most of a second), and a kill then
-        # loses every frame handed in meanwhile.
-        shape = (self.intrinsics.height, self.intrinsics.width)
-        self._pipeline.start(lambda: self.depth_codec.warm_up(shape), self._open_encoder)
         #: Whether this writer has the file alone (else it is one camera of a rig's file).
         self._owns_file = _shared is None
         if _shared is not None:
@@ -233,14 +225,12 @@ class RecordingWriter(FrameInputs):
                 shared=_shared,
             )
         else:
-            try:
-                self._open_file(overwrite, video_format, user)
-            except BaseException:
-                self._pipeline.abort()
-                raise
+            self._open_file(overwrite, video_format, user)
+        self._encoder: VideoEncoder | None = None
         self._shape: tuple[int, int] | None = None
         self._depth_dtype: np.dtype[Any] | None = None
         self._last_ts: int | None = None
+        self._pipeline = Pipeline(in_flight, lambda: self._drain_one())
         self._sync: Any = None
         self._poses: dict[int, npt.NDArray[np.float64]] = {}
         self._mode: str | None = None  # "frames" (write) or "encoded" (write_encoded)
@@ -322,42 +312,17 @@ class RecordingWriter(FrameInputs):
                 f"frames are {width}x{height}, but the intrinsics are for "
                 f"{self.intrinsics.width}x{self.intrinsics.height} (width x height)"
             )
-        if encoded:
-            self._encoder = None  # packets encoded elsewhere: the one opened is not used
-        elif self.color_codec is not None:
-            if self._encoder is None:  # it did not open with the writer: say why now
-                self._encoder = self._new_encoder(self.color_codec)
+        if self.color_codec is not None and not encoded:
+            # Packets encoded elsewhere need no encoder here (nor its library).
+            self.color_codec._require_available()
+            ch, cw = self.color_shape
+            self._encoder = self.color_codec.encoder(cw, ch, self.fps)
             extradata = self._encoder.extradata
         # Through to_file: nothing is written once the file is broken (another camera of a rig
         # failed part way through a record), and a failure here stops every camera.
         container = self._container
         container.to_file(lambda: container.start_streams(height, width, timestamp, extradata))
         self._shape = (height, width)
-
-    def _new_encoder(self, codec: StreamCodec) -> VideoEncoder:
-        codec._require_available()
-        ch, cw = self.color_shape
-        return codec.encoder(cw, ch, self.fps)
-
-    def _open_encoder(self) -> None:
-        """Open the video encoder ahead of the first frame, where it opens: a writer given
-        encoded packets (:meth:`write_encoded`) needs neither it nor its library, so a codec
-        that cannot open here says so at the first :meth:`write`, as before."""
-        if self.color_codec is not None and self.color_codec.is_available():
-            try:
-                self._encoder = self._new_encoder(self.color_codec)
-            except PcdcodecError:
-                self._encoder = None
-
-    @property
-    def ready(self) -> bool:
-        """Whether the codecs are ready for frames: the depth codec's start-up paid (see
-        :meth:`~pcdcodec.depth.base.FrameCodec.warm_up`), the video encoder open (where the
-        recording encodes color) and the threads running. True once the writer has opened,
-        unless the encoder could not open (the first :meth:`write` then says why)."""
-        return self._pipeline.started and (
-            self.color_codec is None or self._encoder is not None or self._mode == "encoded"
-        )
 
     def write(
         self, color: Any, depth: Any, timestamp: int | None = None, *, pose: Any = None
@@ -603,7 +568,7 @@ class RecordingWriter(FrameInputs):
         # The writing thread gives every frame handed in one try; its errors come first.
         errors.extend(self._pipeline.finish())
         container = self._container
-        encoder = self._encoder if self._shape is not None else None  # none unless it ran
+        encoder = self._encoder
         if encoder is not None and container.broken is None:
             attempt(lambda: container.write_packets(encoder.flush()))
         if container.broken is None:
