@@ -150,7 +150,8 @@ class Recording(PacketAccess, OneCamera):
             raise SeveralCamerasError(name, cameras, index)
         #: 1 for files with frame digests and a seal (``docs/format.md``), 0 for earlier ones.
         self.integrity = fmt.integrity_version(index, repr(name))
-        problems = fmt.seal_problems(index, repr(name))
+        seal_record = fmt.SEAL_NAME if self.camera is None else fmt.camera_seal(self.camera)
+        problems = fmt.seal_problems(index, repr(name), record=seal_record)
         if problems:
             raise DecodeError(
                 f"{name!r} does not hold what its writer sealed when closing it: "
@@ -160,7 +161,8 @@ class Recording(PacketAccess, OneCamera):
         self._seal: dict[str, str] | None = (
             index.metadata.get(fmt.SEAL_NAME) if self.integrity else None
         )
-        where = f"{name!r}: the {fmt.METADATA_NAME!r} metadata at byte offset " + str(
+        record = fmt.METADATA_NAME if self.camera is None else fmt.camera_record(self.camera)
+        where = f"{name!r}: the {record!r} metadata at byte offset " + str(
             index.metadata_offsets.get(fmt.METADATA_NAME)
         )
         settings = header.Settings.parse(meta, name, where)
@@ -193,7 +195,7 @@ class Recording(PacketAccess, OneCamera):
             raise DecodeError(
                 f"{where} names codecs that cannot be made ({type(exc).__name__}: {exc})"
             ) from exc
-        header.check_channels(index, name, settings)
+        header.check_channels(index, name, settings, self.camera)
         if fmt.DIGEST_KEY not in meta:
             # Written before digests: the CRC-checked calibration message vouches for the camera.
             with self._lock:
