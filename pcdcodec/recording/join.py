@@ -247,7 +247,7 @@ def _copy_part(
     with path.open("rb") as f:
         size = fmt.file_size(f)
         for offset in offsets:
-            for m in fmt.read_chunk_messages(f, offset, what=path.name, size=size):
+            for m in fmt.read_chunk_messages(f, offset, what=repr(str(path)), size=size):
                 found = channel_topic.get(m.channel_id)
                 if found is None:
                     continue
