@@ -86,8 +86,9 @@ def settings_of(rec: Any) -> dict[str, Any]:
     return out
 
 
-def make_clean(name: str, folder: Path) -> Clean:
-    """Write and decode the clean recording of one codec pair."""
+def make_clean(name: str, folder: Path, offset_ns: int = 0, stem: str = "clean") -> Clean:
+    """Write and decode the clean recording of one codec pair (its timestamps ``offset_ns``
+    later than the sample's: a later part of the same recording, for join)."""
     sample = pcdcodec.load_sample(max_frames=FRAMES)
     cam = sample.intrinsics
     intrinsics = pcdcodec.CameraIntrinsics(
@@ -98,7 +99,7 @@ def make_clean(name: str, folder: Path) -> Clean:
         cam.cx / STEP,
         cam.cy / STEP,
     )
-    path = folder / f"clean-{name.replace('+', '-')}.pcdc"
+    path = folder / f"{stem}-{name.replace('+', '-')}.pcdc"
     options = dict(CONFIGS[name])
     if options.pop("rig", False):
         pose = np.eye(4)
@@ -112,9 +113,10 @@ def make_clean(name: str, folder: Path) -> Clean:
         with pcdcodec.RigWriter(path, specs, metadata={"site": "lab"}) as rig:
             for k, f in enumerate(sample):
                 depth = np.ascontiguousarray(f.depth[::STEP, ::STEP])
-                rig.write("a", np.ascontiguousarray(f.color[::STEP, ::STEP]), depth, f.timestamp_ns)
+                color = np.ascontiguousarray(f.color[::STEP, ::STEP])
+                rig.write("a", color, depth, f.timestamp_ns + offset_ns)
                 if k % 2 == 0:
-                    rig.write("b", None, depth, f.timestamp_ns + 5_000_000)
+                    rig.write("b", None, depth, f.timestamp_ns + offset_ns + 5_000_000)
         return load_clean(name, path)
     with pcdcodec.open(
         path,
@@ -127,7 +129,8 @@ def make_clean(name: str, folder: Path) -> Clean:
     ) as rec:
         for f in sample:
             color = np.ascontiguousarray(f.color[::STEP, ::STEP]) if options["color"] else None
-            rec.write(color, np.ascontiguousarray(f.depth[::STEP, ::STEP]), f.timestamp_ns)
+            depth = np.ascontiguousarray(f.depth[::STEP, ::STEP])
+            rec.write(color, depth, f.timestamp_ns + offset_ns)
     return load_clean(name, path)
 
 

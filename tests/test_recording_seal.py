@@ -7,6 +7,7 @@ Each hostile file is a clean recording rewritten with the ``mcap`` library
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -396,6 +397,65 @@ def test_join_checks_each_part_and_seals_the_result(
     with pytest.raises(pcdcodec.DecodeError, match=r"b-bad\.pcdc.*do not match their digest"):
         join([a, bad], tmp_path / "ab2.pcdc")
     assert not (tmp_path / "ab2.pcdc").exists()
+
+
+def _swap_depths(ms: list[Message]) -> list[Message]:
+    a, b = positions(ms, fmt.TOPIC_DEPTH)[1:3]
+    ms[a], ms[b] = with_data(ms[a], ms[b].data), with_data(ms[b], ms[a].data)
+    return ms
+
+
+def _flip_depth_byte(ms: list[Message]) -> list[Message]:
+    k = positions(ms, fmt.TOPIC_DEPTH)[2]
+    data = bytearray(ms[k].data)
+    data[len(data) // 2] ^= 0x10
+    ms[k] = with_data(ms[k], bytes(data))
+    return ms
+
+
+def _change_pose(ms: list[Message]) -> list[Message]:
+    k = positions(ms, fmt.TOPIC_POSE_MATRIX)[3]
+    values = np.frombuffer(ms[k].data, np.float64).copy()
+    values[3] += 0.5
+    ms[k] = with_data(ms[k], values.tobytes())
+    return ms
+
+
+@pytest.mark.parametrize(
+    ("edit", "what"),
+    [
+        (_swap_depths, "frame at t=1033333333 ns.*depth message does not match"),
+        (_flip_depth_byte, "frame at t=1066666666 ns.*depth message does not match"),
+        (_change_pose, "frame at t=1100000000 ns.*pose messages do not match"),
+    ],
+)
+def test_join_refuses_a_part_whose_depth_or_pose_fails_its_digest(
+    tmp_path: Path, edit: Any, what: str
+) -> None:
+    a = record(tmp_path / "a.pcdc", frames(6))
+    b = tmp_path / "b.pcdc"
+    with pcdcodec.open(
+        b, "w", intrinsics=CAMERA, depth_scale=1000.0, color="ffv1", depth="zstd"
+    ) as w:
+        for k, (c, d, ts) in enumerate(frames(6, offset=6)):
+            w.write(c, d, ts, pose=np.eye(4) + np.eye(4, k=3) * k)
+    later = [(c, d, ts + 400_000_000) for c, d, ts in frames(6)]
+    c_part = record(tmp_path / "c.pcdc", later)
+    bad = hostile(a, tmp_path / "a-bad.pcdc", edit) if edit is not _change_pose else None
+    if bad is None:
+        bad = hostile(b, tmp_path / "b-bad.pcdc", edit)
+        parts = [a, bad, c_part]
+        what = what.replace("1100000000", "1299999997")
+    else:
+        parts = [bad, b, c_part]
+    with pcdcodec.open(bad) as rec:  # the part itself reads wrong, and verify says so
+        assert not rec.verify().ok
+    name = re.escape(str(bad))
+    with pytest.raises(pcdcodec.DecodeError, match=f"'{name}': {what}"):
+        join(parts, tmp_path / "joined.pcdc")
+    assert not (tmp_path / "joined.pcdc").exists()
+    assert not [p for p in tmp_path.iterdir() if "joined" in p.name]  # nothing left behind
+    assert join([a, b, c_part], tmp_path / "good.pcdc") == 18
 
 
 def test_a_killed_writer_leaves_the_frames_whose_digest_was_written(tmp_path: Path) -> None:

@@ -744,3 +744,61 @@ def test_join_compares_a_late_camera_between_the_parts_that_have_it(tmp_path: Pa
     parts = [tmp_path / f"p{p}.pcdc" for p in range(3)]
     with pytest.raises(InputError, match=r"p2.pcdc' cannot follow .*p1.pcdc': camera 'b'"):
         join(parts, tmp_path / "joined.pcdc")
+
+
+def test_rig_errors_name_the_record_the_topic_and_the_camera(tmp_path: Path) -> None:
+    from .recording_rewrite import read, write
+
+    intr, scale, items = _small_frames(4)
+    specs = [
+        CameraSpec("head", intr, scale, color="ffv1", depth="zstd"),
+        CameraSpec("wrist", intr, scale, color="ffv1", depth="rvl"),
+    ]
+    path = tmp_path / "rig.pcdc"
+    with RigWriter(path, specs) as w:
+        for k, (color, depth) in enumerate(items):
+            w.write("head", color, depth, 1_000_000_000 + k * 33_000_000)
+            w.write("wrist", color, depth, 1_000_000_500 + k * 33_000_000)
+
+    def mutant(name: str, edit: Any) -> Path:
+        contents = read(path)
+        edit(contents)
+        write(contents, tmp_path / name)
+        return tmp_path / name
+
+    def no_wrist_seal(c: Any) -> None:
+        c.metadata = [(n, m) for n, m in c.metadata if n != "pcdcodec.seal.wrist"]
+
+    with pytest.raises(DecodeError, match=r"seal record 'pcdcodec\.seal\.wrist' is missing"):
+        pcdcodec.open(mutant("noseal.pcdc", no_wrist_seal))
+
+    def swap_depth_channels(c: Any) -> None:
+        c.channels["/head/depth"], c.channels["/wrist/depth"] = (
+            c.channels["/wrist/depth"],
+            c.channels["/head/depth"],
+        )
+
+    with pytest.raises(
+        DecodeError,
+        match=r"camera 'head': channel '/head/depth' says codec is \{\"id\": \"rvl\"\}, but the "
+        r"'pcdcodec\.camera\.head' record",
+    ):
+        pcdcodec.open(mutant("swapped.pcdc", swap_depth_channels))
+
+    def duplicate_head_depth(c: Any) -> None:
+        k = next(i for i, m in enumerate(c.messages) if m.topic == "/head/depth")
+        c.messages.insert(k + 1, c.messages[k])
+
+    with pcdcodec.open(mutant("dup.pcdc", duplicate_head_depth)) as rec:
+        errors = rec.verify().errors
+    assert "camera 'head': 1 message(s) on '/head/depth' are stored twice" in errors
+    assert not [e for e in errors if e.startswith("camera 'wrist'")], errors
+    assert sum("summary (index) is unusable" in e for e in errors) == 1, errors
+
+    cut = tmp_path / "cut.pcdc"
+    cut.write_bytes(path.read_bytes()[: path.stat().st_size * 2 // 3])
+    from pcdcodec.recording.source import RecordingSource
+
+    with pytest.raises(DecodeError, match=r"cut short.*`pcdcodec recover`") as info:
+        RecordingSource(cut)
+    assert "camera=NAME" not in str(info.value)

@@ -492,3 +492,69 @@ def test_pcdcodec_imports_neither_numcodecs_nor_zarr() -> None:
         check=True,
     )
     assert out.stdout.split() == ["False"]  # nothing listed; numcodecs alone loads no zarr
+
+
+def _v2_array(zarr: Any, where: Path, dtype: str, codec: Any) -> Any:
+    """A Zarr format 2 array of two 48x64 frames in a folder, ``codec`` its compressor."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Zarr warns that v2 arrays are not the newest format
+        return zarr.create_array(
+            zarr.storage.LocalStore(where),
+            shape=(2, 48, 64),
+            chunks=(1, 48, 64),
+            dtype=dtype,
+            zarr_format=2,
+            filters=None,
+            compressors=codec,
+            fill_value=0,
+        )
+
+
+@pytest.mark.parametrize("name", DEPTH_CODECS)
+def test_zarr_v2_chunk_of_another_shape_or_dtype_is_a_decode_error(
+    name: str, tmp_path: Path
+) -> None:
+    zarr = _zarr()
+    codec = pz_numcodecs.numcodec(name)
+    tall = (np.arange(64 * 48, dtype=np.uint16).reshape(64, 48) % 700) * 3
+    images = {"uint16": tall, "float32": tall.astype(np.float32) / 1000}
+    for array_dtype in ("uint16", "float32"):
+        where = tmp_path / array_dtype
+        array = _v2_array(zarr, where, array_dtype, codec)
+        for image_dtype in _dtypes(name):
+            image = images[image_dtype]
+            for shape in ((64, 48), (48, 64)):
+                right = shape == (48, 64) and image_dtype == array_dtype
+                frame = np.ascontiguousarray(image.reshape(shape))
+                (where / "0.0.0").write_bytes(codec.codec.encode(frame))
+                if right:
+                    assert_bit_exact(array[0], frame)
+                    continue
+                with pytest.raises(pcdcodec.DecodeError, match="chunk does not fit the array"):
+                    array[0]
+                # Zarr format 2 with zarr-python 2 decodes a whole chunk into the array itself.
+                if frame.nbytes == 48 * 64 * np.dtype(array_dtype).itemsize:
+                    out = np.zeros((1, 48, 64), array_dtype)
+                    why = r"not this array's chunk|out is"
+                    with pytest.raises(pcdcodec.PcdcodecError, match=why):
+                        codec.decode(codec.codec.encode(frame), out=out)
+
+
+def test_numcodec_decoded_image_is_an_array_that_refuses_only_other_images() -> None:
+    codec = pz_numcodecs.numcodec("rvl")
+    depth = load_depths("sample", 1)[0]
+    image = codec.decode(codec.encode(depth))
+    assert isinstance(image, np.ndarray)
+    assert np.array_equal(image.reshape(1, *depth.shape)[0], depth)
+    assert type(image.reshape(1, *depth.shape)) is np.ndarray
+    assert np.array_equal(image.reshape(-1), depth.reshape(-1))
+    assert image.astype(np.float32).reshape(depth.shape[::-1]).shape == depth.shape[::-1]
+    assert np.asarray(image).reshape(depth.shape[::-1]).shape == depth.shape[::-1]
+    with pytest.raises(pcdcodec.DecodeError, match=r"holds a 480x640 depth image.*640x480"):
+        image.reshape(-1).reshape(depth.shape[::-1])
+    with pytest.raises(pcdcodec.DecodeError, match="a uint16 depth image, the array is int16"):
+        image.view(np.int16).reshape(1, *depth.shape)
+    with pytest.raises(pcdcodec.DecodeError, match="byte-swapped"):
+        image.view(">u2").reshape(depth.shape)
+    with pytest.raises(pcdcodec.DecodeError, match="order 'F'"):
+        image.reshape(depth.shape, order="F")

@@ -147,6 +147,25 @@ def _check_fps(fps: Any) -> float:
     return float(fps)
 
 
+def _keep_in_child(stream: object) -> None:
+    """A stream (FFmpeg's or OpenCV's, with their threads) is never freed by a forked child."""
+    from .fork import keep_in_child  # loaded with the first stream, not by ``import pcdcodec``
+
+    keep_in_child(stream)
+
+
+def _inherited(stream: object) -> bool:
+    from .fork import inherited
+
+    return inherited(stream)
+
+
+def _check_ours(stream: object, what: str) -> None:
+    from .fork import check_not_inherited
+
+    check_not_inherited(stream, what)
+
+
 class VideoEncoder(ABC):
     """Turns RGB frames of one size into packets. Use one encoder per stream."""
 
@@ -157,6 +176,7 @@ class VideoEncoder(ABC):
         self.frames_in = 0
         self._last_timestamp: int | None = None
         self._flushed = False
+        _keep_in_child(self)
 
     @property
     def extradata(self) -> bytes | None:
@@ -194,6 +214,7 @@ class VideoEncoder(ABC):
         in, and encodes it with this."""
         if self._flushed:
             raise InputError("encoder was flushed; start a new encoder for a new stream")
+        _check_ours(self, f"the {self.codec.name} encoder")
         self._last_timestamp = timestamp
         packets = self._encode(frame, timestamp)
         self.frames_in += 1
@@ -203,6 +224,7 @@ class VideoEncoder(ABC):
         """End the stream and return the packets still held by the encoder."""
         if self._flushed:
             return []
+        _check_ours(self, f"the {self.codec.name} encoder")
         self._flushed = True
         return self._flush()
 
@@ -222,6 +244,7 @@ class VideoDecoder(ABC):
         self.codec = codec
         self.width, self.height = _check_size(width, height)
         self.extradata = extradata
+        _keep_in_child(self)
 
     def decode(self, packet: Packet) -> list[DecodedFrame]:
         """Decode one packet; return the frames that became ready, in display order.
@@ -232,10 +255,12 @@ class VideoDecoder(ABC):
         if not isinstance(packet, Packet):
             raise InputTypeError(f"decode expects a Packet, got {type(packet).__name__}")
         packet.verify()
+        _check_ours(self, f"the {self.codec.name} decoder")
         return self._decode(packet)
 
     def flush(self) -> list[DecodedFrame]:
         """Return the frames still held by the decoder at the end of the stream."""
+        _check_ours(self, f"the {self.codec.name} decoder")
         return self._flush()
 
     def decode_pictures(self, packet: Packet) -> list[DecodedPicture]:
@@ -244,10 +269,12 @@ class VideoDecoder(ABC):
         if not isinstance(packet, Packet):
             raise InputTypeError(f"decode expects a Packet, got {type(packet).__name__}")
         packet.verify()
+        _check_ours(self, f"the {self.codec.name} decoder")
         return self._decode_pictures(packet)
 
     def flush_pictures(self) -> list[DecodedPicture]:
         """:meth:`flush`, with the frames as in :meth:`decode_pictures`."""
+        _check_ours(self, f"the {self.codec.name} decoder")
         return self._flush_pictures()
 
     @abstractmethod
@@ -358,6 +385,7 @@ class VideoFileWriter(ABC):
         self.fps = _check_fps(fps)
         self.frames_written = 0
         self._closed = False
+        _keep_in_child(self)
 
     def write(self, rgb: npt.ArrayLike) -> None:
         """Append one H×W×3 uint8 RGB frame.
@@ -378,14 +406,16 @@ class VideoFileWriter(ABC):
 
     def close(self) -> None:
         """Finish the file and move it into place at :attr:`path`. Closing twice is harmless."""
-        if self._closed:
+        if self._closed or _inherited(self):  # a forked process leaves the parent's file
+            self._closed = True
             return
         self._closed = True
         self._close()
 
     def abort(self) -> None:
         """Stop writing and delete what was written; nothing appears at :attr:`path`."""
-        if self._closed:
+        if self._closed or _inherited(self):  # a forked process leaves the parent's file
+            self._closed = True
             return
         self._closed = True
         self._abort()
@@ -424,6 +454,7 @@ class VideoFileReader(ABC):
     def __init__(self, codec: FileVideoCodec, path: Path) -> None:
         self.codec = codec
         self.path = path
+        _keep_in_child(self)
 
     @property
     @abstractmethod

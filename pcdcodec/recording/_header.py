@@ -396,8 +396,11 @@ def depth_channel(
     }
 
 
-def check_channels(index: fmt.FileIndex, name: str, settings: Settings) -> None:
-    """The channels (inside CRC-checked chunks) must agree with the settings record."""
+def check_channels(
+    index: fmt.FileIndex, name: str, settings: Settings, camera: str | None = None
+) -> None:
+    """The channels (inside CRC-checked chunks) must agree with the settings record (of
+    ``camera`` of a rig, whose :func:`~pcdcodec.recording._index.camera_view` ``index`` is)."""
     cam = settings.intrinsics
     expected: dict[str, dict[str, Any]] = {
         fmt.TOPIC_DEPTH: {
@@ -425,9 +428,12 @@ def check_channels(index: fmt.FileIndex, name: str, settings: Settings) -> None:
             except (ValueError, RecursionError):
                 got = text
             if got != value:
+                real = topic if camera is None else fmt.camera_topic(topic, camera)
+                record = fmt.METADATA_NAME if camera is None else fmt.camera_record(camera)
+                of = "" if camera is None else f" camera {camera!r}:"
                 raise DecodeError(
-                    f"{name!r}: channel {topic!r} says {key} is {text}, but the recording's "
-                    f"metadata says {value!r}"
+                    f"{name!r}:{of} channel {real!r} says {key} is {text}, but the "
+                    f"{record!r} record says {value!r}"
                 )
 
 

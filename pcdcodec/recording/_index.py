@@ -243,6 +243,7 @@ def camera_view(index: FileIndex, name: str) -> FileIndex:
         times={topics[t]: v for t, v in index.times.items() if t in topics},
         offsets={topics[t]: v for t, v in index.offsets.items() if t in topics},
         damaged_chunks=list(index.damaged_chunks),
+        duplicates={topics[t]: n for t, n in index.duplicates.items() if t in topics},
     )
 
 
@@ -472,12 +473,14 @@ def integrity_version(index: FileIndex, what: str) -> int:
     return version
 
 
-def seal_problems(index: FileIndex, what: str) -> list[str]:
+def seal_problems(index: FileIndex, what: str, *, record: str = SEAL_NAME) -> list[str]:
     """How the messages of ``index`` differ from the file's seal (empty when they agree).
 
     Raises :class:`DecodeError` when a file written with integrity records lacks a seal
     although it was closed (it has a usable summary, or its data section ends), or its seal
     has no digest. A file without a seal that was not closed (its writer died) has none.
+    ``record`` is the seal record's name in the file, for the messages: a rig camera's
+    :func:`camera_view` has its seal (:func:`camera_seal`) under the one-camera name.
     """
     if not integrity_version(index, what):
         return []
@@ -486,17 +489,17 @@ def seal_problems(index: FileIndex, what: str) -> list[str]:
         return [
             f"camera {name!r}: {problem}"
             for name in names
-            for problem in seal_problems(camera_view(index, name), what)
+            for problem in seal_problems(camera_view(index, name), what, record=camera_seal(name))
         ]
     seal_ = index.metadata.get(SEAL_NAME)
     if seal_ is None:
         if index.indexed or index.data_crc is not None:
             raise DecodeError(
-                f"{what}: the file was closed, but its seal record {SEAL_NAME!r} is missing"
+                f"{what}: the file was closed, but its seal record {record!r} is missing"
             )
         return []
     if DIGEST_KEY not in seal_:
-        raise DecodeError(f"{what}: the seal record {SEAL_NAME!r} has no digest")
+        raise DecodeError(f"{what}: the seal record {record!r} has no digest")
     found = structure_of(index).summary()
     labels = {
         "frames": "frames",

@@ -84,8 +84,8 @@ class FileIndex:
     summary_problem: str | None = None
     #: a scan that reached the end of the data section: (CRC stored there, CRC of the bytes read)
     data_crc: tuple[int, int] | None = None
-    #: messages a scan found twice (same channel and time); the first one is kept
-    duplicates: int = 0
+    #: messages a scan found twice (same channel and time), by topic; the first one is kept
+    duplicates: dict[str, int] = field(default_factory=dict)
     #: chunks a scan passed over (``skip_damaged_chunks``): (byte offset, what was wrong)
     damaged_chunks: list[tuple[int, str]] = field(default_factory=list)
     #: size of the file in bytes
@@ -438,7 +438,9 @@ def scan(f: IO[bytes], *, skip_damaged_chunks: bool = False, resync: bool = Fals
                 for message in messages:
                     key = (message.channel_id, message.log_time)
                     if key in seen:
-                        index.duplicates += 1
+                        info = index.channels.get(message.channel_id)
+                        topic = info.topic if info is not None else f"channel {key[0]}"
+                        index.duplicates[topic] = index.duplicates.get(topic, 0) + 1
                         continue
                     seen.add(key)
                     index.add(message.channel_id, message.log_time, pos)

@@ -133,6 +133,8 @@ class _Lane:
         self.last_time: int | None = None
         #: the messages written once per camera (calibration) that the joined file has
         self.once: set[str] = set()
+        #: the depth and pose messages of the part's frames whose digest message is to come
+        self.pending: dict[int, dict[str, bytes]] = {}
 
 
 def join(
@@ -245,7 +247,7 @@ def _copy_part(
     with path.open("rb") as f:
         size = fmt.file_size(f)
         for offset in offsets:
-            for m in fmt.read_chunk_messages(f, offset, what=path.name, size=size):
+            for m in fmt.read_chunk_messages(f, offset, what=repr(str(path)), size=size):
                 found = channel_topic.get(m.channel_id)
                 if found is None:
                     continue
@@ -262,13 +264,20 @@ def _copy_part(
                     key = m.log_time in lane.keyframes
                     lane.check.packet(m.log_time, m.publish_time, key, m.data)
                     lane.sealer.packet(m.log_time, m.publish_time, key, m.data)
+                elif topic in _DIGESTED:
+                    lane.pending.setdefault(m.log_time, {})[topic] = bytes(m.data)
                 elif topic == fmt.TOPIC_FRAME_DIGEST:
-                    payload = _rejoin(m.data, lane.check, lane.sealer, path, offset)
+                    frame = lane.pending.pop(m.log_time, {})
+                    payload = _rejoin(m.data, lane, frame, _where(path, camera, m.log_time, offset))
                 writer.add_message(topic_ids[real], m.log_time, payload, m.publish_time, sequence)
                 lane.sealer.note(topic, m.log_time)
     frames = 0
     for camera, view in views.items():
         lane = lanes[camera]
+        if lane.pending and fmt.TOPIC_FRAME_DIGEST in view.times:
+            t = min(lane.pending)
+            raise DecodeError(f"{_where(path, camera, t, None)}: the frame has no digest message")
+        lane.pending.clear()
         seal = view.metadata.get(fmt.SEAL_NAME)
         tail = lane.check.seal()
         ends = ("tail_packets", "tail_digest")
@@ -302,16 +311,38 @@ def _register(
         topic_ids[ch.topic] = writer.register_channel(ch.topic, ch.encoding, sid, ch.metadata)
 
 
-def _rejoin(data: bytes, check: fmt.Sealer, sealer: fmt.Sealer, path: Path, offset: int) -> bytes:
-    """A part's frame digest message as the joined file needs it: the part's color group
-    checked, and replaced by the joined file's group (which may begin in the part before);
-    the depth and pose digests are kept as written."""
+#: The messages of a frame that its digest message vouches for (in the digest's order).
+_DIGESTED = (fmt.TOPIC_DEPTH, fmt.TOPIC_POSE, fmt.TOPIC_POSE_MATRIX)
+
+
+def _where(path: Path, camera: str | None, t: int, offset: int | None) -> str:
+    of = "" if camera is None else f" camera {camera!r}"
+    at = "" if offset is None else f" (its digest at byte offset {offset})"
+    return f"{str(path)!r}:{of} frame at t={t} ns{at}"
+
+
+def _rejoin(data: bytes, lane: _Lane, frame: dict[str, bytes], where: str) -> bytes:
+    """A part's frame digest message as the joined file needs it: the part's color group,
+    depth and pose messages checked against it, as reading the part would, and the color
+    group replaced by the joined file's (which may begin in the part before); the depth and
+    pose digests are kept as written. ``where`` names the part and the frame."""
     if len(data) != fmt.DIGEST_RECORD.size:
-        raise DecodeError(f"{str(path)!r}: the frame digest at byte offset {offset} is damaged")
+        raise DecodeError(f"{where}: the frame digest message is damaged")
     count, color, depth, pose = fmt.DIGEST_RECORD.unpack(data)
-    if check.group() != (count, color):
+    if lane.check.group() != (count, color):
         raise DecodeError(
-            f"{str(path)!r}: the color packets before byte offset {offset} do not match their "
-            "digest there"
+            f"{where}: the color packets before it do not match their digest; "
+            "`pcdcodec verify` the part"
         )
-    return fmt.DIGEST_RECORD.pack(*sealer.group(), depth, pose)
+    if fmt.TOPIC_DEPTH not in frame or fmt.data_digest(frame[fmt.TOPIC_DEPTH]) != depth:
+        raise DecodeError(
+            f"{where}: the depth message does not match the frame's digest (it was changed, "
+            "or belongs to another frame); `pcdcodec verify` the part"
+        )
+    poses = [frame[t] for t in (fmt.TOPIC_POSE, fmt.TOPIC_POSE_MATRIX) if t in frame]
+    if (fmt.data_digest(*poses) if poses else fmt.NO_POSE) != pose:
+        raise DecodeError(
+            f"{where}: the pose messages do not match the frame's digest (they were changed, "
+            "added or removed); `pcdcodec verify` the part"
+        )
+    return fmt.DIGEST_RECORD.pack(*lane.sealer.group(), depth, pose)

@@ -14,6 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..color.base import StreamCodec
+from ..color.fork import check_not_inherited, inherited, keep_in_child
 from ..depth.base import FrameCodec, read_header
 from ..errors import DecodeError, InputError, InputTypeError, PcdcodecError, UnknownCodecError
 from ..frame import Frame
@@ -87,6 +88,7 @@ class Recording(PacketAccess, OneCamera):
         if self.path.is_dir():
             raise InputError(f"{str(self.path)!r} is a folder, not a recording")
         self._file: IO[bytes] = open(self.path, "rb")  # noqa: SIM115 - closed by close()
+        keep_in_child(self)  # a forked process never frees it (color/fork.py)
         self._lock = threading.RLock()
         self._read_aheads: weakref.WeakSet[ReadAhead[Frame]] = weakref.WeakSet()
         try:
@@ -151,7 +153,8 @@ class Recording(PacketAccess, OneCamera):
             raise SeveralCamerasError(name, cameras, index)
         #: 1 for files with frame digests and a seal (``docs/format.md``), 0 for earlier ones.
         self.integrity = fmt.integrity_version(index, repr(name))
-        problems = fmt.seal_problems(index, repr(name))
+        seal_record = fmt.SEAL_NAME if self.camera is None else fmt.camera_seal(self.camera)
+        problems = fmt.seal_problems(index, repr(name), record=seal_record)
         if problems:
             raise DecodeError(
                 f"{name!r} does not hold what its writer sealed when closing it: "
@@ -161,7 +164,8 @@ class Recording(PacketAccess, OneCamera):
         self._seal: dict[str, str] | None = (
             index.metadata.get(fmt.SEAL_NAME) if self.integrity else None
         )
-        where = f"{name!r}: the {fmt.METADATA_NAME!r} metadata at byte offset " + str(
+        record = fmt.METADATA_NAME if self.camera is None else fmt.camera_record(self.camera)
+        where = f"{name!r}: the {record!r} metadata at byte offset " + str(
             index.metadata_offsets.get(fmt.METADATA_NAME)
         )
         settings = header.Settings.parse(meta, name, where)
@@ -194,7 +198,7 @@ class Recording(PacketAccess, OneCamera):
             raise DecodeError(
                 f"{where} names codecs that cannot be made ({type(exc).__name__}: {exc})"
             ) from exc
-        header.check_channels(index, name, settings)
+        header.check_channels(index, name, settings, self.camera)
         if fmt.DIGEST_KEY not in meta:
             # Written before digests: the CRC-checked calibration message vouches for the camera.
             with self._lock:
@@ -423,6 +427,7 @@ class Recording(PacketAccess, OneCamera):
 
     def _index_of(self, i: int) -> int:
         """Frame ``i`` as an index from 0, checked (once per call from outside)."""
+        check_not_inherited(self, f"the reader of {str(self.path)!r}")
         n = len(self)
         if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
             raise InputTypeError(f"frame index must be an int, got {type(i).__name__}")
@@ -605,6 +610,8 @@ class Recording(PacketAccess, OneCamera):
 
     def close(self) -> None:
         """Stop the threads reading ahead (if any), then close the file."""
+        if inherited(self):  # in a forked process: the parent's threads are not here
+            return
         for ahead in list(self._read_aheads):
             ahead.close()
         self._file.close()

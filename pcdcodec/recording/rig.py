@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..color import DEFAULT_COLOR_CODEC
+from ..color.fork import check_not_inherited, inherited, keep_in_child
 from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import InputError, InputTypeError
 from ..geometry.transform import as_rigid
@@ -124,6 +125,7 @@ class RigWriter:
         self._writing, file = open_output(self.path, overwrite)
         self._shared = SharedFile(file, self._writing)
         self._closed = False
+        keep_in_child(self)  # a forked process never frees or finishes it (color/fork.py)
         self._cameras: dict[str, RecordingWriter] = {}
         try:
             for s in specs:
@@ -210,6 +212,7 @@ class RigWriter:
     ) -> None:
         """Add a frame of ``camera``: as :meth:`pcdcodec.RecordingWriter.write`, for that
         camera (its color size, its depth, its own increasing timestamps)."""
+        check_not_inherited(self, f"the writer of {str(self.path)!r}")
         self._check_open()
         self.camera(camera).write(color, depth, timestamp, pose=pose)
 
@@ -249,7 +252,8 @@ class RigWriter:
         """Write what every camera still holds, each camera's seal, the index and the summary,
         and close the file. Every step is tried even when an earlier one fails, as for
         :meth:`pcdcodec.RecordingWriter.close`; the first error is raised at the end."""
-        if self._closed:
+        if self._closed or inherited(self):  # in a forked process: the parent's file
+            self._closed = True
             return
         self._closed = True
         errors: list[BaseException] = []
@@ -273,6 +277,9 @@ class RigWriter:
 
     def abort(self) -> None:
         """Stop without finishing: what was written stays readable, as after a crash."""
+        if inherited(self):  # in a forked process: the parent's file and threads
+            self._closed = True
+            return
         self._closed = True
         for cam in self._cameras.values():
             cam.abort()

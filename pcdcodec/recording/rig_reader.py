@@ -20,7 +20,7 @@ from . import _header as header
 from . import _index as fmt
 from .framesets import FrameSet, FrameSets, RigCamera, framesets, match_times
 from .reader import Recording
-from .verify import VerifyReport
+from .verify import VerifyReport, index_problems
 
 __all__ = [
     "CameraRecording",
@@ -170,13 +170,14 @@ class RigRecording:
         return framesets(self, tolerance, reference)
 
     def verify(self) -> VerifyReport:
-        """Verify every camera (``Recording.verify``); problems name their camera."""
-        errors: list[str] = []
+        """Verify every camera (``Recording.verify``); problems name their camera, and those of
+        the whole file (cut short, an unusable summary) are said once."""
+        errors = index_problems(self.index)
         frames = 0
         for cam, rec in self._recordings.items():
             report = rec.verify()
             frames += report.frames
-            errors.extend(f"camera {cam!r}: {e}" for e in report.errors)
+            errors.extend(f"camera {cam!r}: {e}" for e in report.errors if e not in errors)
         return VerifyReport(frames, errors, self.index.indexed, self.index.truncated_at)
 
     @property

@@ -82,6 +82,16 @@ class RecordingSource(Source):
         self._owns = _rig is None
         self._file = opened
         try:
+            if not opened.index.indexed:
+                # Written again, the frames before the cut would pass for the whole recording.
+                # (Said first: a rig's file cut short is not cured by naming a camera.)
+                cut = opened.index.truncated_at
+                where = f" (it ends inside a record at byte offset {cut})" if cut else ""
+                raise DecodeError(
+                    f"{str(self.path)!r} has no index{where}: it was cut short, or its writer "
+                    "did not finish; `pcdcodec recover` copies the frames it can read into a "
+                    "complete recording, which can then be encoded again"
+                )
             if isinstance(opened, RigRecording) and camera is None and len(opened.cameras) > 1:
                 raise InputError(
                     f"{str(self.path)!r} holds {len(opened.cameras)} cameras "
@@ -89,15 +99,6 @@ class RecordingSource(Source):
                     "re-encode them all as a rig (pcdcodec.encode_rig, or `pcdcodec encode`)"
                 )
             rec: Recording = opened.frames(camera)
-            if not rec.indexed:
-                # Written again, the frames before the cut would pass for the whole recording.
-                cut = rec.index.truncated_at
-                where = f" (it ends inside a record at byte offset {cut})" if cut else ""
-                raise DecodeError(
-                    f"{str(self.path)!r} has no index{where}: it was cut short, or its writer "
-                    "did not finish; `pcdcodec recover` copies the frames it can read into a "
-                    "complete recording, which can then be encoded again"
-                )
             lost = rec.color_missing
             if lost:
                 # A recording with color takes a color image with every frame.

@@ -82,8 +82,9 @@ def structure_problems(
     )
     if scanned.damaged_at is not None:
         errors.append(f"damaged record at byte offset {scanned.damaged_at}: {scanned.damage}")
-    if scanned.duplicates:
-        errors.append(f"{scanned.duplicates} message(s) are stored twice")
+    for topic, count in sorted(scanned.duplicates.items()):
+        real = topic if camera is None else fmt.camera_topic(topic, camera)
+        errors.append(f"{count} message(s) on {real!r} are stored twice")
     crc = scanned.data_crc
     if crc is not None and crc[0] not in (0, crc[1]) and not scanned.damaged_chunks:
         stored, computed = crc

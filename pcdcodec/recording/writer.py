@@ -20,6 +20,7 @@ import numpy.typing as npt
 from .._validate import check_color, check_depth, check_depth_scale
 from ..color import DEFAULT_COLOR_CODEC
 from ..color.base import Packet, StreamCodec, VideoEncoder
+from ..color.fork import check_not_inherited, inherited, keep_in_child
 from ..depth import DEFAULT_DEPTH_CODEC
 from ..depth.base import FrameCodec
 from ..errors import InputError, InputTypeError, PcdcodecError
@@ -208,6 +209,7 @@ class RecordingWriter(FrameInputs):
         )
 
         video_format = self.color_codec.video_format if self.color_codec else None
+        keep_in_child(self)  # a forked process never frees or finishes it (color/fork.py)
         #: Whether this writer has the file alone (else it is one camera of a rig's file).
         self._owns_file = _shared is None
         if _shared is not None:
@@ -381,6 +383,7 @@ class RecordingWriter(FrameInputs):
         encoding or writing an earlier frame is raised here, before this frame is taken (call
         again to hand it in); the frames handed in after the failed one are still written.
         """
+        check_not_inherited(self, f"the writer of {str(self.path)!r}")
         self._check_open()
         self._raise_background_error()
         self._take(color, depth, timestamp, pose)
@@ -584,7 +587,8 @@ class RecordingWriter(FrameInputs):
         one is kept unless the new one closed without error (the new one's frames then stay in
         the partial file the error names).
         """
-        if self._closed:
+        if self._closed or inherited(self):  # in a forked process: the parent's file
+            self._closed = True
             return
         errors: list[BaseException] = []
 
@@ -616,6 +620,9 @@ class RecordingWriter(FrameInputs):
 
     def abort(self) -> None:
         """Stop without finishing: what was written stays readable, as after a crash."""
+        if inherited(self):  # in a forked process: the parent's file and threads
+            self._closed = True
+            return
         self._closed = True
         self._pipeline.abort()
         if self._owns_file:

@@ -6,7 +6,14 @@ the ``numcodecs.codecs`` entry points of pcdcodec's package metadata, so
 A codec registered later (a plugin) gets its class from :func:`numcodec_class`.
 
 ``encode`` takes one depth image: a 2-D array, or one with leading axes of length 1 (a Zarr
-chunk of one frame, ``(1, H, W)``); ``decode`` returns the 2-D image, or fills ``out``. The
+chunk of one frame, ``(1, H, W)``); ``decode`` returns the 2-D image, or fills ``out``.
+
+A Zarr format 2 array does not tell its compressor the chunk's shape and dtype: it views what
+``decode`` returns as the array's dtype and reshapes it to the chunk's shape. So a chunk holding
+an image of another shape or dtype (a 64x48 frame in a 48x64 array, float32 in a uint16 array)
+must not pass those steps: ``decode`` returns a :class:`DecodedImage`, a numpy array that raises
+:class:`~pcdcodec.DecodeError` when it is reshaped into an image of another shape or dtype than
+the one decoded, and ``out`` is checked the same way. ``np.asarray(image)`` is a plain array. The
 config is the codec's :meth:`~pcdcodec.codec.Codec.stored_config` under the numcodecs id, so
 bound options (``max_error``, ``max_rel_error``) are recorded and machine settings
 (``threads``) are not.
@@ -21,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..depth import FrameCodec
-from ..errors import CodecUnavailableError, InputError, InputTypeError
+from ..errors import CodecUnavailableError, DecodeError, InputError, InputTypeError
 from ..registry import codec_class, get_codec
 
 try:
@@ -39,6 +46,7 @@ __all__ = [
     "PNG16",
     "PREFIX",
     "RVL",
+    "DecodedImage",
     "DepthAC",
     "DepthNumcodec",
     "Zstd",
@@ -89,9 +97,94 @@ def as_image(buf: Any, codec_id: str) -> npt.NDArray[Any]:
 _BIG_ENDIAN = np.dtype("=u2").str[0] == ">"
 
 
+def _image_mismatch(
+    image: tuple[tuple[int, ...], np.dtype[Any]],
+    shape: tuple[int, ...],
+    dtype: np.dtype[Any],
+    order: str = "C",
+) -> str | None:
+    """Why an image of ``image`` (shape, dtype) cannot be read as an array of ``shape`` and
+    ``dtype`` in ``order``, or ``None`` when it can. Axes of length 1 do not count, so a chunk
+    ``(1, H, W)`` holds an ``H x W`` image."""
+    ishape, idtype = image
+    if dtype.kind != idtype.kind or dtype.itemsize != idtype.itemsize:
+        return f"it holds a {idtype.name} depth image, the array is {dtype}"
+    if dtype.str != idtype.str:
+        return f"it holds a {idtype.str} depth image, the array is {dtype.str} (byte-swapped)"
+    if [n for n in shape if n != 1] != [n for n in ishape if n != 1]:
+        return (
+            f"it holds a {ishape[0]}x{ishape[1]} depth image, the array's chunk is "
+            f"{'x'.join(map(str, shape))}"
+        )
+    if order == "F" and sum(n != 1 for n in ishape) > 1:
+        return "a depth image reads back scrambled into an array of order 'F'"
+    return None
+
+
+def _target_shape(size: int, args: tuple[Any, ...]) -> tuple[int, ...]:
+    """The shape ``ndarray.reshape(*args)`` asks for, with a ``-1`` worked out."""
+    shape = args[0] if len(args) == 1 and not isinstance(args[0], (int, np.integer)) else args
+    dims = [int(n) for n in shape]
+    if dims.count(-1) == 1:
+        known = int(np.prod([n for n in dims if n != -1]))
+        dims[dims.index(-1)] = size // known if known else 0
+    return tuple(dims)
+
+
+class DecodedImage(np.ndarray):
+    """A decoded depth image that refuses to become an image of another shape or dtype.
+
+    What ``decode`` returns without ``out``. It is a numpy array in every way, except that
+    reshaping it (or a view of it) to two or more axes raises :class:`~pcdcodec.DecodeError`
+    unless the result is the decoded image itself: same dtype, and the same ``H x W`` up to axes
+    of length 1. That is the step by which a Zarr format 2 array turns a chunk into its pixels,
+    so a chunk holding another image fails there instead of reading back scrambled.
+    ``np.asarray(image)`` is a plain array.
+    """
+
+    _decoded: tuple[tuple[int, ...], np.dtype[Any]] | None
+    _codec_id: str
+
+    @classmethod
+    def of(cls, image: npt.NDArray[Any], codec_id: str) -> DecodedImage:
+        out = image.view(cls)
+        out._decoded = (image.shape, image.dtype)
+        out._codec_id = codec_id
+        return out
+
+    def __array_finalize__(self, obj: Any) -> None:
+        # Only view() and reshape() keep what the image was decoded as (_kept); a slice, a
+        # computation or astype() of it is a plain array.
+        self._decoded = None
+        self._codec_id = ""
+
+    def _kept(self, result: Any) -> Any:
+        if isinstance(result, DecodedImage):
+            result._decoded = self._decoded
+            result._codec_id = self._codec_id
+        return result
+
+    def view(self, *args: Any, **kwargs: Any) -> Any:
+        return self._kept(super().view(*args, **kwargs))
+
+    def reshape(self, *shape: Any, order: Any = "C") -> Any:  # type: ignore[override]
+        target = _target_shape(self.size, shape)
+        decoded = self._decoded
+        if decoded is None:
+            return super().reshape(*shape, order=order)
+        if len(target) < 2:
+            return self._kept(super().reshape(*shape, order=order))
+        why = _image_mismatch(decoded, target, self.dtype, "F" if order == "F" else "C")
+        if why is None and int(np.prod(target)) != self.size:
+            why = f"its {self.size} values do not fill a chunk of {target}"
+        if why is not None:
+            raise DecodeError(f"{self._codec_id}: this Zarr chunk does not fit the array: {why}")
+        return np.asarray(super().reshape(*shape, order=order))
+
+
 def _fill(image: npt.NDArray[Any], out: Any, codec_id: str) -> Any:
     """``image`` copied into ``out``: by value into an array of its dtype (in any byte order
-    and memory layout, of any shape holding its pixels), as raw bytes into a byte buffer."""
+    and memory layout, of its shape up to axes of length 1), as raw bytes into a byte buffer."""
     try:
         dest = numcodecs.compat.ensure_ndarray_like(out)
     except (TypeError, ValueError) as e:
@@ -109,6 +202,12 @@ def _fill(image: npt.NDArray[Any], out: Any, codec_id: str) -> Any:
         return numcodecs.compat.ndarray_copy(image, out)
     if dest.dtype.kind != image.dtype.kind or dest.dtype.itemsize != image.dtype.itemsize:
         raise InputTypeError(f"{codec_id}: out is {dest.dtype}, {wanted} is {image.dtype}")
+    if [n for n in dest.shape if n != 1] != [n for n in image.shape if n != 1]:
+        # Zarr format 2 decodes a whole chunk straight into the array: its shape is the chunk's.
+        raise DecodeError(
+            f"{codec_id}: out is {tuple(dest.shape)}, the chunk holds a "
+            f"{image.shape[0]}x{image.shape[1]} depth image: it is not this array's chunk"
+        )
     np.copyto(dest, image.reshape(dest.shape))
     return out
 
@@ -139,7 +238,8 @@ class DepthNumcodec(numcodecs.abc.Codec):  # type: ignore[misc]  # numcodecs is 
         return self._codec.encode(as_image(buf, self.codec_id))
 
     def decode(self, buf: Any, out: Any = None) -> Any:
-        """The depth image in ``buf``; copied into ``out`` (of its size) when given."""
+        """The depth image in ``buf`` as a :class:`DecodedImage`; copied into ``out`` (of its
+        shape and dtype, up to axes of length 1) when given."""
         try:
             data = numcodecs.compat.ensure_contiguous_ndarray(buf)
         except (TypeError, ValueError) as e:
@@ -149,7 +249,7 @@ class DepthNumcodec(numcodecs.abc.Codec):  # type: ignore[misc]  # numcodecs is 
             ) from None
         image = self._codec.decode(memoryview(data).cast("B"))
         if out is None:
-            return image
+            return DecodedImage.of(image, self.codec_id)
         return _fill(image, out, self.codec_id)
 
     def get_config(self) -> dict[str, Any]:
