@@ -180,7 +180,7 @@ def test_frames_without_color_are_said_and_not_written_again_as_colored(
 def test_a_file_written_before_digests_loses_color_from_any_damage_on(tmp_path: Path) -> None:
     """Without digests nothing says what a damaged chunk held: the color stream is taken as
     broken from there to the next keyframe, and every frame keeps its depth."""
-    from .recording_rewrite import rewrite
+    from pcdcodec.recording.rewrite import rewrite
 
     path = tmp_path / "new.pcdc"
     frames = small_frames(6)

@@ -747,7 +747,7 @@ def test_join_compares_a_late_camera_between_the_parts_that_have_it(tmp_path: Pa
 
 
 def test_rig_errors_name_the_record_the_topic_and_the_camera(tmp_path: Path) -> None:
-    from .recording_rewrite import read, write
+    from pcdcodec.recording.rewrite import read, write
 
     intr, scale, items = _small_frames(4)
     specs = [
