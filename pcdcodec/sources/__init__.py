@@ -19,6 +19,7 @@ from .base import (
     SourceKind,
     open_source,
     register_source,
+    settle_camera,
     source_kinds,
 )
 
@@ -30,6 +31,7 @@ __all__ = [
     "open_source",
     "realsense_live",
     "register_source",
+    "settle_camera",
     "source_kinds",
 ]
 
