@@ -275,3 +275,13 @@ def test_a_bare_camera_matrix_fills_a_gap_at_the_images_size(tmp_path: Path) -> 
     with pcdcodec.open(tmp_path / "x.pcdc") as rec:
         assert (rec.intrinsics.width, rec.intrinsics.fx, rec.depth_scale) == (640, 500.0, 1000.0)
     assert summary.source["camera_notes"] == []
+
+
+def test_bench_reads_its_input_by_the_same_rule(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    root = _tum_copy(tmp_path / "tum", 2)
+    argv = ["bench", str(root), "--frames", "2", "--no-rd", "--no-plots", "--depth", "zstd"]
+    assert main([*argv, "--camera", "kinect-v1", "-q"]) == 0
+    err = capsys.readouterr().err
+    assert "--camera kinect-v1 depth scale 1000 differs from the input's own 5000" in err

@@ -1,6 +1,7 @@
 """From parsed options to the library's arguments, one rule for every command.
 
-The camera flags (``--camera``, ``--intrinsics``, ``--fx``...), the RGB-D folder flags and the
+The camera flags (``--camera``, ``--intrinsics``, ``--fx``..., ``--override``) become a
+:class:`~pcdcodec.sources.CameraDefaults` (:func:`camera_defaults`); the RGB-D folder flags and the
 bag topic flags become reader options here; codec specs become codecs; and :func:`cli_message`
 puts a library error message in the CLI's words (flags instead of keyword arguments).
 """
@@ -27,69 +28,6 @@ def _pinhole_flags(args: argparse.Namespace) -> dict[str, float] | None:
     if missing:
         raise InputError(f"intrinsics need --fx --fy --cx --cy; missing {' '.join(missing)}")
     return {k: float(v) for k, v in given.items()}
-
-
-def _intrinsics_from_args(args: argparse.Namespace, width: int, height: int) -> Any:
-    """``--fx --fy --cx --cy`` (all or none) as the camera of frames of this size."""
-    from ..geometry.camera import as_intrinsics
-
-    given = _pinhole_flags(args)
-    return None if given is None else as_intrinsics(given, width=width, height=height)
-
-
-def frame_size(
-    src: str, depth_scale: float | None, options: dict[str, Any] | None = None
-) -> tuple[int, int]:
-    """(width, height) of the input's frames: a recording's camera, or a folder's first frame."""
-    from ..sources.base import detect_kind
-
-    path = Path(src)
-    if path.is_file() and detect_kind(src) in (None, "recording"):
-        from ..recording import open as open_recording
-
-        with open_recording(path) as rec:
-            return rec.intrinsics.width, rec.intrinsics.height
-    from ..sources import open_source
-
-    opts = {**(options or {}), "max_frames": 1, "depth_scale": depth_scale or 1000.0}
-    with open_source(path, **opts) as source:
-        first = next(iter(source), None)
-    if first is None:
-        raise InputError(f"{src!r} gives no frames")
-    h, w = first.depth.shape
-    return w, h
-
-
-def camera_from_args(args: argparse.Namespace) -> tuple[Any, float | None]:
-    """The camera flags, one rule for ``encode`` and ``bench``: at most one of --fx/--fy/--cx/--cy,
-    --intrinsics FILE and --camera NAME; without them the input's own camera (a recording's, or
-    the intrinsics file a folder ships with). Returns (intrinsics or None, depth scale or None);
-    --depth-scale wins over a preset's."""
-    from ..geometry.camera import camera_preset, read_intrinsics
-
-    by_values = any(getattr(args, k) is not None for k in ("fx", "fy", "cx", "cy"))
-    chosen = [
-        flag
-        for flag, on in (
-            ("--fx/--fy/--cx/--cy", by_values),
-            ("--intrinsics", args.intrinsics is not None),
-            ("--camera", args.camera is not None),
-        )
-        if on
-    ]
-    if len(chosen) > 1:
-        raise InputError(f"give the camera one way: {' and '.join(chosen)} were both given")
-    scale = args.depth_scale
-    if args.camera is not None:
-        preset = camera_preset(args.camera)
-        return preset.intrinsics, scale if scale is not None else preset.depth_scale
-    if args.intrinsics is not None:
-        w, h = frame_size(args.src, scale, folder_options(args))
-        return read_intrinsics(args.intrinsics, w, h), scale
-    if by_values:
-        w, h = frame_size(args.src, scale, folder_options(args))
-        return _intrinsics_from_args(args, w, h), scale
-    return None, scale
 
 
 def camera_defaults(args: argparse.Namespace) -> Any:

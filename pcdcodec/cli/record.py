@@ -108,6 +108,7 @@ def _cmd_encode_rig(args: argparse.Namespace) -> int:
         "--cx": args.cx,
         "--cy": args.cy,
         "--depth-scale": args.depth_scale,
+        "--override": args.override or None,
         "--depth-topic": args.depth_topic,
         "--color-topic": args.color_topic,
         "--info-topic": args.info_topic,

@@ -49,6 +49,8 @@ class CameraDefaults:
     depth_scale_origin: str | None = None
     #: replace the input's own camera and depth scale instead of filling in what it lacks
     override: bool = False
+    #: how to replace the input's own, as the notes of a contradiction say it
+    how_to_override: str = "override=True"
 
     def __post_init__(self) -> None:
         if self.depth_scale is not None:
@@ -59,6 +61,11 @@ class CameraDefaults:
             raise InputError(f"override must be True or False, got {self.override!r}")
         if isinstance(self.intrinsics, (str, os.PathLike)) and not Path(self.intrinsics).is_file():
             raise InputError(f"intrinsics file {str(self.intrinsics)!r} does not exist")
+
+    @property
+    def hint(self) -> str:
+        """The end of a note of a contradiction: how to make the given value win."""
+        return f" ({self.how_to_override} replaces it)" if self.how_to_override else ""
 
     @property
     def scale_origin(self) -> str:
@@ -123,7 +130,7 @@ def settle_camera(source: Any, given: CameraDefaults, *, scale_filled: bool = Fa
                 notes.append(
                     f"{given.origin} camera {_camera_text(camera)} replaces the input's own "
                     f"{_camera_text(own)} (from {source.intrinsics_origin}), as asked "
-                    "(override=True)"
+                    f"({given.how_to_override})"
                 )
                 source.intrinsics = camera
                 source.intrinsics_origin = given.origin
@@ -131,7 +138,7 @@ def settle_camera(source: Any, given: CameraDefaults, *, scale_filled: bool = Fa
                 notes.append(
                     f"{given.origin} camera {_camera_text(camera)} differs from the input's own "
                     f"{_camera_text(own)} (from {source.intrinsics_origin}); the input's is "
-                    "used (override=True replaces it)"
+                    f"used{given.hint}"
                 )
     if given.depth_scale is not None and scale_filled:
         source.depth_scale_origin = given.scale_origin
@@ -139,13 +146,14 @@ def settle_camera(source: Any, given: CameraDefaults, *, scale_filled: bool = Fa
         what = f"{given.scale_origin} depth scale {given.depth_scale:g}"
         own_scale = f"{source.depth_scale:g} (from {source.depth_scale_origin})"
         if given.override:
-            notes.append(f"{what} replaces the input's own {own_scale}, as asked (override=True)")
+            notes.append(
+                f"{what} replaces the input's own {own_scale}, as asked ({given.how_to_override})"
+            )
             source.depth_scale = float(given.depth_scale)
             source.depth_scale_origin = given.scale_origin
         else:
             notes.append(
-                f"{what} differs from the input's own {own_scale}; the input's is used "
-                "(override=True replaces it)"
+                f"{what} differs from the input's own {own_scale}; the input's is used" + given.hint
             )
     source.camera_notes = tuple(notes)
     return source
