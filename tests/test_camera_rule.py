@@ -121,7 +121,7 @@ def test_python_encode_follows_the_same_rule(tmp_path: Path) -> None:
     with pcdcodec.open(out) as rec:
         assert rec.depth_scale == 5000.0
     (note,) = summary.source["camera_notes"]
-    assert "depth_scale= depth scale 1000 differs from the input's own 5000" in note
+    assert "depth_scale=1000 differs from the input's own 5000" in note
     assert summary.source["depth_scale_from"] == "TUM RGB-D dataset"
     summary = pcdcodec.encode(
         root, out, color=None, depth_scale=1000, override=True, overwrite=True

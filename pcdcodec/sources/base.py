@@ -22,11 +22,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import InputError, PcdcodecError
-from .camera_rule import CameraDefaults, settle_camera
 
 if TYPE_CHECKING:
     from ..frame import Frame
     from ..geometry.camera import CameraIntrinsics
+    from .camera_rule import CameraDefaults, settle_camera
 
 __all__ = [
     "CameraDefaults",
@@ -352,10 +352,14 @@ def _call(kind: SourceKind, p: Path, options: dict[str, Any]) -> Source:
     except TypeError as exc:
         if "unexpected keyword argument" not in str(exc):
             raise
-        raise InputError(
+        raise _NoSuchOptionError(
             f"the {kind.name} reader takes no option {str(exc).rsplit(' ', 1)[-1]} "
             f"(given: {', '.join(sorted(options))})"
         ) from None
+
+
+class _NoSuchOptionError(InputError):
+    """A reader was given an option it does not take."""
 
 
 def given_intrinsics(value: Any, width: int | None, height: int | None) -> CameraIntrinsics:
@@ -411,6 +415,8 @@ def _with_defaults(kind: SourceKind, p: Path, options: dict[str, Any], d: Camera
         reopen["intrinsics"] = d.intrinsics  # the reader sizes a bare matrix by its images
     elif d.override and d.intrinsics is not None and source.intrinsics != d.intrinsics:
         reopen["intrinsics"] = d.intrinsics
+    from .camera_rule import settle_camera  # loaded when a camera is given, not at import
+
     if not reopen:
         settle_camera(source, d, scale_filled=scale_filled)
         return source
@@ -424,7 +430,10 @@ def _with_defaults(kind: SourceKind, p: Path, options: dict[str, Any], d: Camera
     source.close()
     if scale_filled:
         options = {**options, "depth_scale": d.depth_scale}
-    source = _open(kind, p, {**options, **reopen})  # the reader reads with the given values
+    try:
+        source = _open(kind, p, {**options, **reopen})  # the reader reads with the given values
+    except _NoSuchOptionError:
+        source = _open(kind, p, options)  # a reader that takes none is given them after
     # Settled with the input's own values in place, so that the notes name them; a reader
     # that ignores the options is given the values then.
     (
@@ -485,6 +494,15 @@ def open_source(
         f"{str(p)!r} is not an input pcdcodec reads; expected one of: "
         + "; ".join(f"{k.name} ({k.description})" for k in _KINDS.values())
     )
+
+
+def __getattr__(name: str) -> Any:
+    # The camera rule's names, served from their module on first use (import pcdcodec stays light).
+    if name in ("CameraDefaults", "settle_camera"):
+        from . import camera_rule
+
+        return getattr(camera_rule, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 #: Loaders of readers that register themselves when imported, run before the registry is first

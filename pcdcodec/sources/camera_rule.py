@@ -88,6 +88,21 @@ def _camera_text(camera: CameraIntrinsics) -> str:
     )
 
 
+def _from(origin: str) -> str:
+    """Where an input's own value came from, as a note says it."""
+    return {"input": "the input", "given": "a reader option"}.get(origin, origin)
+
+
+def _scale_text(origin: str, scale: float) -> str:
+    """A given depth scale and its name: ``depth_scale=1000``, ``--depth-scale 1000``, or
+    ``--camera kinect-v1 depth scale 1000``."""
+    if origin.endswith("="):
+        return f"{origin}{scale:g}"
+    if "scale" in origin:
+        return f"{origin} {scale:g}"
+    return f"{origin} depth scale {scale:g}"
+
+
 def _first_size(source: Any) -> tuple[int, int]:
     """(width, height) of the source's images: its camera's, else its first frame's."""
     if source.intrinsics is not None:
@@ -129,7 +144,7 @@ def settle_camera(source: Any, given: CameraDefaults, *, scale_filled: bool = Fa
             if given.override:
                 notes.append(
                     f"{given.origin} camera {_camera_text(camera)} replaces the input's own "
-                    f"{_camera_text(own)} (from {source.intrinsics_origin}), as asked "
+                    f"{_camera_text(own)} (from {_from(source.intrinsics_origin)}), as asked "
                     f"({given.how_to_override})"
                 )
                 source.intrinsics = camera
@@ -137,14 +152,14 @@ def settle_camera(source: Any, given: CameraDefaults, *, scale_filled: bool = Fa
             else:
                 notes.append(
                     f"{given.origin} camera {_camera_text(camera)} differs from the input's own "
-                    f"{_camera_text(own)} (from {source.intrinsics_origin}); the input's is "
+                    f"{_camera_text(own)} (from {_from(source.intrinsics_origin)}); the input's is "
                     f"used{given.hint}"
                 )
     if given.depth_scale is not None and scale_filled:
         source.depth_scale_origin = given.scale_origin
     elif given.depth_scale is not None and source.depth_scale != given.depth_scale:
-        what = f"{given.scale_origin} depth scale {given.depth_scale:g}"
-        own_scale = f"{source.depth_scale:g} (from {source.depth_scale_origin})"
+        what = _scale_text(given.scale_origin, given.depth_scale)
+        own_scale = f"{source.depth_scale:g} (from {_from(source.depth_scale_origin)})"
         if given.override:
             notes.append(
                 f"{what} replaces the input's own {own_scale}, as asked ({given.how_to_override})"
