@@ -285,3 +285,18 @@ def test_bench_reads_its_input_by_the_same_rule(
     assert main([*argv, "--camera", "kinect-v1", "-q"]) == 0
     err = capsys.readouterr().err
     assert "--camera kinect-v1 depth scale 1000 differs from the input's own 5000" in err
+
+
+def test_a_bag_without_camera_info_takes_a_bare_matrix_at_its_images_size(tmp_path: Path) -> None:
+    bag = SHARED_DATA / "bags" / "spot" / "raw.bag"
+    if not bag.is_file():
+        pytest.skip(f"{bag} is not present")
+    k = tmp_path / "K.txt"
+    np.savetxt(k, [[300.0, 0, 212], [0, 300.0, 120], [0, 0, 1]])
+    out = tmp_path / "x.pcdc"
+    summary = pcdcodec.encode(bag, out, color=None, intrinsics=k, color_topic="")
+    with pcdcodec.open(out) as rec:
+        assert (rec.intrinsics.width, rec.intrinsics.height, rec.intrinsics.fx) == (424, 240, 300)
+        assert rec.depth_scale == 1000.0
+    assert summary.source["intrinsics_from"] == "intrinsics="
+    assert summary.source["camera_notes"] == []

@@ -434,6 +434,11 @@ def _with_defaults(kind: SourceKind, p: Path, options: dict[str, Any], d: Camera
         source = _open(kind, p, {**options, **reopen})  # the reader reads with the given values
     except _NoSuchOptionError:
         source = _open(kind, p, options)  # a reader that takes none is given them after
+    read = source.intrinsics
+    if "intrinsics" in reopen and read is not None and read != own[0]:
+        import dataclasses
+
+        d = dataclasses.replace(d, intrinsics=read)  # the file as the reader sized it
     # Settled with the input's own values in place, so that the notes name them; a reader
     # that ignores the options is given the values then.
     (
