@@ -142,7 +142,7 @@ def test_encode_with_codec_options_and_explicit_camera(tmp_path: Path) -> None:
     )
     assert ok.returncode == 0, ok.stderr
     assert "depth scale  5000 units per metre (from --depth-scale)" in ok.stdout
-    assert "640x480, fx=525 fy=525 cx=319.5 cy=239.5 (from the camera flags)" in ok.stdout
+    assert "640x480, fx=525 fy=525 cx=319.5 cy=239.5 (from --fx --fy --cx --cy)" in ok.stdout
     with pcdcodec.open(out) as rec:
         assert rec.codecs["depth"] == {"id": "zstd", "level": 9}
         assert rec.codecs["color"]["id"] == "ffv1"  # type: ignore[index]

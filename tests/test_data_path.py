@@ -96,7 +96,7 @@ class _OwnCameraSource(pcdcodec.Source):
             yield pcdcodec.Frame(None, np.full((48, 64), 500 + i, np.uint16), i * 33_000_000)
 
 
-def test_encode_gives_a_path_the_camera_it_was_given_whatever_the_reader(
+def test_encode_keeps_the_readers_camera_unless_told_to_override(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from pcdcodec.sources import base
@@ -109,6 +109,18 @@ def test_encode_gives_a_path_the_camera_it_was_given_whatever_the_reader(
     given = pcdcodec.CameraIntrinsics(64, 48, 50.0, 50.0, 32.0, 24.0)
     for camera in (given, given.to_dict()):
         out = tmp_path / "out.pcdc"
-        pcdcodec.encode(src, out, color=None, intrinsics=camera, overwrite=True)
+        # The input's own camera wins, and the summary says the given one was not used.
+        summary = pcdcodec.encode(src, out, color=None, intrinsics=camera, overwrite=True)
+        with pcdcodec.open(out) as rec:
+            assert rec.intrinsics.fx == 10.0
+        (note,) = summary.source["camera_notes"]
+        assert "fx=50" in note
+        assert "fx=10" in note
+        assert "the input's is used" in note
+        # override=True replaces it, whatever the reader does with its options.
+        summary = pcdcodec.encode(
+            src, out, color=None, intrinsics=camera, overwrite=True, override=True
+        )
         with pcdcodec.open(out) as rec:
             assert rec.intrinsics == given
+        assert "replaces the input's own" in summary.source["camera_notes"][0]

@@ -310,7 +310,7 @@ def test_info_describes_a_folder_without_and_with_camera_flags(
     info = json.loads(capsys.readouterr().out)
     assert (info["depth_scale"], info["intrinsics"]["fx"]) == (5000.0, 517.3)
     assert main(["info", str(root), "--depth-scale", "1000"]) == 0
-    assert "depth scale  1000 per metre (from the camera flags)" in capsys.readouterr().out
+    assert "depth scale  1000 per metre (from --depth-scale)" in capsys.readouterr().out
 
 
 def test_cli_color_camera_depth_only_and_patterns(

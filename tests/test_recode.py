@@ -141,10 +141,17 @@ def test_recode_options_apply_as_for_other_inputs(tmp_path: Path) -> None:
             assert np.array_equal(fb.depth, fa.depth)
             assert fb.pose is not None
             assert np.array_equal(fb.pose, fa.pose)
-    # The camera and scale given replace the recorded ones; depth values stay as stored.
+    # A recording's own camera and scale win over those given, with a note naming both ...
     cam = CameraIntrinsics(640, 480, 500.0, 500.0, 320.0, 240.0)
     other = tmp_path / "other.pcdc"
-    pcdcodec.encode(src, other, color="ffv1", intrinsics=cam, depth_scale=1000.0)
+    kept = pcdcodec.encode(src, other, color=None, intrinsics=cam, depth_scale=1000.0)
+    with pcdcodec.open(src) as a, pcdcodec.open(other) as b:
+        assert (b.intrinsics, b.depth_scale) == (a.intrinsics, a.depth_scale)
+    assert len(kept.source["camera_notes"]) == 2
+    # ... and override=True replaces them; depth values stay as stored.
+    pcdcodec.encode(
+        src, other, color="ffv1", intrinsics=cam, depth_scale=1000.0, override=True, overwrite=True
+    )
     with pcdcodec.open(src) as a, pcdcodec.open(other) as b:
         assert b.intrinsics.pinhole() == cam.pinhole()
         assert b.depth_scale == 1000.0

@@ -119,7 +119,12 @@ def _camera_defaults(camera: Any, common: dict[str, Any]) -> Any:
             )
     if intrinsics is None and scale is None:
         return None
-    return CameraDefaults(intrinsics, None if scale is None else float(scale), origin)
+    return CameraDefaults(
+        intrinsics,
+        None if scale is None else float(scale),
+        origin,
+        how_to_override="input_options= for this input",
+    )
 
 
 def _input_options(

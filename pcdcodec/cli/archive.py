@@ -50,7 +50,9 @@ def _archive_defaults(args: argparse.Namespace) -> Any:
     if intrinsics is None and scale is None:
         return None
     scale_origin = "--depth-scale" if args.depth_scale is not None else None
-    return CameraDefaults(intrinsics, scale, origin, scale_origin)
+    return CameraDefaults(
+        intrinsics, scale, origin, scale_origin, how_to_override="--input-camera INPUT=CAMERA"
+    )
 
 
 def _input_camera(spec: str) -> tuple[str, dict[str, Any]]:

@@ -14,7 +14,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..registry import parse_codec_specs
-from .options import camera_from_args, folder_options, mib
+from .options import camera_defaults, cli_message, folder_options, mib
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -92,6 +92,24 @@ def _depth_rd(
     return 0
 
 
+def _bench_input(args: argparse.Namespace, frames: int) -> Any:
+    """The first ``frames`` frames of the input as a sequence, read as ``encode`` reads it: the
+    input's own camera and depth scale win, the camera flags fill in what it lacks (or, with
+    --override, replace it); each contradiction is printed as a note on stderr."""
+    from ..datasets import RGBDSequence
+    from ..sources import open_source
+
+    options: dict[str, Any] = {"max_frames": frames, **folder_options(args)}
+    with open_source(args.src, defaults=camera_defaults(args), **options) as src:
+        taken = list(src)
+        for note in src.camera_notes:
+            print(f"note: {cli_message(note)}", file=sys.stderr)
+        if not args.depth_rd and any(f.color is None for f in taken):
+            raise InputError(f"{args.src!r} has no color stream to compare codecs on")
+        name = Path(args.src).stem if Path(args.src).is_file() else Path(args.src).name
+        return RGBDSequence(taken, src.intrinsics, src.depth_scale, name=name)
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     """``pcdcodec bench SRC``: codecs compared on the first frames (or ``--depth-rd``)."""
     from ..bench.evaluation import evaluate
@@ -99,15 +117,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     frames = args.frames
     if frames < 1:
         raise InputError(f"--frames must be at least 1, got {frames}")
-    source: Any = args.src
-    intrinsics, depth_scale = camera_from_args(args)
-    folder = folder_options(args)
-    if folder:  # a folder read with the folder flags, then compared as a sequence
-        from ..datasets import load_folder
-
-        source = load_folder(
-            args.src, max_frames=frames, intrinsics=intrinsics, depth_scale=depth_scale, **folder
-        )
+    source = _bench_input(args, frames)
+    intrinsics, depth_scale = None, None  # the sequence's own, settled by the one rule
     quiet = args.quiet or not sys.stderr.isatty()
 
     def say(step: str) -> None:

@@ -1,6 +1,7 @@
 """From parsed options to the library's arguments, one rule for every command.
 
-The camera flags (``--camera``, ``--intrinsics``, ``--fx``...), the RGB-D folder flags and the
+The camera flags (``--camera``, ``--intrinsics``, ``--fx``..., ``--override``) become a
+:class:`~pcdcodec.sources.CameraDefaults` (:func:`camera_defaults`); the RGB-D folder flags and the
 bag topic flags become reader options here; codec specs become codecs; and :func:`cli_message`
 puts a library error message in the CLI's words (flags instead of keyword arguments).
 """
@@ -18,48 +19,25 @@ from ..registry import parse_codec_spec
 parse_codec = parse_codec_spec
 
 
-def _intrinsics_from_args(args: argparse.Namespace, width: int, height: int) -> Any:
-    """``--fx --fy --cx --cy`` (all or none) as the camera of frames of this size."""
-    from ..geometry.camera import as_intrinsics
-
+def _pinhole_flags(args: argparse.Namespace) -> dict[str, float] | None:
+    """``--fx --fy --cx --cy`` (all or none) as a camera without its image size."""
     given = {k: getattr(args, k) for k in ("fx", "fy", "cx", "cy")}
     if all(v is None for v in given.values()):
         return None
     missing = [f"--{k}" for k, v in given.items() if v is None]
     if missing:
         raise InputError(f"intrinsics need --fx --fy --cx --cy; missing {' '.join(missing)}")
-    return as_intrinsics(given, width=width, height=height)
+    return {k: float(v) for k, v in given.items()}
 
 
-def frame_size(
-    src: str, depth_scale: float | None, options: dict[str, Any] | None = None
-) -> tuple[int, int]:
-    """(width, height) of the input's frames: a recording's camera, or a folder's first frame."""
-    from ..sources.base import detect_kind
-
-    path = Path(src)
-    if path.is_file() and detect_kind(src) in (None, "recording"):
-        from ..recording import open as open_recording
-
-        with open_recording(path) as rec:
-            return rec.intrinsics.width, rec.intrinsics.height
-    from ..sources import open_source
-
-    opts = {**(options or {}), "max_frames": 1, "depth_scale": depth_scale or 1000.0}
-    with open_source(path, **opts) as source:
-        first = next(iter(source), None)
-    if first is None:
-        raise InputError(f"{src!r} gives no frames")
-    h, w = first.depth.shape
-    return w, h
-
-
-def camera_from_args(args: argparse.Namespace) -> tuple[Any, float | None]:
-    """The camera flags, one rule for ``encode`` and ``bench``: at most one of --fx/--fy/--cx/--cy,
-    --intrinsics FILE and --camera NAME; without them the input's own camera (a recording's, or
-    the intrinsics file a folder ships with). Returns (intrinsics or None, depth scale or None);
-    --depth-scale wins over a preset's."""
-    from ..geometry.camera import camera_preset, read_intrinsics
+def camera_defaults(args: argparse.Namespace) -> Any:
+    """The camera flags as a :class:`~pcdcodec.sources.CameraDefaults` (or ``None`` without
+    any), one rule for ``encode`` and ``info``: the input's own camera and depth scale win and
+    the flags fill in what it lacks, a contradiction said in a note; with ``--override`` the
+    flags replace the input's own, said in a note too. At most one of --fx/--fy/--cx/--cy,
+    --intrinsics FILE and --camera NAME; --depth-scale wins over a preset's."""
+    from ..geometry.camera import camera_preset
+    from ..sources.base import CameraDefaults
 
     by_values = any(getattr(args, k) is not None for k in ("fx", "fy", "cx", "cy"))
     chosen = [
@@ -73,23 +51,34 @@ def camera_from_args(args: argparse.Namespace) -> tuple[Any, float | None]:
     ]
     if len(chosen) > 1:
         raise InputError(f"give the camera one way: {' and '.join(chosen)} were both given")
+    override = bool(getattr(args, "override", False))
+    intrinsics: Any = None
     scale = args.depth_scale
+    origin = "--depth-scale"
     if args.camera is not None:
         preset = camera_preset(args.camera)
-        return preset.intrinsics, scale if scale is not None else preset.depth_scale
-    if args.intrinsics is not None:
-        w, h = frame_size(args.src, scale, folder_options(args))
-        return read_intrinsics(args.intrinsics, w, h), scale
-    if by_values:
-        w, h = frame_size(args.src, scale, folder_options(args))
-        return _intrinsics_from_args(args, w, h), scale
-    return None, scale
+        intrinsics, origin = preset.intrinsics, f"--camera {args.camera}"
+        scale = scale if scale is not None else preset.depth_scale
+    elif args.intrinsics is not None:
+        intrinsics, origin = args.intrinsics, f"--intrinsics {args.intrinsics}"
+    elif by_values:
+        intrinsics, origin = _pinhole_flags(args), "--fx --fy --cx --cy"
+    if intrinsics is None and scale is None:
+        if override:
+            raise InputError(
+                "--override replaces the input's camera or depth scale with the flags' own: "
+                "give --camera NAME, --intrinsics FILE, --fx --fy --cx --cy or --depth-scale"
+            )
+        return None
+    scale_origin = "--depth-scale" if args.depth_scale is not None else None
+    return CameraDefaults(intrinsics, scale, origin, scale_origin, override=override)
 
 
 #: Library wording (keyword arguments) and the CLI flag that says the same.
 _CLI_WORDS = (
     ("pass overwrite=True", "pass --overwrite"),
     ("overwrite=True", "--overwrite"),
+    ("override=True", "--override"),
     (
         "pass intrinsics=pcdcodec.CameraIntrinsics(width, height, fx, fy, cx, cy)",
         "pass --intrinsics FILE, --camera NAME or --fx --fy --cx --cy",
@@ -135,15 +124,14 @@ def folder_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def source_options(args: argparse.Namespace) -> dict[str, Any]:
-    """The reader options of ``args.src`` from the flags (``--max-frames``, ``--depth-scale``,
-    the folder and the topic flags), refusing flags that do not apply to that kind of input."""
+    """The reader options of ``args.src`` from the flags (``--max-frames``, the folder and the
+    topic flags), refusing flags that do not apply to that kind of input. The camera flags
+    (``--depth-scale`` among them) are :func:`camera_defaults`."""
     from ..sources.base import detect_kind
 
     opts: dict[str, Any] = {}
     if args.max_frames is not None:
         opts["max_frames"] = args.max_frames
-    if args.depth_scale is not None:
-        opts["depth_scale"] = args.depth_scale
     kind = detect_kind(args.src)
     folder = folder_options(args)
     if kind is None and folder.get("depth_pattern") is not None and Path(args.src).is_dir():

@@ -43,8 +43,10 @@ def _add_camera_options(p: argparse.ArgumentParser) -> None:
     from ..geometry.camera import CAMERA_PRESETS
 
     g = p.add_argument_group(
-        "camera (default: the input's own: a recording's camera, or a folder's camera.json, "
-        "intrinsics.K.txt, camera-intrinsics.txt, CameraInfo YAML or Open3D intrinsic JSON)"
+        "camera (the input's own always wins: a recording's or a bag's camera, a folder's "
+        "camera.json, intrinsics.K.txt, camera-intrinsics.txt, CameraInfo YAML or Open3D "
+        "intrinsic JSON, or its dataset's convention; these flags fill in what the input "
+        "lacks, with a note where they contradict it; --override makes them replace it)"
     )
     g.add_argument(
         "--intrinsics",
@@ -72,6 +74,12 @@ def _add_camera_options(p: argparse.ArgumentParser) -> None:
     ):
         g.add_argument(f"--{k}", type=float, help=f"{what} in pixels")
     g.add_argument("--depth-scale", type=float, help="depth units per metre (1000 for mm)")
+    g.add_argument(
+        "--override",
+        action="store_true",
+        help="the camera flags replace the input's own camera and depth scale (the summary "
+        "says what was replaced)",
+    )
     f = p.add_argument_group(
         "RGB-D folders (default: TUM lists, rgb/ and depth/, or files named *depth* and *rgb*)"
     )

@@ -13,7 +13,7 @@ from typing import Any
 
 from .._progress import Progress
 from ..errors import InputError
-from .options import camera_from_args, mib, parse_codec, source_options
+from .options import camera_defaults, cli_message, mib, parse_codec, source_options
 from .show import print_left_out
 
 
@@ -29,13 +29,10 @@ def cmd_encode(args: argparse.Namespace) -> int:
     if not sources:
         raise InputError("encode needs an input (or --rig FILE naming the inputs)")
     args.src = sources[0]
-    camera, depth_scale = camera_from_args(args)
+    given = camera_defaults(args)
     options = source_options(args)
-    if depth_scale is not None:
-        options["depth_scale"] = depth_scale
-    with open_source(args.src, **options) as source:
-        intrinsics = camera
-        if intrinsics is None and source.intrinsics is None:
+    with open_source(args.src, defaults=given, **options) as source:
+        if source.intrinsics is None:
             raise InputError(
                 f"no intrinsics for {args.src!r}: pass --intrinsics FILE, --camera NAME or --fx "
                 "--fy --cx --cy, or put a camera.json or intrinsics.K.txt in the folder"
@@ -47,23 +44,14 @@ def cmd_encode(args: argparse.Namespace) -> int:
                 args.output,
                 color=parse_codec(args.color, "color"),
                 depth=parse_codec(args.depth, "depth"),
-                intrinsics=intrinsics,
                 fps=args.fps,
                 overwrite=args.overwrite,
                 progress=bar.update,
                 passthrough=args.passthrough,
             )
-        # encode() put the camera and scale it recorded into the source.
         used_camera, used_scale = source.intrinsics, source.depth_scale
-        assert used_camera is not None  # encode() refuses a source without a camera
-        if args.depth_scale is not None:
-            scale_from = "--depth-scale"
-        elif args.camera is not None:
-            scale_from = f"--camera {args.camera}"
-        else:
-            origin = source.depth_scale_origin
-            scale_from = "the input" if origin in ("input", "given") else origin
-    camera_from = "the input" if camera is None else "the camera flags"
+        camera_from = _origin_text(source.intrinsics_origin)
+        scale_from = _origin_text(source.depth_scale_origin)
     n = summary.frames
     print(
         f"wrote {n} frames to {args.output} ({mib(summary.bytes)}, "
@@ -74,6 +62,8 @@ def cmd_encode(args: argparse.Namespace) -> int:
         f"  intrinsics   {used_camera.width}x{used_camera.height}, fx={used_camera.fx:g} "
         f"fy={used_camera.fy:g} cx={used_camera.cx:g} cy={used_camera.cy:g} (from {camera_from})"
     )
+    if given is not None and given.override:
+        print("  override     the camera flags replace the input's own camera and depth scale")
     info = summary.source
     for key in ("depth_topic", "color_topic", "info_topic", "cloud_topic"):
         if info.get(key):
@@ -86,10 +76,15 @@ def cmd_encode(args: argparse.Namespace) -> int:
         )
     if info.get("out_of_order"):
         print(f"  skipped      {info['out_of_order']} messages whose stamp did not increase")
-    for note in info.get("notes", []):
-        print(f"  note         {note}")
+    for note in [*info.get("camera_notes", []), *info.get("notes", [])]:
+        print(f"  note         {cli_message(note)}")
     print_left_out(summary.left_out)
     return 0
+
+
+def _origin_text(origin: str) -> str:
+    """Where a camera or depth scale came from, as the summary says it."""
+    return "the input" if origin in ("input", "given") else origin
 
 
 def _several_cameras(args: argparse.Namespace) -> bool:
@@ -115,6 +110,7 @@ def _cmd_encode_rig(args: argparse.Namespace) -> int:
         "--cx": args.cx,
         "--cy": args.cy,
         "--depth-scale": args.depth_scale,
+        "--override": args.override or None,
         "--depth-topic": args.depth_topic,
         "--color-topic": args.color_topic,
         "--info-topic": args.info_topic,

@@ -16,7 +16,7 @@ import numpy as np
 from ..codec import KINDS
 from ..errors import InputError
 from ..registry import codec_class, list_codecs
-from .options import camera_from_args, mib, source_options
+from .options import camera_defaults, cli_message, mib, source_options
 
 
 def print_left_out(items: list[dict[str, Any]], indent: str = "  ") -> None:
@@ -229,29 +229,35 @@ def _print_rig(info: dict[str, Any], as_json: bool) -> int:
     return 0
 
 
+def _open_described(path: str, given: Any, options: dict[str, Any]) -> Any:
+    """The input opened as ``encode`` opens it; one that does not say its depth scale (and
+    is given none) is opened with a stand-in scale marked ``"unknown"``, to describe the rest."""
+    from ..sources import CameraDefaults, open_source, settle_camera
+
+    try:
+        return open_source(path, defaults=given, **options)
+    except InputError as first:
+        if given is not None and given.depth_scale is not None:
+            raise
+        stand_in = CameraDefaults(depth_scale=1.0, origin="unknown")
+        try:
+            source = open_source(path, defaults=stand_in, **options)
+        except InputError:
+            raise first from None
+    if given is not None:
+        settle_camera(source, given)  # the camera flags, by the same rule
+    return source
+
+
 def _info_of_source(args: argparse.Namespace) -> int:
     """``info`` of an input (a folder, a bag...): what it holds and what ``encode`` would use."""
-    from ..sources import CameraDefaults, open_source
-
     args.src = args.input
-    camera, depth_scale = camera_from_args(args)
+    given = camera_defaults(args)
     options = source_options(args)
-    if camera is not None:
-        options["intrinsics"] = camera
-    if depth_scale is not None:
-        options["depth_scale"] = depth_scale
-    # Without a depth scale, describe what can be known: a stand-in scale is marked unknown.
-    unknown = CameraDefaults(depth_scale=1.0, origin="unknown") if depth_scale is None else None
-    with open_source(args.input, defaults=unknown, **options) as source:
+    with _open_described(args.input, given, options) as source:
         info = source.describe()
         if source.depth_scale_origin == "unknown":
             info["depth_scale"] = None
-        info["intrinsics_from"] = (
-            "the camera flags" if camera is not None else source.intrinsics_origin
-        )
-        info["depth_scale_from"] = (
-            "the camera flags" if depth_scale is not None else source.depth_scale_origin
-        )
         candidates = getattr(source, "candidates", None)
         topics = [c.to_dict() for c in candidates()] if callable(candidates) else []
     if args.json:
@@ -278,7 +284,7 @@ def _info_of_source(args: argparse.Namespace) -> int:
         print(
             f"    camera       {cam['width']}x{cam['height']}, fx={cam['fx']:.6g} "
             f"fy={cam['fy']:.6g} cx={cam['cx']:.6g} cy={cam['cy']:.6g} "
-            f"(from {info['intrinsics_from']})"
+            f"(from {_origin_text(info['intrinsics_from'])})"
         )
     else:
         print("    camera       unknown (pass --camera NAME, --intrinsics FILE or --fx ...)")
@@ -293,12 +299,20 @@ def _info_of_source(args: argparse.Namespace) -> int:
         print("    depth scale  unknown (pass --depth-scale UNITS_PER_METRE)")
     else:
         print(
-            f"    depth scale  {info['depth_scale']:g} per metre (from {info['depth_scale_from']})"
+            f"    depth scale  {info['depth_scale']:g} per metre "
+            f"(from {_origin_text(info['depth_scale_from'])})"
         )
-    for note in info.get("notes", []):
-        print(f"    note         {note}")
+    if given is not None and given.override:
+        print("    override     the camera flags replace the input's own camera and depth scale")
+    for note in [*info.get("camera_notes", []), *info.get("notes", [])]:
+        print(f"    note         {cli_message(note)}")
     print_left_out(info.get("left_out", []))
     return 0
+
+
+def _origin_text(origin: str) -> str:
+    """Where a camera or depth scale came from, as ``info`` says it."""
+    return "the input" if origin in ("input", "given") else origin
 
 
 #: Options of ``info`` that say how to read an input (a folder, a bag), not a recording.
@@ -331,8 +345,8 @@ def cmd_info(args: argparse.Namespace) -> int:
     path = Path(args.input)
     # A ROS 2 bag stored as MCAP starts with the same magic as a recording: the readers'
     # probes tell them apart by the MCAP profile. A recording is described as a recording.
-    if detect_kind(path) not in (None, "recording"):
-        return _info_of_source(args)
+    if detect_kind(path) not in (None, "recording") or path.is_dir():
+        return _info_of_source(args)  # a folder is an input: say what it holds or lacks
     given = [
         "--" + key.replace("_", "-")
         for key in _INPUT_FLAGS

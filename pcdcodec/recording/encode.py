@@ -77,6 +77,7 @@ def encode(
     overwrite: bool = False,
     progress: Callable[[int], None] | None = None,
     passthrough: bool | str = False,
+    override: bool = False,
     **source_options: Any,
 ) -> EncodeSummary:
     """Record any input into a ``.pcdc`` file: a :class:`~pcdcodec.Source`, or a path that
@@ -88,9 +89,15 @@ def encode(
     :meth:`~pcdcodec.sources.rosbag.RosbagSource.encoded_frames`).
 
     ``source_options`` go to :func:`~pcdcodec.open_source` (for bags: ``depth_topic``,
-    ``color_topic``, ``info_topic``, ``cloud_topic``, ``max_frames``, ...). ``intrinsics`` and
-    ``depth_scale`` replace what the source says; a source without color is recorded depth
-    only. The source's metadata (topics, distortion) is kept in the recording. ``fps`` is the
+    ``color_topic``, ``info_topic``, ``cloud_topic``, ``max_frames``, ...).
+
+    ``intrinsics`` (a :class:`~pcdcodec.CameraIntrinsics`, a dict or an intrinsics file) and
+    ``depth_scale`` fill in what the input lacks: the input's own camera and depth scale
+    (recorded, in its folder's files, or by its dataset's convention) win, and where a given
+    value contradicts them the summary's ``source["camera_notes"]`` names both. With
+    ``override=True`` they replace the input's own instead, and the notes say what was
+    replaced (:class:`~pcdcodec.sources.CameraDefaults`). A source without color is recorded
+    depth only. The source's metadata (topics, distortion) is kept in the recording. ``fps`` is the
     nominal frame rate; without it, the rate the source records (a recording's), else 30.
     A ``.pcdc`` recording is an input too: its frames are written again with the codecs
     given, depth exactly as stored, color decoded and encoded again.
@@ -99,15 +106,24 @@ def encode(
     whatever the source and the writer raise; an interrupted encode leaves a readable file
     (see :class:`~pcdcodec.RecordingWriter`), a failed replacement leaves the old file.
     """
-    from ..sources.base import Source, open_source
+    from ..sources.base import CameraDefaults, Source, open_source, settle_camera
     from .writer import RecordingWriter
 
-    # A camera given as a value is checked once, here, and replaces the source's own whatever
-    # the reader does with its intrinsics= option; an intrinsics file is read by the reader,
-    # which knows the depth images' size for a bare 3 x 3 matrix.
-    camera = None
-    if intrinsics is not None and not isinstance(intrinsics, (str, os.PathLike)):
-        camera = intrinsics = writer_camera(intrinsics)
+    given = None
+    if intrinsics is not None or depth_scale is not None:
+        # A camera given as a value is checked once, here; a file is read by the reader,
+        # which knows the depth images' size for a bare 3 x 3 matrix.
+        if intrinsics is not None and not isinstance(intrinsics, (str, os.PathLike)):
+            intrinsics = writer_camera(intrinsics)
+        given = CameraDefaults(
+            intrinsics,
+            depth_scale,
+            origin="intrinsics=",
+            depth_scale_origin="depth_scale=",
+            override=override,
+        )
+    elif override:
+        raise InputError("override=True needs intrinsics= or depth_scale= to replace the input's")
     if isinstance(src, Source):
         if source_options:
             raise InputError(
@@ -116,20 +132,10 @@ def encode(
             )
         source, owned = src, False
     else:
-        # The reader takes the camera and the depth scale given, and checks them.
-        opts = dict(source_options)
-        if intrinsics is not None:
-            opts.setdefault("intrinsics", intrinsics)
-        if depth_scale is not None:
-            opts.setdefault("depth_scale", depth_scale)
-        source, owned = open_source(src, **opts), True
+        source, owned = open_source(src, defaults=given, **source_options), True
     try:
-        if camera is not None:
-            source.intrinsics = camera
-        elif intrinsics is not None and not owned:
-            source.intrinsics = writer_camera(intrinsics)
-        if depth_scale is not None:
-            source.depth_scale = float(depth_scale)
+        if given is not None and not owned:
+            settle_camera(source, given)
         if source.intrinsics is None:
             raise InputError(
                 f"no intrinsics for {str(source.path)!r}: pass intrinsics= (a CameraIntrinsics; "

@@ -9,11 +9,10 @@ loads none of them. :func:`realsense_live` (:mod:`.live`, live RealSense cameras
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from . import base
 from .base import (
-    CameraDefaults,
     FrameIndex,
     Source,
     SourceKind,
@@ -21,6 +20,9 @@ from .base import (
     register_source,
     source_kinds,
 )
+
+if TYPE_CHECKING:
+    from .camera_rule import CameraDefaults, settle_camera
 
 __all__ = [
     "CameraDefaults",
@@ -30,6 +32,7 @@ __all__ = [
     "open_source",
     "realsense_live",
     "register_source",
+    "settle_camera",
     "source_kinds",
 ]
 
@@ -38,6 +41,10 @@ _LIVE_NAMES = ("RealSenseLiveSource", "connected_serials", "realsense_live")
 
 
 def __getattr__(name: str) -> Any:
+    if name in ("CameraDefaults", "settle_camera"):  # the camera rule, loaded on first use
+        from . import camera_rule
+
+        return getattr(camera_rule, name)
     if name in _LIVE_NAMES:
         from . import live
 

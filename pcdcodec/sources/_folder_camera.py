@@ -24,6 +24,7 @@ __all__ = [
     "CAMERA_JSON_KEYS",
     "TUM_DEPTH_SCALE",
     "as_transform",
+    "dataset_camera",
     "folder_depth_scale",
     "read_camera_json",
 ]
@@ -168,6 +169,24 @@ def _is_seven_scenes(root: Path, pairs: list[Pair]) -> bool:
     ``frame-NNNNNN.depth.png`` files and ``camera-intrinsics.txt``."""
     return (root / "camera-intrinsics.txt").is_file() and all(
         _SEVEN_SCENES_DEPTH.match(d.name) for _, _, d in pairs
+    )
+
+
+#: The camera of TUM RGB-D folders, whose lists name no camera: TUM's depth is registered to
+#: color, and TUM's own tools make clouds with the ROS default camera (the ``tum-ros`` preset).
+TUM_CAMERA = "tum-ros"
+
+
+def dataset_camera(root: Path) -> tuple[Any, str] | None:
+    """The camera a dataset's convention gives a folder that ships no intrinsics file (a TUM
+    RGB-D folder), and where it came from; ``None`` for other folders."""
+    if not _is_tum_dataset(root):
+        return None
+    from ..geometry.camera import camera_preset
+
+    return (
+        camera_preset(TUM_CAMERA).intrinsics,
+        f"TUM RGB-D dataset: the ROS default camera TUM's tools use, {TUM_CAMERA}",
     )
 
 

@@ -26,6 +26,7 @@ from ..errors import InputError, PcdcodecError
 if TYPE_CHECKING:
     from ..frame import Frame
     from ..geometry.camera import CameraIntrinsics
+    from .camera_rule import CameraDefaults, settle_camera
 
 __all__ = [
     "CameraDefaults",
@@ -37,6 +38,7 @@ __all__ = [
     "name_input",
     "open_source",
     "register_source",
+    "settle_camera",
     "source_kind",
     "source_kinds",
     "streams_by_name",
@@ -233,6 +235,9 @@ class Source(abc.ABC):
             if self.color_intrinsics is not None
             else None,
             "left_out": [s.to_dict() for s in self.left_out],
+            "intrinsics_from": self.intrinsics_origin,
+            "depth_scale_from": self.depth_scale_origin,
+            "camera_notes": list(self.camera_notes),
         }
 
     def close(self) -> None:  # noqa: B027 - optional hook, most sources hold nothing open
@@ -325,6 +330,10 @@ class SourceKind:
     **options)`` gives a :class:`~pcdcodec.sources.rig.CameraInput` per camera and the name of
     the frame their rig poses take points into, or ``None`` for an input of one camera (read
     by ``opener``). :func:`pcdcodec.sources.rig.open_inputs` uses it.
+
+    ``missing(path)``, for a path no probe takes, says what the input lacks when it is nearly
+    one of this kind (a folder of color images without its depth), or ``None``; the error of
+    :func:`open_source` then says that instead of listing every kind.
     """
 
     name: str
@@ -332,6 +341,7 @@ class SourceKind:
     opener: Callable[..., Source]
     description: str = ""
     cameras: Callable[..., Any] | None = None
+    missing: Callable[[Path], str | None] | None = None
 
 
 _KINDS: dict[str, SourceKind] = {}
@@ -345,11 +355,13 @@ def register_source(
     *,
     first: bool = False,
     cameras: Callable[..., Any] | None = None,
+    missing: Callable[[Path], str | None] | None = None,
 ) -> None:
     """Register a source reader. Probes run in registration order; ``first`` puts this one
     ahead of the others (a more specific reader, such as a RealSense bag, before plain ROS 1).
-    ``cameras`` opens the cameras of an input of several (see :class:`SourceKind`)."""
-    kind = SourceKind(name, probe, opener, description, cameras)
+    ``cameras`` opens the cameras of an input of several, ``missing`` says what a near miss
+    lacks (see :class:`SourceKind`)."""
+    kind = SourceKind(name, probe, opener, description, cameras, missing)
     _KINDS.pop(name, None)
     if first:
         items = [(name, kind), *_KINDS.items()]
@@ -395,34 +407,14 @@ def _call(kind: SourceKind, p: Path, options: dict[str, Any]) -> Source:
     except TypeError as exc:
         if "unexpected keyword argument" not in str(exc):
             raise
-        raise InputError(
+        raise _NoSuchOptionError(
             f"the {kind.name} reader takes no option {str(exc).rsplit(' ', 1)[-1]} "
             f"(given: {', '.join(sorted(options))})"
         ) from None
 
 
-@dataclass(frozen=True)
-class CameraDefaults:
-    """A camera and a depth scale for inputs that do not carry their own.
-
-    Given to :func:`open_source` as ``defaults``, they fill in only what the input lacks: an
-    input's own intrinsics and depth scale (recorded, in its files, or by its dataset's
-    convention) always win. Where a default contradicts what the input carries, the source's
-    ``camera_notes`` say so. ``origin`` names the defaults in those notes and in the source's
-    ``intrinsics_origin`` / ``depth_scale_origin`` (``"--camera tum-ros"``, say).
-    """
-
-    intrinsics: CameraIntrinsics | None = None
-    depth_scale: float | None = None
-    origin: str = "defaults"
-    #: where the depth scale came from, when not from ``origin`` (``"--depth-scale"``)
-    depth_scale_origin: str | None = None
-
-    def __post_init__(self) -> None:
-        if self.depth_scale is not None:
-            from .._validate import check_depth_scale
-
-            object.__setattr__(self, "depth_scale", check_depth_scale(self.depth_scale))
+class _NoSuchOptionError(InputError):
+    """A reader was given an option it does not take."""
 
 
 def given_intrinsics(value: Any, width: int | None, height: int | None) -> CameraIntrinsics:
@@ -441,16 +433,9 @@ def given_intrinsics(value: Any, width: int | None, height: int | None) -> Camer
     return as_intrinsics(value, "intrinsics", width, height)
 
 
-def _camera_text(camera: CameraIntrinsics) -> str:
-    return (
-        f"{camera.width}x{camera.height} fx={camera.fx:g} fy={camera.fy:g} "
-        f"cx={camera.cx:g} cy={camera.cy:g}"
-    )
-
-
 def _open(kind: SourceKind, p: Path, options: dict[str, Any]) -> Source:
     source = _call(kind, p, options)
-    # A camera or scale passed as an option replaces the input's own.
+    # A camera or scale passed as a reader option replaces the input's own.
     if options.get("intrinsics") is not None and source.intrinsics_origin == "input":
         source.intrinsics_origin = "given"
     if options.get("depth_scale") is not None and source.depth_scale_origin == "input":
@@ -459,7 +444,12 @@ def _open(kind: SourceKind, p: Path, options: dict[str, Any]) -> Source:
 
 
 def _with_defaults(kind: SourceKind, p: Path, options: dict[str, Any], d: CameraDefaults) -> Source:
-    """Open ``p`` with what it carries, and fill in from ``d`` only what it lacks."""
+    """Open ``p`` with what it carries, and settle its camera with ``d`` (:func:`settle_camera`).
+
+    Where ``d`` replaces or fills in what the reader itself uses while reading (a bag's
+    cloud quantised at the depth scale, an intrinsics file sized by the images), the input is
+    opened again with ``d``'s values as reader options.
+    """
     scale_filled = False
     try:
         source = _open(kind, p, options)
@@ -472,26 +462,48 @@ def _with_defaults(kind: SourceKind, p: Path, options: dict[str, Any], d: Camera
             source = _open(kind, p, {**options, "depth_scale": d.depth_scale})
         except InputError:
             raise first from None
-        source.depth_scale_origin = d.depth_scale_origin or d.origin
         scale_filled = True
-    notes = list(source.camera_notes)
-    if d.intrinsics is not None:
-        own = source.intrinsics
-        if own is None:
-            source.intrinsics = d.intrinsics
-            source.intrinsics_origin = d.origin
-        elif own.pinhole() != d.intrinsics.pinhole():
-            notes.append(
-                f"{d.origin} camera {_camera_text(d.intrinsics)} differs from the input's own "
-                f"{_camera_text(own)} (from {source.intrinsics_origin}); the input's is used"
-            )
-    if d.depth_scale is not None and not scale_filled and source.depth_scale != d.depth_scale:
-        notes.append(
-            f"{d.depth_scale_origin or d.origin} depth scale {d.depth_scale:g} differs from "
-            "the input's own "
-            f"{source.depth_scale:g} (from {source.depth_scale_origin}); the input's is used"
-        )
-    source.camera_notes = tuple(notes)
+    reopen: dict[str, Any] = {}
+    if d.override and d.depth_scale is not None and source.depth_scale != d.depth_scale:
+        reopen["depth_scale"] = d.depth_scale
+    if isinstance(d.intrinsics, (str, os.PathLike)) and (d.override or source.intrinsics is None):
+        reopen["intrinsics"] = d.intrinsics  # the reader sizes a bare matrix by its images
+    elif d.override and d.intrinsics is not None and source.intrinsics != d.intrinsics:
+        reopen["intrinsics"] = d.intrinsics
+    from .camera_rule import settle_camera  # loaded when a camera is given, not at import
+
+    if not reopen:
+        settle_camera(source, d, scale_filled=scale_filled)
+        return source
+    own = (
+        source.intrinsics,
+        source.intrinsics_origin,
+        source.depth_scale,
+        source.depth_scale_origin,
+        source.camera_notes,
+    )
+    source.close()
+    if scale_filled:
+        options = {**options, "depth_scale": d.depth_scale}
+    try:
+        source = _open(kind, p, {**options, **reopen})  # the reader reads with the given values
+    except _NoSuchOptionError:
+        source = _open(kind, p, options)  # a reader that takes none is given them after
+    read = source.intrinsics
+    if "intrinsics" in reopen and read is not None and read != own[0]:
+        import dataclasses
+
+        d = dataclasses.replace(d, intrinsics=read)  # the file as the reader sized it
+    # Settled with the input's own values in place, so that the notes name them; a reader
+    # that ignores the options is given the values then.
+    (
+        source.intrinsics,
+        source.intrinsics_origin,
+        source.depth_scale,
+        source.depth_scale_origin,
+        source.camera_notes,
+    ) = own
+    settle_camera(source, d, scale_filled=scale_filled)
     return source
 
 
@@ -505,9 +517,12 @@ def open_source(
     """Open any RGB-D input: a folder, a ROS 1 or ROS 2 bag, a camera recording.
 
     The reader is chosen from the content of ``path`` (``kind`` names one explicitly);
-    ``options`` go to that reader (for example ``intrinsics``, ``depth_scale``, topics), and
-    replace what the input says. ``defaults`` (:class:`CameraDefaults`) instead fill in only
-    the camera or depth scale the input lacks. Raises :class:`~pcdcodec.InputError` when
+    ``options`` go to that reader (for example topics; ``intrinsics`` and ``depth_scale`` given
+    as reader options replace what the input says, as the reader is told). ``defaults``
+    (:class:`CameraDefaults`) is how commands give a camera: the input's own camera and depth
+    scale win, the defaults fill in only what the input lacks, a contradiction is said in the
+    source's ``camera_notes``, and ``CameraDefaults(..., override=True)`` replaces the input's
+    own, saying so (:func:`settle_camera`). Raises :class:`~pcdcodec.InputError` when
     ``path`` does not exist, no reader knows it, or ``depth_scale`` is not a positive finite
     number.
     """
@@ -531,10 +546,23 @@ def open_source(
         if defaults is not None:
             return _with_defaults(found, p, options, defaults)
         return _open(found, p, options)
+    for k in _KINDS.values():
+        lacks = k.missing(p) if k.missing is not None else None
+        if lacks:
+            raise InputError(f"{str(p)!r} {lacks}")
     raise InputError(
         f"{str(p)!r} is not an input pcdcodec reads; expected one of: "
         + "; ".join(f"{k.name} ({k.description})" for k in _KINDS.values())
     )
+
+
+def __getattr__(name: str) -> Any:
+    # The camera rule's names, served from their module on first use (import pcdcodec stays light).
+    if name in ("CameraDefaults", "settle_camera"):
+        from . import camera_rule
+
+        return getattr(camera_rule, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 #: Loaders of readers that register themselves when imported, run before the registry is first

@@ -26,9 +26,15 @@ Intrinsics and depth scale come from the arguments or, when not given, from the 
 ``camera.json`` (see :func:`read_camera_json`), or an intrinsics file it ships with
 (:data:`~pcdcodec.geometry.camera.INTRINSICS_FILE_NAMES`). Without a depth scale there, a TUM RGB-D
 dataset folder (its ``depth.txt`` names the dataset's ``rgbd_dataset_…`` bag) gets TUM's 5000
-units per metre and a 7-Scenes folder (``frame-NNNNNN.depth.png`` with
-``camera-intrinsics.txt``) 1000; for any other folder the scale cannot be known, and opening it
-raises :class:`~pcdcodec.InputError` asking for ``depth_scale``.
+units per metre (and, without an intrinsics file, the ROS default camera TUM's own tools use,
+the ``tum-ros`` preset, for its 640 x 480 images) and a 7-Scenes folder
+(``frame-NNNNNN.depth.png`` with ``camera-intrinsics.txt``) 1000; for any other folder the
+scale cannot be known, and opening it raises :class:`~pcdcodec.InputError` asking for
+``depth_scale``.
+
+Every PNG and JPEG is checked whole before it is decoded (decoders fill a cut image with grey):
+a cut or damaged image raises :class:`~pcdcodec.DecodeError` naming the file, when its frame
+is read.
 
 The layouts' file pairing and timing live in ``_folder_layouts``, the camera.json and the
 datasets' depth scales in ``_folder_camera``; this module opens the folder and reads its images.
@@ -37,6 +43,7 @@ datasets' depth scales in ``_folder_camera``; this module opens the folder and r
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -52,6 +59,7 @@ from ._folder_camera import (
     CAMERA_JSON_KEYS,
     TUM_DEPTH_SCALE,
     as_transform,
+    dataset_camera,
     folder_depth_scale,
     read_camera_json,
 )
@@ -83,14 +91,35 @@ __all__ = [
 
 
 def _read_image(path: Path) -> npt.NDArray[Any]:
+    """An image file's pixels. A PNG or JPEG is checked whole first (decoders fill a cut image
+    with grey instead of failing): a cut or damaged one raises :class:`~pcdcodec.DecodeError`
+    naming the file and what is wrong; other formats (TIFF) are left to the decoder."""
     import imagecodecs
 
+    from ..color.images import check_compressed
+
     try:
-        return np.asarray(imagecodecs.imread(str(path)))
+        data = path.read_bytes()
     except FileNotFoundError:
         raise InputError(f"image file {str(path)!r} does not exist") from None
+    except OSError as exc:
+        raise InputError(f"cannot read image {str(path)!r}: {exc.strerror or exc}") from None
+    codec: str | None = None
+    if data.startswith((b"\x89PNG", b"\xff\xd8")):
+        codec = check_compressed(data, repr(str(path))).format  # "png" or "jpeg"
+    try:
+        return np.asarray(imagecodecs.imread(data, codec=codec) if codec else _imread(path))
     except Exception as exc:
-        raise InputError(f"cannot read image {str(path)!r}: {exc}") from exc
+        # One line: without a format, imagecodecs lists every decoder it tried.
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        what = f"a {codec.upper()} image" if codec else "a PNG, JPEG or TIFF image"
+        raise InputError(f"cannot read image {str(path)!r} as {what}: {first}") from None
+
+
+def _imread(path: Path) -> Any:
+    import imagecodecs
+
+    return imagecodecs.imread(str(path))
 
 
 def _read_color(path: Path) -> npt.NDArray[np.uint8]:
@@ -326,6 +355,12 @@ def open_folder(
             from ..geometry.camera import read_intrinsics
 
             camera, camera_from = read_intrinsics(found, *depth_size()), found.name
+        # Only for images of the dataset's size: a cropped copy has another camera.
+        elif (by_dataset := dataset_camera(root)) is not None and (
+            by_dataset[0].width,
+            by_dataset[0].height,
+        ) == depth_size():
+            camera, camera_from = by_dataset
 
     has_color = any(c is not None for _, c, _ in pairs)
 
@@ -435,10 +470,50 @@ def _is_folder(path: Path) -> bool:
     return not any(detect_kind(f) not in (None, "recording") for f in others)
 
 
+_DEPTH_FILES = "16-bit PNG/TIFF, float32 TIFF or .npy"
+
+
+def _missing(path: Path) -> str | None:
+    """What a folder of color images lacks to be an RGB-D folder (its depth), or ``None``."""
+    if not path.is_dir():
+        return None
+    if (path / "rgb.txt").is_file() and not (path / "depth.txt").is_file():
+        return (
+            "holds rgb.txt but no depth.txt: a TUM RGB-D folder lists its depth images "
+            "(timestamp and file per line) in depth.txt beside rgb.txt"
+        )
+    color_dir = next((n for n in ("rgb", "color") if (path / n).is_dir()), None)
+    if color_dir is not None and not (path / "depth").is_dir():
+        return (
+            f"holds {color_dir}/ but no depth/ found: an RGB-D folder of this layout keeps its "
+            f"depth images ({_DEPTH_FILES}) in depth/ beside {color_dir}/; files of other "
+            "names need depth_pattern= and color_pattern="
+        )
+    try:
+        names = [e.name for e in os.scandir(path) if e.is_file()]
+    except OSError:
+        return None
+    colors = [
+        n
+        for n in names
+        if os.path.splitext(n)[1].lower() in IMAGE_SUFFIXES
+        and re.search("rgb|colou?r", n, re.IGNORECASE)
+    ]
+    if colors and not _flat_depth_and_others(path)[0]:
+        return (
+            f"holds color images ({sorted(colors)[0]}, ...) but no depth image: depth files "
+            f"({_DEPTH_FILES}) named *depth* beside them pair up by the rest of their names "
+            "(frame_000001_depth.png with frame_000001_rgb.png); other names need "
+            "depth_pattern= and color_pattern="
+        )
+    return None
+
+
 register_source(
     "folder",
     _is_folder,
     open_folder,
     "a TUM RGB-D folder, rgb/ (or color/) and depth/ image folders, or one folder of "
     "*depth* and *rgb* files; other names need depth_pattern= and color_pattern=",
+    missing=_missing,
 )
