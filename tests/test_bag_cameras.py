@@ -220,3 +220,75 @@ def test_the_real_ros2_realsense_bag_is_not_recorded_as_registered(tmp_path: Pat
         assert rec.color_intrinsics.fx == pytest.approx(613.20367432)
         assert rec.color_intrinsics.cx == pytest.approx(319.9388427734375)
         np.testing.assert_allclose(rec.depth_to_color, d2c)
+
+
+# -- the transform between two frames of a tf tree ----------------------------------------------
+
+
+def _tf(parent: str, child: str, pose: Any) -> Any:
+    from types import SimpleNamespace
+
+    from pcdcodec.geometry.transform import matrix_to_quaternion
+
+    q = matrix_to_quaternion(pose[:3, :3])
+    t = pose[:3, 3]
+    return SimpleNamespace(
+        header=SimpleNamespace(frame_id=parent, stamp=SimpleNamespace(sec=1, nanosec=0)),
+        child_frame_id=child,
+        transform=SimpleNamespace(
+            translation=SimpleNamespace(x=t[0], y=t[1], z=t[2]),
+            rotation=SimpleNamespace(x=q[0], y=q[1], z=q[2], w=q[3]),
+        ),
+    )
+
+
+def _between(messages: list[tuple[str, list[Any]]], a: str, b: str) -> tuple[Any, str]:
+    from types import SimpleNamespace
+
+    from pcdcodec.ros.tf import frame_to_frame
+
+    conns = {t: SimpleNamespace(topic=t, msgtype="tf2_msgs/msg/TFMessage") for t, _ in messages}
+
+    def read(wanted: list[Any]) -> Any:
+        for topic, transforms in messages:
+            if conns[topic] in wanted:
+                yield conns[topic], 0, SimpleNamespace(transforms=transforms)
+
+    return frame_to_frame(read, list(conns.values()), a, b)
+
+
+def test_frame_to_frame_follows_both_chains_to_their_common_frame() -> None:
+    base_link = rigid_from_quaternion([1.0, 2.0, 0.5], [0.0, 0.0, 0.38268343, 0.92387953])
+    static = [
+        _tf("camera_link", DEPTH_FRAME, LINK_DEPTH),
+        _tf("camera_link", COLOR_FRAME, LINK_COLOR),
+    ]
+    d2c, where = _between([("/tf_static", static)], DEPTH_FRAME, COLOR_FRAME)
+    np.testing.assert_allclose(d2c, WANT_D2C, atol=1e-12)
+    assert where == f"from /tf_static ({DEPTH_FRAME} -> camera_link -> {COLOR_FRAME})"
+    # The camera moving in the world (odom -> camera_link on /tf) does not matter; the mounting
+    # published on /tf with constant values counts.
+    moving = [
+        ("/tf", [_tf("odom", "camera_link", base_link)]),
+        ("/tf", [_tf("odom", "camera_link", np.eye(4))]),
+        ("/tf", [_tf("camera_link", COLOR_FRAME, LINK_COLOR)]),
+        ("/tf", [_tf("camera_link", COLOR_FRAME, LINK_COLOR)]),
+        ("/tf_static", [_tf("camera_link", DEPTH_FRAME, LINK_DEPTH)]),
+    ]
+    d2c, where = _between(moving, DEPTH_FRAME, COLOR_FRAME)
+    np.testing.assert_allclose(d2c, WANT_D2C, atol=1e-12)
+    assert where.startswith("from /tf (")
+    # A color camera moving relative to the depth camera has no fixed extrinsics.
+    shifted = LINK_COLOR.copy()
+    shifted[0, 3] += 0.01
+    changing = [*moving[:3], ("/tf", [_tf("camera_link", COLOR_FRAME, shifted)]), moving[4]]
+    d2c, where = _between(changing, DEPTH_FRAME, COLOR_FRAME)
+    assert d2c is None
+    assert f"tf moves {COLOR_FRAME!r} in 'camera_link' over time" == where
+    # Two trees, two parents, one frame for both: no transform, and why.
+    two_trees = [("/tf_static", [static[0], _tf("other_link", COLOR_FRAME, LINK_COLOR)])]
+    assert "their trees have the roots" in _between(two_trees, DEPTH_FRAME, COLOR_FRAME)[1]
+    two_parents = [("/tf_static", [*static, _tf("other_link", COLOR_FRAME, LINK_COLOR)])]
+    assert "several parents" in _between(two_parents, DEPTH_FRAME, COLOR_FRAME)[1]
+    assert "both images name the frame" in _between([("/tf_static", static)], "x", "x")[1]
+    assert _between([], DEPTH_FRAME, COLOR_FRAME) == (None, "the bag has no /tf or /tf_static")
