@@ -47,7 +47,13 @@ def _frames(n: int = 3) -> list[tuple[Any, Any]]:
 
 
 def realsense_ros_bag(
-    path: Path, *, ros2: bool, tf: bool = True, aligned: bool = False, n: int = 3
+    path: Path,
+    *,
+    ros2: bool,
+    tf: bool = True,
+    aligned: bool = False,
+    n: int = 3,
+    depth_cam: CameraIntrinsics = DEPTH_CAM,
 ) -> Path:
     """A bag as realsense-ros records one: depth and color images of real D435 frames, their
     CameraInfo, color 5 ms after depth, ``/tf_static`` placing both optical frames under
@@ -70,9 +76,10 @@ def realsense_ros_bag(
     for k, (color, depth) in enumerate(_frames(n)):
         ts = NS + k * 33_333_333
         msgs.frame_id = DEPTH_FRAME
-        writer.write(DEPTH, ts, msgs.image(ts, depth, "16UC1"))
+        h, w = depth_cam.shape
+        writer.write(DEPTH, ts, msgs.image(ts, np.ascontiguousarray(depth[:h, :w]), "16UC1"))
         writer.write(
-            "/camera/depth/camera_info", ts, msgs.camera_info(ts, DEPTH_CAM, "plumb_bob", [0.0] * 5)
+            "/camera/depth/camera_info", ts, msgs.camera_info(ts, depth_cam, "plumb_bob", [0.0] * 5)
         )
         msgs.frame_id = COLOR_FRAME
         if aligned:
@@ -131,6 +138,30 @@ def test_the_color_camera_apart_is_recorded_with_the_bags_tf(tmp_path: Path, ros
     np.testing.assert_array_equal(got_colors, want_colors)  # ffv1: lossless colour
     assert registered[1] is not None
     assert float(np.mean(got_colors != registered[1])) > 0.3  # not the registered colours
+
+
+@needs_d435
+def test_a_color_camera_apart_of_another_size_is_chosen_and_recorded(tmp_path: Path) -> None:
+    """realsense-ros records depth and color at their own sizes: a color topic of another size
+    with a CameraInfo of its own is the color camera apart, not a reason for depth only."""
+    small = CameraIntrinsics(560, 420, 390.43, 390.43, 291.39, 212.19)
+    bag = realsense_ros_bag(tmp_path / "rs.bag", ros2=False, depth_cam=small, n=2)
+    out = tmp_path / "rs.pcdc"
+    summary = pcdcodec.encode(bag, out, color="ffv1")
+    assert summary.source["color_topic"] == COLOR
+    assert summary.frames == 2
+    color, depth = _frames(1)[0]
+    with pcdcodec.open(out) as rec:
+        assert rec.intrinsics == small
+        assert rec.color_intrinsics == COLOR_CAM
+        frame = rec[0]
+        assert frame.color.shape == (480, 640, 3)
+        np.testing.assert_array_equal(frame.depth, depth[:420, :560])
+        got = frame.to_points()
+    proj = pcdcodec.Projector(small, 1000.0, color_intrinsics=COLOR_CAM, depth_to_color=WANT_D2C)
+    want = proj.to_points(depth[:420, :560], color)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
 
 
 @needs_d435

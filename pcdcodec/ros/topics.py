@@ -245,7 +245,8 @@ def choose_color(
     cands: Sequence[TopicCandidate], depth_topic: str, width: int, height: int
 ) -> str | None:
     """The color topic of the depth's size that looks most like the depth's camera, colour
-    before mono8 and raw before compressed; ``None`` when no color topic has that size.
+    before mono8 and raw before compressed; else a color topic of another size with a
+    CameraInfo of its own (a color camera apart, :func:`choose_color_info`); else ``None``.
 
     Raises :class:`~pcdcodec.DecodeError` when there is none but a compressed color topic's first
     image is damaged or oversized: that is not a camera of another size, and recording depth
@@ -262,6 +263,15 @@ def choose_color(
     )
     if colors:
         return colors[0].topic
+    # A color camera apart, of its own size: a color topic with a CameraInfo of its own.
+    apart = [
+        c
+        for c in cands
+        if c.role == "color" and choose_color_info(cands, c.topic, depth_topic, None)
+    ]
+    apart.sort(key=lambda c: (affinity(c.topic, depth_topic), c.msgtype == IMAGE), reverse=True)
+    if apart:
+        return apart[0].topic
     damaged = [
         c
         for c in cands
@@ -275,8 +285,11 @@ def choose_color(
     return None
 
 
-def check_color(cand: TopicCandidate, depth_topic: str, width: int, height: int) -> None:
-    """Raise unless ``cand`` holds color of the depth's size (registered depth and color)."""
+def check_color(
+    cand: TopicCandidate, depth_topic: str, width: int, height: int, apart: bool = False
+) -> None:
+    """Raise unless ``cand`` holds color of the depth's size (registered depth and color), or
+    of any size where it has a CameraInfo of its own (``apart``: a color camera apart)."""
     if cand.role != "color":
         if cand.note and rm.compressed_kind(cand.encoding) == "color":
             raise DecodeError(cand.note)
@@ -284,11 +297,12 @@ def check_color(cand: TopicCandidate, depth_topic: str, width: int, height: int)
             f"color topic {cand.topic!r} has encoding {cand.encoding!r}; expected "
             f"one of {', '.join(rm.COLOR_ENCODINGS)} or a JPEG/PNG CompressedImage"
         )
-    if (cand.width, cand.height) != (width, height):
+    if (cand.width, cand.height) != (width, height) and not apart:
         raise InputError(
             f"color topic {cand.topic!r} is {cand.width}x{cand.height} but depth "
-            f"topic {depth_topic!r} is {width}x{height}; pcdcodec needs registered "
-            "depth and color of one size (pass color_topic='' for depth only)"
+            f"topic {depth_topic!r} is {width}x{height}, and it has no CameraInfo of its own; "
+            "pcdcodec needs registered depth and color of one size, or the color camera's "
+            "CameraInfo (pass color_topic='' for depth only)"
         )
 
 

@@ -291,13 +291,15 @@ class RosbagSource(Source):
             color_topic = topics.choose_color(cands, self.depth_topic, width, height)
             if color_topic is None:
                 self.notes.append(
-                    f"no color topic of the depth's size {width}x{height}: depth only"
+                    f"no color topic of the depth's size {width}x{height}, nor one with a "
+                    "CameraInfo of its own: depth only"
                 )
         self._color_conn = None
         if color_topic:
             cconn = self._conn(color_topic, "color")
             cand = {c.topic: c for c in cands}[color_topic]
-            topics.check_color(cand, self.depth_topic, width, height)
+            apart = topics.choose_color_info(cands, color_topic, self.depth_topic, None)
+            topics.check_color(cand, self.depth_topic, width, height, apart is not None)
             self._color_conn = cconn
             self.color_topic = color_topic
         self.has_color = self._color_conn is not None
@@ -450,11 +452,14 @@ class RosbagSource(Source):
     def _decode(self, msg: Any, conn: Any, role: str, ts: int) -> Any:
         """An image message as depth or color, checked against the camera's size before it is
         decoded; errors name the topic and the message's time."""
+        shape = self._shape
+        if role == "color" and self.color_intrinsics is not None:
+            shape = self.color_intrinsics.shape  # a color camera apart: its own size
         try:
             if conn.msgtype == IMAGE:
-                out = rm.decode_image(msg, role, conn.topic, self._shape)
+                out = rm.decode_image(msg, role, conn.topic, shape)
             else:
-                out = rm.decode_compressed(msg, role, conn.topic, self._shape)
+                out = rm.decode_compressed(msg, role, conn.topic, shape)
         except PcdcodecError as exc:
             _add_time(exc, f"message at {ts} ns")
             raise
@@ -543,7 +548,7 @@ class RosbagSource(Source):
         assert cconn is not None
         color = self._decode(cmsg, cconn, "color", dts)
         depth = self._decode(dmsg, dconn, "depth", dts)
-        if color.shape[:2] != depth.shape:
+        if self.color_intrinsics is None and color.shape[:2] != depth.shape:
             raise InputError(
                 f"color topic {cconn.topic!r} is {color.shape[1]}x{color.shape[0]} but "
                 f"depth topic {dconn.topic!r} is {depth.shape[1]}x{depth.shape[0]} "
