@@ -106,10 +106,6 @@ _CLI_WORDS = (
         "pass --depth-to-color FILE (a text file of the 16 numbers of the 4x4 depth-to-color "
         "transform in metres, row-major), or --color-topic '' for depth only",
     ),
-    (
-        "pass a larger max_difference= in nanoseconds",
-        "pass a larger --max-difference (150ms, say; max_difference= in nanoseconds in Python)",
-    ),
     ("(color=False)", "(--depth-only)"),
     ("need depth_pattern= and color_pattern=", "need --depth-pattern and --color-pattern"),
     ("color_pattern needs depth_pattern", "--color-pattern needs --depth-pattern"),
