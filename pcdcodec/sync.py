@@ -16,6 +16,16 @@ policy:
 
 All timestamps, differences and tolerances are integer nanoseconds, as everywhere in pcdcodec.
 
+**One rule for every reader.** Every input whose color and depth are two streams (ROS bags,
+RealSense ``.bag``, Azure Kinect ``.mkv``, TUM lists, frames handed to a writer one stream at a
+time) is paired by this rule, each image used at most once, with one default tolerance,
+:data:`MAX_DIFFERENCE` (20 ms, TUM's), and each reader reports the images left without a partner
+as ``dropped``. 20 ms is a little over half the frame period of 30 fps streams (16.7 ms) and
+under half that of 25 fps ones: a depth image paired with a color image farther away than that
+shows the scene closer in time to another color frame than to its own. A reader takes another
+tolerance as ``max_difference=`` (ns; the command line's ``--max-difference 150ms``,
+:func:`parse_duration`).
+
 How it stays fast (100k stamps per stream take milliseconds, memory O(n + m)): among the stamps
 still free, the pair with the smallest difference is always adjacent in the merged time order,
 and a pair in which each stamp is the other's nearest free partner (*mutual nearest*) is always
@@ -38,7 +48,58 @@ import numpy.typing as npt
 
 from .errors import InputError, InputTypeError
 
-__all__ = ["Association", "Synchronizer", "associate"]
+__all__ = [
+    "MAX_DIFFERENCE",
+    "Association",
+    "Synchronizer",
+    "as_max_difference",
+    "associate",
+    "parse_duration",
+]
+
+#: The largest color/depth stamp difference every reader pairs by default, ns (20 ms; see above).
+MAX_DIFFERENCE = 20_000_000
+
+_UNITS = {"ns": 1, "us": 1_000, "µs": 1_000, "ms": 1_000_000, "s": 1_000_000_000}
+
+
+def as_max_difference(value: Any, name: str = "max_difference") -> int:
+    """A pairing tolerance: int nanoseconds, at least 0. Raises
+    :class:`~pcdcodec.InputTypeError` for a value that is not an int (a float of seconds, a
+    string) and :class:`~pcdcodec.InputError` for a negative one."""
+    if isinstance(value, str):
+        raise InputTypeError(
+            f"{name} must be an int number of nanoseconds, got {value!r}; "
+            f"pcdcodec.sync.parse_duration({value!r}) reads a duration with its unit"
+        )
+    ns = _as_ns(value, name)
+    if ns < 0:
+        raise InputError(f"{name} must be at least 0 ns, got {ns}")
+    return ns
+
+
+def parse_duration(text: str, name: str = "max_difference") -> int:
+    """A duration with its unit (``"150ms"``, ``"0.15 s"``, ``"500us"``, ``"20000000ns"``) as int
+    nanoseconds, exact for decimal text. Raises :class:`~pcdcodec.InputError` naming ``name``
+    for a number without a unit (other than 0), an unknown unit, or a negative value."""
+    import re
+    from decimal import Decimal, InvalidOperation
+
+    m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+(?:[eE][+-]?[0-9]+)?)\s*([a-zµ]*)\s*", str(text))
+    unit = m.group(2) if m else ""
+    if m is None or (unit not in _UNITS and (unit or Decimal(m.group(1)) != 0)):
+        raise InputError(
+            f"{name} {text!r} is not a duration with its unit; expected e.g. 150ms, 0.15s, "
+            f"500us or 20000000ns (units: {', '.join(u for u in _UNITS if u != 'µs')})"
+        )
+    try:
+        ns = Decimal(m.group(1)) * _UNITS.get(unit, 1)
+    except InvalidOperation:  # pragma: no cover - the pattern admits only numbers
+        raise InputError(f"{name} {text!r} is not a number") from None
+    if ns != ns.to_integral_value():
+        raise InputError(f"{name} {text!r} is not a whole number of nanoseconds")
+    return int(ns)
+
 
 _INT64_MAX = int(np.iinfo(np.int64).max)
 _INT64_MIN = int(np.iinfo(np.int64).min)
@@ -94,7 +155,7 @@ def associate(
     color_stamps: Sequence[int] | npt.ArrayLike,
     depth_stamps: Sequence[int] | npt.ArrayLike,
     *,
-    max_difference: int = 20_000_000,
+    max_difference: int = MAX_DIFFERENCE,
     offset: int = 0,
 ) -> Association:
     """Pair color and depth frames by nearest timestamp, each frame used at most once.
@@ -194,7 +255,7 @@ class Synchronizer(Generic[ColorT, DepthT]):
     def __init__(
         self,
         *,
-        max_difference: int = 20_000_000,
+        max_difference: int = MAX_DIFFERENCE,
         offset: int = 0,
         max_queue: int = 100,
         ordered: bool = True,

@@ -53,21 +53,45 @@ def test_open_source_picks_the_realsense_reader() -> None:
         rotation = np.reshape(RS_ROTATION, (3, 3)).T  # librealsense stores it column-major
         np.testing.assert_allclose(src.depth_to_color[:3, :3], rotation, atol=1e-7)
         np.testing.assert_allclose(src.depth_to_color[:3, 3], RS_TRANSLATION, atol=1e-7)
-        assert len(src) == 2
-        frames = list(src)
-    assert [f.timestamp_ns for f in frames] == [360_815_089_000, 360_981_765_000]
-    assert zlib.crc32(frames[1].depth.tobytes()) == RS_DEPTH_CRC
-    assert zlib.crc32(frames[1].color.tobytes()) == RS_COLOR_CRC
-    # One color frame in the bag: both depth frames take it.
-    assert np.array_equal(frames[0].color, frames[1].color)
-    with RealSenseBagSource(BAG, max_dt=0.05) as strict:
-        assert len(list(strict)) == 0  # the color frame is 101 ms from the nearest depth frame
+        with pytest.raises(TypeError):
+            len(src)  # how many depth frames find a color frame is known by pairing them
+        # The one color frame is 101 ms from the first depth frame and 268 ms from the second:
+        # within the default 20 ms neither pairs, and all three images are reported dropped.
+        assert list(src) == []
+        assert src.dropped == {"color": 1, "depth": 2}
+    # With a wider tolerance, the nearer depth frame takes the color frame, once; the depth
+    # frame 268 ms away is dropped and reported, not given a color taken 268 ms earlier.
+    with RealSenseBagSource(BAG, max_difference=150_000_000) as wide:
+        frames = list(wide)
+        assert wide.dropped == {"color": 0, "depth": 1}
+    assert [f.timestamp_ns for f in frames] == [360_815_089_000]
+    assert zlib.crc32(frames[0].color.tobytes()) == RS_COLOR_CRC
+    assert zlib.crc32(_depth_frames()[1].depth.tobytes()) == RS_DEPTH_CRC
+    with RealSenseBagSource(BAG, max_dt=0.3) as former:  # max_dt: the former name, in seconds
+        assert former.max_difference == 300_000_000
+        assert [f.timestamp_ns for f in former] == [360_815_089_000]
+
+
+def _depth_frames() -> list[Any]:
+    """The depth frames of the real bag (read as a plain ROS 1 bag, depth only)."""
+    with pcdcodec.open_source(BAG, kind="rosbag", color_topic="") as src:
+        return list(src)
+
+
+@needs_bag
+def test_real_bag_encode_reports_the_depth_without_a_color_frame(tmp_path: Path) -> None:
+    summary = pcdcodec.encode(BAG, tmp_path / "rs.pcdc", color="ffv1", max_difference=150_000_000)
+    assert summary.frames == 1
+    assert summary.dropped == {"color": 0, "depth": 1}
+    with pytest.raises(InputError, match="every image was dropped for lack of a partner"):
+        pcdcodec.encode(BAG, tmp_path / "none.pcdc", color="ffv1")
+    assert not (tmp_path / "none.pcdc").exists()
 
 
 @needs_bag
 def test_registration_close_to_librealsense_align() -> None:
+    frame = _depth_frames()[1]
     with pcdcodec.open_source(BAG) as src:
-        frame = list(src)[1]
         proj = pcdcodec.Projector(
             src.intrinsics,
             src.depth_scale,
@@ -83,7 +107,7 @@ def test_registration_close_to_librealsense_align() -> None:
 @needs_bag
 def test_recording_keeps_both_cameras_and_exact_depth(tmp_path: Path) -> None:
     out = tmp_path / "rs.pcdc"
-    with pcdcodec.open_source(BAG) as src:
+    with pcdcodec.open_source(BAG, max_difference=150_000_000) as src:
         frames = list(src)
         with pcdcodec.open(
             out,
@@ -102,9 +126,9 @@ def test_recording_keeps_both_cameras_and_exact_depth(tmp_path: Path) -> None:
         for got, want in zip(rec, frames, strict=True):
             assert np.array_equal(got.depth, want.depth)
             assert np.array_equal(got.color, want.color)
-        points, colors = rec[1].to_points()
+        points, colors = rec[0].to_points()
         assert colors is not None
-        assert points.shape[0] == int((frames[1].depth > 0).sum())
+        assert points.shape[0] == int((frames[0].depth > 0).sum())
 
 
 def _copy_without(src: Path, dst: Path, drop: str) -> None:
@@ -144,7 +168,7 @@ def test_exported_bag_gives_each_camera_its_own_info(tmp_path: Path) -> None:
     from rosbags.highlevel import AnyReader
 
     rec_path = tmp_path / "rs.pcdc"
-    with pcdcodec.open_source(BAG) as src:
+    with pcdcodec.open_source(BAG, max_difference=150_000_000) as src:
         depth_cam, color_cam = src.intrinsics, src.color_intrinsics
         assert depth_cam is not None
         assert color_cam is not None
@@ -163,7 +187,7 @@ def test_exported_bag_gives_each_camera_its_own_info(tmp_path: Path) -> None:
     assert infos["/camera/depth/camera_info"] == [float(v) for v in depth_cam.K.ravel()]
     assert infos["/camera/color/camera_info"] == [float(v) for v in color_cam.K.ravel()]
     assert infos["/camera/color/camera_info"] != infos["/camera/depth/camera_info"]
-    assert clouds == 2
+    assert clouds == 1
 
 
 # -- small RealSense-style bags, built with librealsense's topics (tests/camera_file_fuzz.py) --
@@ -337,19 +361,20 @@ def test_mjpeg_color_is_checked_and_decoded(tmp_path: Path) -> None:
 
 
 def test_depth_frames_without_color_are_counted(tmp_path: Path) -> None:
-    """``max_dt`` leaves out depth frames with no color frame near enough: counted, as the bag
-    readers count theirs, and in the encode summary."""
+    """Depth and color pair by the rule of every reader (within ``max_difference``, each image
+    once): the images left without a partner are counted, as the bag readers count theirs, and
+    in the encode summary."""
 
     def change(spec: Any) -> None:
         _image(spec, "Color", 2).header.stamp.sec = 5  # 4 s after its depth frame
 
     path = _bag(tmp_path, change)
-    with RealSenseBagSource(path, max_dt=0.01) as src:
+    with RealSenseBagSource(path, max_difference=10_000_000) as src:
         assert len(list(src)) == 2
-        assert src.dropped == {"color": 0, "depth": 1}
-    summary = pcdcodec.encode(path, tmp_path / "out.pcdc", color="ffv1", max_dt=0.01)
+        assert src.dropped == {"color": 1, "depth": 1}
+    summary = pcdcodec.encode(path, tmp_path / "out.pcdc", color="ffv1")
     assert summary.frames == 2
-    assert summary.dropped == {"color": 0, "depth": 1}
+    assert summary.dropped == {"color": 1, "depth": 1}
 
 
 def test_stamps_after_2_to_the_31_seconds_read_one_way(tmp_path: Path) -> None:

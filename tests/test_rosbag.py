@@ -212,10 +212,13 @@ def test_realsense_bag_read_as_a_generic_ros1_bag(tmp_path: Path) -> None:
     for a, b in zip(frames, frames2, strict=True):
         assert np.array_equal(a.depth, b.depth)
         assert a.timestamp_ns == b.timestamp_ns
-    # Color and depth come from different sensors 100 ms apart: nothing pairs, and encode says so.
-    # (Without kind=, the RealSense reader takes this bag and pairs each depth with its color.)
-    with pytest.raises(InputError, match="dropped for lack of a partner"):
+    # Color and depth come from different sensors (the color topic's CameraInfo is not the
+    # depth's) and the bag has no tf: refused rather than recorded as registered.
+    with pytest.raises(InputError, match=r"camera apart from the depth.*pass depth_to_color="):
         pcdcodec.encode(RS_BAG, tmp_path / "x.pcdc", kind="rosbag")
+    # With the transform given, the images are 100 ms apart: nothing pairs, and encode says so.
+    with pytest.raises(InputError, match="dropped for lack of a partner"):
+        pcdcodec.encode(RS_BAG, tmp_path / "x.pcdc", kind="rosbag", depth_to_color=np.eye(4))
     assert not (tmp_path / "x.pcdc").exists()
 
 

@@ -89,6 +89,12 @@ _CLI_WORDS = (
         "pass --color-intrinsics FILE (and --depth-to-color FILE, the 4x4 depth-to-color "
         "transform in metres)",
     ),
+    (
+        "pass depth_to_color= (the 4x4 depth-to-color transform in metres, 16 numbers "
+        "row-major), or color_topic='' for depth only",
+        "pass --depth-to-color FILE (a text file of the 16 numbers of the 4x4 depth-to-color "
+        "transform in metres, row-major), or --color-topic '' for depth only",
+    ),
     ("(color=False)", "(--depth-only)"),
     ("need depth_pattern= and color_pattern=", "need --depth-pattern and --color-pattern"),
     ("color_pattern needs depth_pattern", "--color-pattern needs --depth-pattern"),
@@ -123,6 +129,10 @@ def folder_options(args: argparse.Namespace) -> dict[str, Any]:
     return opts
 
 
+#: The readers that pair color and depth by time, and take ``max_difference``.
+PAIRING_KINDS = ("rosbag", "realsense", "azure_kinect", "folder")
+
+
 def source_options(args: argparse.Namespace) -> dict[str, Any]:
     """The reader options of ``args.src`` from the flags (``--max-frames``, the folder and the
     topic flags), refusing flags that do not apply to that kind of input. The camera flags
@@ -136,6 +146,17 @@ def source_options(args: argparse.Namespace) -> dict[str, Any]:
     folder = folder_options(args)
     if kind is None and folder.get("depth_pattern") is not None and Path(args.src).is_dir():
         kind = "folder"  # a folder of files named as the patterns say
+    if getattr(args, "max_difference", None) is not None:
+        from ..sync import parse_duration
+
+        if kind not in (None, *PAIRING_KINDS):
+            raise InputError(
+                f"--max-difference applies to inputs whose color and depth are paired by time "
+                f"({', '.join(PAIRING_KINDS)}); {args.src!r} is a {kind}"
+            )
+        opts["max_difference"] = parse_duration(args.max_difference, "--max-difference")
+    if kind == "rosbag" and "depth_to_color" in folder and "color_intrinsics" not in folder:
+        opts["depth_to_color"] = folder.pop("depth_to_color")  # a color camera apart in a bag
     if kind == "folder":
         if getattr(args, "fps", None) is not None:
             opts["fps"] = args.fps

@@ -98,8 +98,9 @@ def _add_camera_options(p: argparse.ArgumentParser) -> None:
     f.add_argument(
         "--depth-to-color",
         metavar="FILE",
-        help="with --color-intrinsics: the 4x4 depth-to-color transform in metres, 16 numbers "
-        "row-major (default: identity)",
+        help="the 4x4 depth-to-color transform in metres, a text file of 16 numbers "
+        "row-major: with --color-intrinsics for a folder (default: identity), or for a bag "
+        "whose color camera is apart from depth and whose tf does not place it",
     )
     f.add_argument("--depth-only", action="store_true", help="read depth, leave color out")
 
@@ -126,6 +127,13 @@ def _add_topic_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--color-topic", help="color topic ('' for depth only)")
     g.add_argument("--info-topic", help="CameraInfo topic")
     g.add_argument("--cloud-topic", help="organized PointCloud2 topic (read instead of images)")
+    g.add_argument(
+        "--max-difference",
+        metavar="DURATION",
+        help="the largest time between a color and a depth image paired into one frame, with "
+        "its unit: 150ms, 0.15s, 500us (default 20ms; bags, RealSense .bag, Azure Kinect .mkv, "
+        "TUM lists)",
+    )
     g.add_argument(
         "--passthrough",
         nargs="?",

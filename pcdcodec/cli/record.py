@@ -128,7 +128,11 @@ def _cmd_encode_rig(args: argparse.Namespace) -> int:
             f"{' '.join(given)} apply to one camera; for several cameras give each camera's "
             "settings in a rig file (--rig, docs/rig.md)"
         )
-    options = {} if args.max_frames is None else {"max_frames": args.max_frames}
+    options: dict[str, Any] = {} if args.max_frames is None else {"max_frames": args.max_frames}
+    if args.max_difference is not None:
+        from ..sync import parse_duration
+
+        options["max_difference"] = parse_duration(args.max_difference, "--max-difference")
     with Progress(None, "encoding", enabled=None if not args.quiet else False) as bar:
         summary = encode_rig(
             args.src,

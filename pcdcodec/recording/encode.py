@@ -252,6 +252,7 @@ def _why_empty(info: dict[str, Any]) -> str:
             f": every image was dropped for lack of a partner ({dropped.get('color', 0)} color, "
             f"{dropped.get('depth', 0)} depth); the streams' stamps differ by more than the "
             "pairing tolerance: record depth only (--color-topic '' on the command line, "
-            "color_topic='' in Python) or pass a larger max_difference= in nanoseconds"
+            "color_topic='' in Python) or pass a larger pairing tolerance (--max-difference "
+            "150ms on the command line, max_difference= in nanoseconds in Python)"
         )
     return ""

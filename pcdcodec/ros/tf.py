@@ -18,10 +18,13 @@ the chain's samples), so memory grows with the chain's messages, not with the wh
 
 A rig's mountings are read apart (:func:`static_placements`): each camera frame's chain of
 ``/tf_static`` transforms up to the root of its tree, as one fixed transform into that root.
+The extrinsics of a color camera apart from the depth camera are read apart too
+(:func:`frame_to_frame`): the fixed transform between two frames of one tree.
 """
 
 from __future__ import annotations
 
+import itertools
 from array import array
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
@@ -40,6 +43,7 @@ __all__ = [
     "TF_TYPES",
     "StaticPlacement",
     "TfPoses",
+    "frame_to_frame",
     "is_tf",
     "read_tf_poses",
     "static_placements",
@@ -290,3 +294,85 @@ def static_placements(
                 continue
             notes.append(f"tf_static has no transform to the frame {camera!r}")
     return found
+
+
+#: How much the samples of one transform may differ and still be one fixed transform (metres,
+#: and quaternion components).
+FIXED_TOLERANCE = 1e-6
+
+
+def frame_to_frame(
+    messages: Messages, conns: Iterable[Any], source: str, target: str
+) -> tuple[npt.NDArray[np.float64] | None, str]:
+    """The fixed rigid transform taking points of frame ``source`` into frame ``target`` (for
+    a depth and a color camera: ``depth_to_color``), from the transforms of ``conns``
+    (``/tf_static`` and ``/tf``), and a line saying where it came from; or ``None`` and a line
+    saying why there is none.
+
+    Both frames' chains of parents are followed up to their nearest common frame; only the
+    transforms below it count, so a camera moving in the world still has fixed extrinsics.
+    A transform on ``/tf`` counts when all its samples agree (within
+    :data:`FIXED_TOLERANCE`); one that changes over time, a frame with two parents, a loop,
+    or frames in two trees give ``None``."""
+    tf_conns = [c for c in conns if is_tf(c)]
+    a, b = _name(source), _name(target)
+    if not tf_conns:
+        return None, "the bag has no /tf or /tf_static"
+    if not (a and b):
+        return None, "the images name no frame_id"
+    if a == b:
+        return None, f"both images name the frame {a!r}, so tf cannot place one in the other"
+    parents: dict[str, set[str]] = {}
+    rows: dict[tuple[str, str], npt.NDArray[np.float64]] = {}
+    static_edges: set[tuple[str, str]] = set()
+    moving: set[tuple[str, str]] = set()
+    for static, _, tf in _transforms(messages, tf_conns):
+        child, parent = _name(tf.child_frame_id), _name(tf.header.frame_id)
+        edge = _Edge()
+        edge.add(True, False, tf)
+        if not child or not parent or child == parent or edge.static is None:
+            continue
+        key = (parent, child)
+        parents.setdefault(child, set()).add(parent)
+        if static:  # the last static transform of an edge counts, over any on /tf
+            rows[key] = edge.static
+            static_edges.add(key)
+            moving.discard(key)
+        elif key not in static_edges:
+            old = rows.setdefault(key, edge.static)
+            if float(np.abs(old - edge.static).max()) > FIXED_TOLERANCE:
+                moving.add(key)
+    chains = []
+    for frame in (a, b):
+        chain, seen = [frame], {frame}
+        while chain[-1] in parents:
+            options = parents[chain[-1]]
+            if len(options) > 1:
+                return None, (
+                    f"tf gives frame {chain[-1]!r} several parents ({', '.join(sorted(options))})"
+                )
+            (parent,) = options
+            if parent in seen:
+                return None, f"tf has a loop through frame {parent!r}"
+            seen.add(parent)
+            chain.append(parent)
+        chains.append(chain)
+    common = next((f for f in chains[0] if f in chains[1]), None)
+    if common is None:
+        return None, (
+            f"tf has no transform between {a!r} and {b!r} (their trees have the roots "
+            f"{chains[0][-1]!r} and {chains[1][-1]!r})"
+        )
+    poses, used = [], []
+    for chain in chains:
+        pose = np.eye(4)
+        for child, parent in itertools.pairwise(chain[: chain.index(common) + 1]):
+            if (parent, child) in moving:
+                return None, f"tf moves {child!r} in {parent!r} over time"
+            pose = _matrix(rows[(parent, child)]) @ pose
+            used.append((parent, child))
+        poses.append(pose)
+    up = chains[0][: chains[0].index(common) + 1]
+    down = chains[1][: chains[1].index(common)][::-1]
+    where = "/tf_static" if all(e in static_edges for e in used) else "/tf"
+    return np.linalg.inv(poses[1]) @ poses[0], f"from {where} ({' -> '.join(up + down)})"

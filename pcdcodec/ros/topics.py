@@ -3,11 +3,15 @@ the automatic choice of the depth (or cloud), color and camera info topics.
 
 The rules (also in ``docs/ingest.md``, "How topics are chosen"):
 
-1. **depth**: raw ``Image`` topics before compressed ones, then the busiest topic; with no depth
+1. **depth**: raw ``Image`` topics before compressed ones, then the busiest topic, then depth
+   registered to the color camera (realsense-ros's ``aligned_depth_to_color``) before the depth
+   camera's own images (:func:`depth_choice_note` says which was chosen and why); with no depth
    image but an organized ``PointCloud2``, the cloud is read instead;
 2. **color**: among color topics of the depth's size, the one whose name looks most like the same
    camera (:func:`affinity`), colour before mono8, raw before compressed;
-3. **camera info**: the ``CameraInfo`` topic closest in name to the depth (or cloud) topic.
+3. **camera info**: the ``CameraInfo`` topic closest in name to the depth (or cloud) topic; the
+   color camera's own, where the bag has one (:func:`choose_color_info`), tells whether color is
+   registered to depth or a camera apart.
 
 A bag whose depth topics lie in several namespaces holds several cameras
 (:func:`camera_namespaces`); each camera's topics are then chosen by these rules among its own
@@ -39,11 +43,14 @@ __all__ = [
     "check_depth",
     "choose_cloud",
     "choose_color",
+    "choose_color_info",
     "choose_depth",
     "choose_info",
     "choose_mode",
     "classify",
+    "depth_choice_note",
     "in_namespace",
+    "is_registered_depth",
     "topic_namespace",
 ]
 
@@ -169,10 +176,56 @@ def choose_cloud(cands: Sequence[TopicCandidate]) -> str:
     return next(c.topic for c in cands if c.role == "cloud")
 
 
+def is_registered_depth(topic: str) -> bool:
+    """Whether a depth topic's name says it is registered to the color camera (realsense-ros's
+    ``aligned_depth_to_color``, openni's ``depth_registered``)."""
+    return any(p.startswith("aligned_depth_to") or p == "depth_registered" for p in _parts(topic))
+
+
 def choose_depth(cands: Sequence[TopicCandidate]) -> str:
-    """Raw images before compressed ones, then the busiest topic (then by name)."""
+    """Raw images before compressed ones, then the busiest topic, then depth registered to the
+    color camera before the depth camera's own (then by name)."""
     depth = [c for c in cands if c.role == "depth"]
-    return sorted(depth, key=lambda c: (c.msgtype != IMAGE, -c.count, c.topic))[0].topic
+    return sorted(
+        depth,
+        key=lambda c: (c.msgtype != IMAGE, -c.count, not is_registered_depth(c.topic), c.topic),
+    )[0].topic
+
+
+def depth_choice_note(
+    cands: Sequence[TopicCandidate], depth_topic: str, given: bool = False
+) -> str | None:
+    """Where a camera's namespace holds both depth registered to the color camera and the depth
+    camera's own images, which of them ``depth_topic`` is and why it was chosen; else ``None``."""
+    ns = topic_namespace(depth_topic)
+    mine = {c.topic: c for c in cands if c.role == "depth" and in_namespace(c.topic, ns)}
+    chosen = mine.get(depth_topic)
+    registered = is_registered_depth(depth_topic)
+    others = [
+        c for t, c in mine.items() if t != depth_topic and is_registered_depth(t) != registered
+    ]
+    if chosen is None or not others:
+        return None
+    other = others[0]
+    if given:
+        why = "as given"
+    elif (chosen.msgtype == IMAGE) != (other.msgtype == IMAGE):
+        why = "raw images before compressed ones"
+    elif chosen.count != other.count:
+        why = f"it has more messages ({chosen.count} against {other.count})"
+    else:
+        why = "registered depth needs no extrinsics for its color"
+    if registered:
+        return (
+            f"depth topic {depth_topic!r} is registered to the color camera, chosen over "
+            f"{other.topic!r}, the depth camera's own images ({why}); pass "
+            f"depth_topic={other.topic!r} to record those, with the color camera apart"
+        )
+    return (
+        f"depth topic {depth_topic!r} is the depth camera's own images, chosen over "
+        f"{other.topic!r}, registered to the color camera ({why}); the color camera is "
+        "recorded apart where its CameraInfo differs"
+    )
 
 
 def check_depth(cand: TopicCandidate) -> None:
@@ -192,7 +245,8 @@ def choose_color(
     cands: Sequence[TopicCandidate], depth_topic: str, width: int, height: int
 ) -> str | None:
     """The color topic of the depth's size that looks most like the depth's camera, colour
-    before mono8 and raw before compressed; ``None`` when no color topic has that size.
+    before mono8 and raw before compressed; else a color topic of another size with a
+    CameraInfo of its own (a color camera apart, :func:`choose_color_info`); else ``None``.
 
     Raises :class:`~pcdcodec.DecodeError` when there is none but a compressed color topic's first
     image is damaged or oversized: that is not a camera of another size, and recording depth
@@ -209,6 +263,15 @@ def choose_color(
     )
     if colors:
         return colors[0].topic
+    # A color camera apart, of its own size: a color topic with a CameraInfo of its own.
+    apart = [
+        c
+        for c in cands
+        if c.role == "color" and choose_color_info(cands, c.topic, depth_topic, None)
+    ]
+    apart.sort(key=lambda c: (affinity(c.topic, depth_topic), c.msgtype == IMAGE), reverse=True)
+    if apart:
+        return apart[0].topic
     damaged = [
         c
         for c in cands
@@ -222,8 +285,11 @@ def choose_color(
     return None
 
 
-def check_color(cand: TopicCandidate, depth_topic: str, width: int, height: int) -> None:
-    """Raise unless ``cand`` holds color of the depth's size (registered depth and color)."""
+def check_color(
+    cand: TopicCandidate, depth_topic: str, width: int, height: int, apart: bool = False
+) -> None:
+    """Raise unless ``cand`` holds color of the depth's size (registered depth and color), or
+    of any size where it has a CameraInfo of its own (``apart``: a color camera apart)."""
     if cand.role != "color":
         if cand.note and rm.compressed_kind(cand.encoding) == "color":
             raise DecodeError(cand.note)
@@ -231,11 +297,12 @@ def check_color(cand: TopicCandidate, depth_topic: str, width: int, height: int)
             f"color topic {cand.topic!r} has encoding {cand.encoding!r}; expected "
             f"one of {', '.join(rm.COLOR_ENCODINGS)} or a JPEG/PNG CompressedImage"
         )
-    if (cand.width, cand.height) != (width, height):
+    if (cand.width, cand.height) != (width, height) and not apart:
         raise InputError(
             f"color topic {cand.topic!r} is {cand.width}x{cand.height} but depth "
-            f"topic {depth_topic!r} is {width}x{height}; pcdcodec needs registered "
-            "depth and color of one size (pass color_topic='' for depth only)"
+            f"topic {depth_topic!r} is {width}x{height}, and it has no CameraInfo of its own; "
+            "pcdcodec needs registered depth and color of one size, or the color camera's "
+            "CameraInfo (pass color_topic='' for depth only)"
         )
 
 
@@ -247,6 +314,26 @@ def choose_info(cands: Sequence[TopicCandidate], anchor: str) -> str | None:
     if infos and (len(infos) == 1 or affinity(infos[0].topic, anchor) > (0, 0)):
         return infos[0].topic
     return None
+
+
+def choose_color_info(
+    cands: Sequence[TopicCandidate], color_topic: str, depth_topic: str, info_topic: str | None
+) -> str | None:
+    """The color camera's own CameraInfo topic: of the color images' size, other than the
+    depth's ``info_topic``, and closer in name to ``color_topic`` than to ``depth_topic``
+    (the closest such); ``None`` where the bag has none."""
+    color = next((c for c in cands if c.topic == color_topic), None)
+    size = (color.width, color.height) if color is not None else None
+    infos = [
+        c
+        for c in cands
+        if c.role == "info"
+        and c.topic != info_topic
+        and (size is None or (c.width, c.height) == size)
+        and affinity(c.topic, color_topic) > affinity(c.topic, depth_topic)
+    ]
+    infos.sort(key=lambda c: affinity(c.topic, color_topic), reverse=True)
+    return infos[0].topic if infos else None
 
 
 def topic_namespace(topic: str) -> str:

@@ -73,7 +73,10 @@ def seconds_to_ns(text: str) -> int:
 Pair = tuple[int, Path | None, Path]
 
 
-def _tum_pairs(root: Path, max_dt_ns: int) -> list[Pair]:
+def _tum_pairs(root: Path, max_difference: int, dropped: dict[str, int]) -> list[Pair]:
+    """The pairs of TUM lists: ``associations.txt`` as it is, else ``rgb.txt`` and
+    ``depth.txt`` paired by the rule of every reader (:mod:`pcdcodec.sync`), the images left
+    without a partner counted in ``dropped``."""
     assoc = root / "associations.txt"
     if assoc.exists():
         return [(t, root / r[1], root / r[3]) for t, r in _read_list(assoc, 4)]
@@ -83,7 +86,9 @@ def _tum_pairs(root: Path, max_dt_ns: int) -> list[Pair]:
     from ..sync import associate
 
     rgb = [(t, root / r[1]) for t, r in _read_list(root / "rgb.txt", 2)]
-    pairs = associate([t for t, _ in rgb], [t for t, _ in depth], max_difference=max_dt_ns)
+    pairs = associate([t for t, _ in rgb], [t for t, _ in depth], max_difference=max_difference)
+    dropped["color"] = len(pairs.unmatched_color)
+    dropped["depth"] = len(pairs.unmatched_depth)
     return [(rgb[i][0], rgb[i][1], depth[j][1]) for i, j in pairs]
 
 
@@ -296,11 +301,14 @@ def folder_pairs(
     root: Path,
     layout: str,
     fps: float,
-    max_dt: float,
+    max_difference: int,
     depth_pattern: str | None,
     color_pattern: str | None,
+    dropped: dict[str, int],
 ) -> tuple[list[Pair], str, bool]:
-    """The folder's pairs, how their times were made, and whether they are TUM lists."""
+    """The folder's pairs, how their times were made, and whether they are TUM lists; the
+    images of TUM lists left without a partner within ``max_difference`` ns are counted in
+    ``dropped`` (other layouts pair by name)."""
     if layout not in ("auto", "tum", "folders", "flat"):
         raise InputError(f"layout must be 'auto', 'tum', 'folders' or 'flat', got {layout!r}")
     if depth_pattern is not None:
@@ -309,7 +317,7 @@ def folder_pairs(
     if color_pattern is not None:
         raise InputError("color_pattern needs depth_pattern too")
     if layout == "tum" or (layout == "auto" and (root / "depth.txt").is_file()):
-        return _tum_pairs(root, round(max_dt * NS_PER_S)), "recorded (TUM lists)", True
+        return _tum_pairs(root, max_difference, dropped), "recorded (TUM lists)", True
     if layout in ("auto", "folders") and (root / "depth").is_dir():
         return (*_named_pairs(*_subfolder_files(root), fps), False)
     flat = _flat_files(root) if layout in ("auto", "flat") else None

@@ -29,6 +29,7 @@ import numpy.typing as npt
 
 from ..errors import DecodeError, InputError
 from ..geometry.camera import CameraIntrinsics, as_intrinsics
+from ..sync import MAX_DIFFERENCE, Synchronizer, as_max_difference
 from ._mkv import EBML_MAGIC, blocks_by_track, declared_tag, has_cluster, list_tracks, walk_blocks
 from ._mkv import track_name as _name
 from .base import InputStream, Source, read_magic, register_source
@@ -175,7 +176,9 @@ class AzureKinectSource(Source):
     ``metadata`` holds the serial number, the depth and color modes and the firmware versions.
 
     A capture is a frame only when its color and depth images are both there and whole (each
-    MJPEG packet is checked whole and of the color camera's size before it is decoded). Other
+    MJPEG packet is checked whole and of the color camera's size before it is decoded), paired
+    by the rule of every reader (:mod:`pcdcodec.sync`: each image once, within
+    ``max_difference`` ns, default 20 ms; the images of one capture share a timestamp). Other
     captures are dropped and reported: :attr:`dropped` counts their images by stream,
     :attr:`drop_reasons` the captures by reason, and :meth:`describe` gives both with the pts
     of the first few. With ``strict=True`` a damaged image raises
@@ -194,11 +197,13 @@ class AzureKinectSource(Source):
         max_frames: int | None = None,
         intrinsics: CameraIntrinsics | None = None,
         strict: bool = False,
+        max_difference: int = MAX_DIFFERENCE,
     ) -> None:
         import av
 
         self.path = Path(path)
         self.max_frames = max_frames
+        self.max_difference = as_max_difference(max_difference)
         self.strict = strict
         self._dropped = {"color": 0, "depth": 0}
         #: why captures were dropped while reading: reason -> count
@@ -464,6 +469,7 @@ class AzureKinectSource(Source):
         name = str(self.path)
         where = repr(name)
         self._dropped = {"color": 0, "depth": 0}
+        self._counted = {"color": 0, "depth": 0}  # the stamps the pairing dropped, counted
         self.drop_reasons = {}
         self._drop_pts = {}
         self._damaged = {}
@@ -480,8 +486,14 @@ class AzureKinectSource(Source):
             if self._color_index is not None:
                 streams.append(container.streams[self._color_index])
             h, w = self._depth_shape
-            depths: dict[int, npt.NDArray[np.uint16]] = {}
-            colors: dict[int, npt.NDArray[np.uint8]] = {}
+            # Color and depth pair by the rule of every reader (pcdcodec.sync): the images of
+            # one capture share a timestamp, so few wait; one whose partner has not come once
+            # the other stream has passed it by max_difference never will, and is counted.
+            sync: Synchronizer[Any, Any] = Synchronizer(
+                max_difference=self.max_difference, max_queue=8
+            )
+            last = {"color": -1, "depth": -1}
+            pts_of: dict[tuple[str, int], int] = {}
             emitted = 0
             seen = 0
             tb = depth_stream.time_base
@@ -504,7 +516,9 @@ class AzureKinectSource(Source):
                     continue
                 seen += 1
                 pts = int(packet.pts)
-                if packet.stream.index == self._depth_index:
+                kind = "depth" if packet.stream.index == self._depth_index else "color"
+                item: Any
+                if kind == "depth":
                     raw = bytes(packet)
                     if len(raw) != 2 * w * h:
                         self._fail(
@@ -516,27 +530,39 @@ class AzureKinectSource(Source):
                             1,
                         )
                         continue
-                    if pts in depths:
-                        self._drop("two depth images with one timestamp", pts, 0, 1)
-                    depths[pts] = np.frombuffer(raw, dtype=">u2").reshape(h, w).astype(np.uint16)
+                    item = np.frombuffer(raw, dtype=">u2").reshape(h, w).astype(np.uint16)
                 else:
-                    img = self._color(packet, pts, where)
-                    if isinstance(img, str):
-                        self._fail(img, "damaged color", pts, 1, 0)
+                    item = self._color(packet, pts, where)
+                    if isinstance(item, str):
+                        self._fail(item, "damaged color", pts, 1, 0)
                         continue
-                    if pts in colors:
-                        self._drop("two color images with one timestamp", pts, 1, 0)
-                    colors[pts] = img
-                for t in sorted(set(depths) & set(colors)) if has_color else sorted(depths):
-                    ns = self._start_ns + round(t * tb_ns)
-                    yield RGBDFrame(colors.pop(t) if has_color else None, depths.pop(t), ns)
+                ns = self._start_ns + round(pts * tb_ns)
+                if ns <= last[kind]:
+                    why = "with one timestamp" if ns == last[kind] else "out of time order"
+                    self._drop(f"two {kind} images {why}", pts, *_one(kind))
+                    continue
+                last[kind] = ns
+                pts_of[(kind, ns)] = pts
+                if not has_color:
+                    ready = [(ns, None, ns, item)]
+                elif kind == "depth":
+                    ready = sync.add_depth(ns, item)
+                else:
+                    ready = sync.add_color(ns, item)
+                self._unpaired(sync, pts_of)
+                for cts, color, dts, depth in ready:
+                    pts_of.pop(("color", cts), None)
+                    pts_of.pop(("depth", dts), None)
+                    yield RGBDFrame(color, depth, dts)
                     emitted += 1
                     if self.max_frames is not None and emitted >= self.max_frames:
                         return
-                # Images of one capture come together: one whose partner has not come after a
-                # few later captures never will. Keep the newest few waiting, count the rest.
-                self._evict(depths, colors, 4)
-            self._evict(depths, colors, 0)
+            for _, color, dts, depth in sync.flush():
+                yield RGBDFrame(color, depth, dts)
+                emitted += 1
+                if self.max_frames is not None and emitted >= self.max_frames:
+                    return
+            self._unpaired(sync, pts_of)
             self._check_structure(delivered)
             if seen == 0:
                 raise InputError(
@@ -561,17 +587,18 @@ class AzureKinectSource(Source):
         if self.strict:
             raise DecodeError(f"{str(self.path)!r}: {self.damage}")
 
-    def _evict(self, depths: dict[int, Any], colors: dict[int, Any], keep: int) -> None:
-        for pending, kind in ((depths, "depth"), (colors, "color")):
-            for old in sorted(pending)[: max(0, len(pending) - keep)]:
-                del pending[old]
-                color, depth = int(kind == "color"), int(kind == "depth")
-                if old in self._damaged:  # the partner of a damaged image: counted there
-                    self._dropped["color"] += color
-                    self._dropped["depth"] += depth
+    def _unpaired(self, sync: Synchronizer[Any, Any], pts_of: dict[tuple[str, int], int]) -> None:
+        """Count the images ``sync`` dropped since last asked, each under its reason (the
+        partner of a damaged image is counted there, without a reason of its own)."""
+        for kind, stamps in (("depth", sync.dropped_depth), ("color", sync.dropped_color)):
+            for ns in stamps[self._counted[kind] :]:
+                pts = pts_of.pop((kind, ns))
+                if pts in self._damaged:
+                    self._dropped[kind] += 1
                     continue
                 other = "color" if kind == "depth" else "depth"
-                self._drop(f"a {kind} image without its {other} image", old, color, depth)
+                self._drop(f"a {kind} image without its {other} image", pts, *_one(kind))
+            self._counted[kind] = len(stamps)
 
     def _fail(self, why: str, reason: str, pts: int, color: int, depth: int) -> None:
         """A damaged image: an error naming the file in strict mode, else a dropped capture."""
@@ -580,6 +607,11 @@ class AzureKinectSource(Source):
         self._damaged[pts] = why
         self._drop_detail.setdefault(reason, why.replace(f"{str(self.path)!r}: ", ""))
         self._drop(reason, pts, color, depth)
+
+
+def _one(kind: str) -> tuple[int, int]:
+    """(color, depth) counts of one image of ``kind``."""
+    return int(kind == "color"), int(kind == "depth")
 
 
 def open_azure_kinect(path: str | Path, **options: Any) -> AzureKinectSource:

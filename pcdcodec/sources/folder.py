@@ -190,6 +190,8 @@ class FolderSource(Source):
     #: The folder's own entries a recording of it holds: the image folders (or files), the
     #: time lists, the camera and pose files it read.
     read_entries: frozenset[str] = frozenset()
+    #: Images of TUM lists left without a partner when pairing them by time, by stream.
+    dropped: dict[str, int] = field(default_factory=lambda: {"color": 0, "depth": 0})
 
     @property
     def path(self) -> Path:  # type: ignore[override]
@@ -232,6 +234,7 @@ class FolderSource(Source):
             size += ", no color"
         out["size"] = size
         out["timestamps"] = self.metadata.get("timestamps")
+        out["dropped"] = dict(self.dropped)
         return out
 
     def __iter__(self) -> Iterator[Frame]:
@@ -304,19 +307,26 @@ def open_folder(
     depth_pattern: str | None = None,
     color_pattern: str | None = None,
     color: bool = True,
+    max_difference: int | None = None,
 ) -> FolderSource:
     """Find the color/depth pairs of an RGB-D folder without reading the images.
 
     Arguments as :func:`~pcdcodec.datasets.load_folder`; iterate the result to read the frames
-    one at a time.
+    one at a time. ``max_difference`` (int ns, the name every reader takes) replaces
+    ``max_dt`` (seconds) where given. The TUM list images left without a partner are the
+    source's :attr:`~FolderSource.dropped`.
     """
     root = Path(path)
     if not root.is_dir():
         raise InputError(f"RGB-D folder {str(root)!r} does not exist or is not a folder")
     if max_frames is not None and max_frames < 1:
         raise InputError(f"max_frames must be at least 1, got {max_frames}")
+    from ..sync import as_max_difference
+
+    tolerance = round(max_dt * 1_000_000_000) if max_difference is None else max_difference
+    dropped = {"color": 0, "depth": 0}
     pairs, note, is_tum_pairs = folder_pairs(
-        root, layout, fps, max_dt, depth_pattern, color_pattern
+        root, layout, fps, as_max_difference(tolerance), depth_pattern, color_pattern, dropped
     )
     if max_frames is not None:
         pairs = pairs[:max_frames]
@@ -405,6 +415,7 @@ def open_folder(
         has_color=has_color,
     )
     source.metadata["timestamps"] = note
+    source.dropped = dropped
     if camera_from not in ("", "given", "camera.json"):
         source.metadata["intrinsics_file"] = camera_from
     source.read_entries = _read_entries(root, pairs, is_tum_pairs, poses is not None, camera_from)

@@ -15,14 +15,14 @@ A librealsense recording is a ROS 1 bag with its own topic layout, read here wit
 Each stream's ``tf/0`` maps points of the device's reference stream into that stream's frame,
 so ``depth_to_color = tf(color) · tf(depth)⁻¹`` (the depth stream is usually the reference and
 its transform the identity). Depth stays the depth camera's, bit-exact; color keeps the color
-camera's size. Each depth frame is paired with the color frame nearest to it in time.
+camera's size. Depth and color are paired by the rule of every reader (:mod:`pcdcodec.sync`).
 """
 
 from __future__ import annotations
 
+import itertools
 import json
 import re
-from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -34,7 +34,8 @@ import numpy.typing as npt
 from ..errors import DecodeError, InputError, PcdcodecError
 from ..geometry.camera import CameraIntrinsics, as_intrinsics
 from ..ros.bagfile import ROS1_MAGIC
-from ..ros.bagindex import check_ros1_index
+from ..ros.bagindex import PairStats, check_ros1_index, pair_in_order
+from ..sync import MAX_DIFFERENCE, as_max_difference
 from .base import FrameIndex, InputStream, Source, read_magic, register_source, streams_by_name
 
 __all__ = ["RealSenseBagSource", "open_realsense"]
@@ -161,11 +162,12 @@ class RealSenseBagSource(Source):
     """Frames of a librealsense ``.bag``: depth with its own camera, color with its own.
 
     ``depth_scale`` (depth units per metre) overrides the recorded Depth Units option; without
-    either, opening raises :class:`~pcdcodec.InputError`. ``max_dt`` (seconds) drops depth
-    frames whose nearest color frame is farther away in time (default: keep every depth frame).
-    ``max_frames`` stops early; ``intrinsics`` replaces the recorded depth camera. ``metadata``
-    holds the device name, serial number and firmware, and the topics read. :attr:`dropped`
-    counts the depth frames left out for want of a color frame.
+    either, opening raises :class:`~pcdcodec.InputError`. Depth and color are paired by the
+    rule of every reader (:mod:`pcdcodec.sync`): each image used once, within
+    ``max_difference`` ns (default :data:`~pcdcodec.sync.MAX_DIFFERENCE`, 20 ms; ``max_dt``
+    in seconds is its former name). ``max_frames`` stops early; ``intrinsics`` replaces the
+    recorded depth camera. ``metadata`` holds the device name, serial number and firmware,
+    and the topics read. :attr:`dropped` counts the images left out for want of a partner.
 
     Color is read from rgb8, bgr8, rgba8, bgra8 and mjpeg Images (a JPEG is checked whole and of
     the color camera's size before it is decoded). Every Image is checked against its camera
@@ -182,6 +184,7 @@ class RealSenseBagSource(Source):
         path: str | Path,
         *,
         depth_scale: float | None = None,
+        max_difference: int = MAX_DIFFERENCE,
         max_dt: float | None = None,
         max_frames: int | None = None,
         intrinsics: CameraIntrinsics | None = None,
@@ -191,10 +194,12 @@ class RealSenseBagSource(Source):
 
         self.path = Path(path)
         self._typestore = get_typestore(Stores.ROS1_NOETIC)
-        self.max_dt = None if max_dt is None else round(max_dt * _NS)
+        if max_dt is not None:  # the former name, in seconds
+            max_difference = round(max_dt * _NS)
+        self.max_difference = as_max_difference(max_difference)
         self.max_frames = max_frames
         self._index: FrameIndex | None = None
-        self._dropped = {"color": 0, "depth": 0}
+        self._stats = PairStats()
         name = str(self.path)
         try:
             reader = Reader(self.path)
@@ -367,8 +372,8 @@ class RealSenseBagSource(Source):
     # -- frames ------------------------------------------------------------------------
 
     def __len__(self) -> int:
-        if self.max_dt is not None:
-            raise TypeError("frames farther than max_dt from any color frame are dropped")
+        if self.color_topic is not None:
+            raise TypeError("depth frames without a color frame within max_difference are dropped")
         n = self._count
         return n if self.max_frames is None else min(n, self.max_frames)
 
@@ -384,15 +389,15 @@ class RealSenseBagSource(Source):
                     is_depth = conn.topic == self.depth_topic
                     yield is_depth, *self._decode(conn, raw, is_depth)
 
-            self._dropped = {"color": 0, "depth": 0}
-            for t, depth, rgb in self._pairs(images(), self._dropped):
+            self._stats = PairStats()
+            for t, depth, rgb in self._pairs(images(), self._stats):
                 yield RGBDFrame(rgb, depth, t)
 
     @property
     def dropped(self) -> dict[str, int]:
-        """Depth images read but left out so far, for want of a color image (within ``max_dt``
-        when given), by stream, as the bag readers count them."""
-        return dict(self._dropped)
+        """Images read but left out so far for want of a partner within ``max_difference``, by
+        stream, as every reader counts them."""
+        return {"color": self._stats.dropped_color, "depth": self._stats.dropped_depth}
 
     def describe(self) -> dict[str, Any]:
         out = super().describe()
@@ -439,58 +444,20 @@ class RealSenseBagSource(Source):
         return stamp, _image(msg, f"{where} at {stamp} ns", is_depth, self._shapes[is_depth])
 
     def _pairs(
-        self, images: Iterator[tuple[bool, int, Any]], dropped: dict[str, int] | None = None
+        self, images: Iterator[tuple[bool, int, Any]], stats: PairStats | None = None
     ) -> Iterator[tuple[int, Any, Any]]:
-        """``(timestamp, depth, color)`` from ``(is_depth, stamp, item)`` in bag order: each depth
-        frame with the nearer of the color frames read before and after it (the items are
-        images when reading, message positions when indexing)."""
-        pending: deque[tuple[int, Any]] = deque()
-        before: tuple[int, Any] | None = None
-        emitted = 0
-        has_color = self.color_topic is not None
-
-        def pick(t: int, after: tuple[int, Any] | None) -> Any:
-            options = [c for c in (before, after) if c is not None]
-            if not options:
-                return None
-            best = min(options, key=lambda c: abs(c[0] - t))
-            if self.max_dt is not None and abs(best[0] - t) > self.max_dt:
-                return None
-            return best[1]
-
-        after: tuple[int, Any] | None
-        for is_depth, stamp, item in images:
-            if is_depth:
-                pending.append((stamp, item))
-                if has_color:
-                    continue
-                after = None
-            else:
-                after = (stamp, item)
-            while pending and (after is None or pending[0][0] <= after[0]):
-                t, depth = pending.popleft()
-                rgb = pick(t, after) if has_color else None
-                if rgb is None and has_color:
-                    if dropped is not None:
-                        dropped["depth"] += 1
-                    continue
-                yield t, depth, rgb
-                emitted += 1
-                if self.max_frames is not None and emitted >= self.max_frames:
-                    return
-            if after is not None:
-                before = after
-        while pending:
-            t, depth = pending.popleft()
-            rgb = pick(t, None)
-            if rgb is None and has_color:
-                if dropped is not None:
-                    dropped["depth"] += 1
-                continue
-            yield t, depth, rgb
-            emitted += 1
-            if self.max_frames is not None and emitted >= self.max_frames:
-                return
+        """``(timestamp, depth, color)`` from ``(is_depth, stamp, item)`` in bag order (the items
+        are images when reading, message positions when indexing): depth and color paired by
+        the rule of every reader (:func:`~pcdcodec.ros.bagindex.pair_in_order`: each image
+        used once, within ``max_difference``), the images left without a partner counted in
+        ``stats``. Without color, every depth frame."""
+        if self.color_topic is None:
+            pairs: Iterator[tuple[int, Any, Any]] = (
+                (stamp, item, None) for is_depth, stamp, item in images if is_depth
+            )
+        else:
+            pairs = pair_in_order(images, self.max_difference, stats)
+        return itertools.islice(pairs, self.max_frames)
 
     # -- segments: a frame index, and reading a stretch of frames on its own -------------
 

@@ -54,7 +54,8 @@ from ..ros.topics import (
     VIDEO_TYPES,
     TopicCandidate,
 )
-from ..sync import Synchronizer
+from ..sync import MAX_DIFFERENCE, Synchronizer, as_max_difference
+from ._bag_color import color_camera
 from .base import FrameIndex, InputStream, Source, read_magic, register_source, streams_by_name
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
@@ -107,8 +108,12 @@ class RosbagSource(Source):
       topic choice (``color_topic=""`` records depth only);
     * ``intrinsics``, ``depth_scale``: override what the bag says (depth scale defaults to
       1000 per metre for 16UC1/mono16 and 1 for 32FC1 and clouds, whose depth is metres);
-    * ``max_difference``: the largest color/depth stamp difference paired, ns (20 ms);
-    * ``max_frames``: stop after this many frames.
+    * ``max_difference``: the largest color/depth stamp difference paired, ns (20 ms,
+      :data:`pcdcodec.sync.MAX_DIFFERENCE`, the default of every reader);
+    * ``max_frames``: stop after this many frames;
+    * ``depth_to_color``: the 4 × 4 depth-to-color transform (metres, or a text file of its 16
+      numbers) where the color topic's own CameraInfo shows a camera apart from the depth and
+      the bag's tf does not place one in the other (see :meth:`_setup_color_camera`).
 
     After iterating, :attr:`dropped` counts the images that found no partner and
     :attr:`out_of_order` those whose stamp did not increase. Raises
@@ -127,9 +132,10 @@ class RosbagSource(Source):
         cloud_topic: str | None = None,
         intrinsics: Any = None,
         depth_scale: float | None = None,
-        max_difference: int = 20_000_000,
+        max_difference: int = MAX_DIFFERENCE,
         max_frames: int | None = None,
         cloud_depth: str = "auto",
+        depth_to_color: Any = None,
     ) -> None:
         self.path = Path(path)
         if cloud_depth not in ("auto", "float32"):
@@ -139,7 +145,7 @@ class RosbagSource(Source):
         if max_frames is not None and max_frames < 1:
             raise InputError(f"max_frames must be at least 1, got {max_frames}")
         self.max_frames = max_frames
-        self.max_difference = int(max_difference)
+        self.max_difference = as_max_difference(max_difference)
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
         self._layouts = clouds.LayoutCache()
         self._shape: tuple[int, int] | None = None
@@ -149,6 +155,8 @@ class RosbagSource(Source):
         self._reader, self._tmp = bagfile.open_reader(self.path)
         try:
             self._setup(depth_topic, color_topic, info_topic, cloud_topic, intrinsics, depth_scale)
+            if self.mode == "images":
+                self._setup_color_camera(depth_topic is not None, depth_to_color)
         except BaseException:
             self.close()
             raise
@@ -201,6 +209,7 @@ class RosbagSource(Source):
         self.color_topic: str | None = None
         self.depth_topic: str | None = None
         self.cloud_topic: str | None = None
+        self._info_camera: Any = None  # the depth camera the bag's CameraInfo gives
 
         conns = self._reader.connections
         self._streams = streams_by_name((c.topic, c.msgtype, c.msgcount) for c in conns)
@@ -284,13 +293,15 @@ class RosbagSource(Source):
             color_topic = topics.choose_color(cands, self.depth_topic, width, height)
             if color_topic is None:
                 self.notes.append(
-                    f"no color topic of the depth's size {width}x{height}: depth only"
+                    f"no color topic of the depth's size {width}x{height}, nor one with a "
+                    "CameraInfo of its own: depth only"
                 )
         self._color_conn = None
         if color_topic:
             cconn = self._conn(color_topic, "color")
             cand = {c.topic: c for c in cands}[color_topic]
-            topics.check_color(cand, self.depth_topic, width, height)
+            apart = topics.choose_color_info(cands, color_topic, self.depth_topic, None)
+            topics.check_color(cand, self.depth_topic, width, height, apart is not None)
             self._color_conn = cconn
             self.color_topic = color_topic
         self.has_color = self._color_conn is not None
@@ -340,12 +351,40 @@ class RosbagSource(Source):
                 f"but {anchor!r} is {width}x{height}"
             )
         self.intrinsics, self.distortion_model, self.distortion = rm.camera_info(msg, info_topic)
+        self._info_camera = self.intrinsics
         self.info_topic = info_topic
         if any(self.distortion):
             self.notes.append(
                 f"camera info has {self.distortion_model} distortion {self.distortion}: kept "
                 "in the recording's metadata, not applied to the points"
             )
+
+    def _setup_color_camera(self, depth_given: bool, given: Any) -> None:
+        """The color camera: registered to depth, or apart with its ``depth_to_color``
+        (:func:`~pcdcodec.sources._bag_color.color_camera`); a camera apart whose transform is
+        unknown leaves a problem that reading the frames raises (``info`` still describes
+        the bag)."""
+        cands = self.candidates()
+        assert self.depth_topic is not None
+        note = topics.depth_choice_note(cands, self.depth_topic, given=depth_given)
+        if note:
+            self.notes.append(note)
+        self._color_problem: str | None = None
+        if self._color_conn is None:
+            return
+        found = color_camera(
+            cands, (self._depth_conn, self._color_conn), self.info_topic,
+            self._info_camera or self.intrinsics, given,
+            lambda topic: self._first(self._conn(topic, "camera info")),
+            partial(tf.frame_to_frame, self._messages, self._reader.connections),
+        )  # fmt: skip
+        if found is not None:
+            self.color_intrinsics, self.depth_to_color, note, self._color_problem = found
+            self.notes.append(note)
+
+    def _check_color_camera(self) -> None:
+        if getattr(self, "_color_problem", None):
+            raise InputError(f"bag {str(self.path)!r}: {self._color_problem}")
 
     def _metadata(self) -> dict[str, str]:
         """The recording metadata: the bag, the topics read, and how the camera was found."""
@@ -431,11 +470,14 @@ class RosbagSource(Source):
     def _decode(self, msg: Any, conn: Any, role: str, ts: int) -> Any:
         """An image message as depth or color, checked against the camera's size before it is
         decoded; errors name the topic and the message's time."""
+        shape = self._shape
+        if role == "color" and self.color_intrinsics is not None:
+            shape = self.color_intrinsics.shape  # a color camera apart: its own size
         try:
             if conn.msgtype == IMAGE:
-                out = rm.decode_image(msg, role, conn.topic, self._shape)
+                out = rm.decode_image(msg, role, conn.topic, shape)
             else:
-                out = rm.decode_compressed(msg, role, conn.topic, self._shape)
+                out = rm.decode_compressed(msg, role, conn.topic, shape)
         except PcdcodecError as exc:
             _add_time(exc, f"message at {ts} ns")
             raise
@@ -448,6 +490,7 @@ class RosbagSource(Source):
         return out
 
     def __iter__(self) -> Iterator[Any]:
+        self._check_color_camera()
         self.stats = _Stats()
         if self.mode == "cloud":
             frames: Iterator[Any] = self._cloud_frames()
@@ -523,7 +566,7 @@ class RosbagSource(Source):
         assert cconn is not None
         color = self._decode(cmsg, cconn, "color", dts)
         depth = self._decode(dmsg, dconn, "depth", dts)
-        if color.shape[:2] != depth.shape:
+        if self.color_intrinsics is None and color.shape[:2] != depth.shape:
             raise InputError(
                 f"color topic {cconn.topic!r} is {color.shape[1]}x{color.shape[0]} but "
                 f"depth topic {dconn.topic!r} is {depth.shape[1]}x{depth.shape[0]} "
@@ -604,6 +647,7 @@ class RosbagSource(Source):
         depth are paired here by the same rule and state as when iterating, so the index lists
         exactly the frames :meth:`__iter__` gives. Built once and kept.
         """
+        self._check_color_camera()
         if self._index is None:
             self._index = self._build_index()
         return self._index
@@ -648,6 +692,7 @@ class RosbagSource(Source):
         whatever k is. Raises :class:`~pcdcodec.DecodeError` when a listed message is not in
         the bag (the index was made from another bag, or the bag changed).
         """
+        self._check_color_camera()
         rows = bagindex.check_rows(index.rows)
         self.stats = _Stats()
         return self._emit(self._indexed(rows, index.first), None)
