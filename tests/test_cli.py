@@ -460,3 +460,22 @@ def test_options_go_anywhere_among_a_commands_arguments() -> None:
         args = parse_args([name, *words])
         assert args.command == name
         assert {k: getattr(args, k) for k in want} == want, name
+
+
+def test_encode_and_export_quiet_print_nothing_but_errors(encoded: Path, tmp_path: Path) -> None:
+    made = run(
+        "encode", str(sample_dir()), "-o", str(tmp_path / "q.pcdc"), "--max-frames", "3", "-q"
+    )
+    assert made.returncode == 0, made.stderr
+    assert (made.stdout, made.stderr) == ("", "")
+    assert (tmp_path / "q.pcdc").is_file()
+    for extra in (["--to", "rosbag1"], ["--layout", "paper"]):
+        target = tmp_path / f"out-{extra[1]}"
+        target = target.with_suffix(".bag") if extra[1] == "rosbag1" else target
+        exported = run("export", str(encoded), str(target), *extra, "-q")
+        assert exported.returncode == 0, exported.stderr
+        assert (exported.stdout, exported.stderr) == ("", "")
+        assert target.exists()
+    refused = run("encode", str(sample_dir()), "-o", str(tmp_path / "q.pcdc"), "-q")
+    assert refused.returncode == 1
+    assert "error:" in refused.stderr  # errors still say what went wrong
