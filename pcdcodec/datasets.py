@@ -219,8 +219,9 @@ def write_folder(
     ``camera.json`` (intrinsics and depth scale) when ``intrinsics`` is given, with the color
     camera of color not registered to depth (``color_intrinsics``, and ``depth_to_color``,
     the 4 × 4 transform in metres) as ``color`` and ``depth_to_color``. ``clouds`` names
-    point-cloud formats to write per frame into ``clouds/`` (``"ply"``, ``"pcd"``; the frames
-    need a projector, as frames of a recording have). The folder is written beside its target
+    point-cloud formats to write per frame into ``clouds/`` (``"ply"``, ``"pcd"``: binary, with
+    the cloud's float32 points and 8-bit colors; the frames need a projector, as frames of a
+    recording have). The folder is written beside its target
     and moved into place when complete; an existing non-empty folder needs ``overwrite``.
     ``progress`` is called with the number of frames written. Returns that number.
     """
@@ -267,11 +268,7 @@ def write_folder(
             (tmp / depth_file).write_bytes(data)
             depth_list.append(f"{stamp} {depth_file}")
             if clouds:
-                import open3d as o3d
-
-                cloud = frame.to_point_cloud()
-                for ext in clouds:
-                    o3d.io.write_point_cloud(tmp / "clouds" / f"{name}.{ext}", cloud)
+                _write_clouds(frame, tmp / "clouds" / name, clouds)
             count = i + 1
             if progress is not None:
                 progress(count)
@@ -290,6 +287,20 @@ def write_folder(
                     ).tolist()
             (tmp / "camera.json").write_text(json.dumps(camera, indent=2) + "\n")
     return count
+
+
+def _write_clouds(frame: Any, stem: Path, formats: tuple[str, ...]) -> None:
+    """The frame's point cloud as ``stem.ply`` (float32 points, :func:`write_ply`) and/or
+    ``stem.pcd`` (Open3D's writer, which stores float32 points too)."""
+    from .geometry.ply import write_ply
+
+    points, colors = frame.to_points()
+    if "ply" in formats:
+        write_ply(stem.with_suffix(".ply"), points, colors)
+    if "pcd" in formats:
+        import open3d as o3d
+
+        o3d.io.write_point_cloud(stem.with_suffix(".pcd"), frame.to_point_cloud())
 
 
 def write_rig_folder(
