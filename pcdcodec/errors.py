@@ -14,6 +14,7 @@ __all__ = [
     "DiskFullError",
     "InputError",
     "InputTypeError",
+    "OutputError",
     "PcdcodecError",
     "UnknownCodecError",
     "VerificationError",
@@ -54,6 +55,11 @@ class ArchiveLockedError(PcdcodecError, RuntimeError):
 
 class DiskFullError(PcdcodecError, OSError):
     """The disk being written to is full; nothing half-written is left under a final name."""
+
+
+class OutputError(PcdcodecError, OSError):
+    """An output could not be written (a folder not writable, say); the message names the
+    output and what to do."""
 
 
 class VerificationError(PcdcodecError, ValueError):

@@ -265,7 +265,7 @@ def _copy_part(
                 elif topic == fmt.TOPIC_FRAME_DIGEST:
                     payload = _rejoin(m.data, lane.check, lane.sealer, path, offset)
                 writer.add_message(topic_ids[real], m.log_time, payload, m.publish_time, sequence)
-                lane.sealer.note(topic, m.log_time)
+                lane.sealer.note(topic, m.log_time, m.data)
     frames = 0
     for camera, view in views.items():
         lane = lanes[camera]

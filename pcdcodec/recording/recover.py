@@ -106,7 +106,7 @@ def _copy(f: IO[bytes], tmp: Path, src_path: Path) -> None:
                     writer.add_message(
                         channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
                     )
-                    sealer.note(topic, m.log_time)
+                    sealer.note(topic, m.log_time, m.data)
                     if topic == fmt.TOPIC_COLOR:
                         sealer.packet(m.log_time, m.publish_time, m.log_time in keyframes, m.data)
                     elif topic == fmt.TOPIC_FRAME_DIGEST:
@@ -189,7 +189,7 @@ def _copy_rig(
                     channel(m.channel_id), m.log_time, m.data, m.publish_time, m.sequence
                 )
                 sealer = sealers[name]
-                sealer.note(topic, m.log_time)
+                sealer.note(topic, m.log_time, m.data)
                 if topic == fmt.TOPIC_COLOR:
                     sealer.packet(m.log_time, m.publish_time, m.log_time in keyframes[name], m.data)
                 elif topic == fmt.TOPIC_FRAME_DIGEST:
@@ -202,7 +202,7 @@ def _copy_rig(
 
 
 #: A frame's own messages, left out when its color packet was never written.
-_FRAME_TOPICS = (fmt.TOPIC_DEPTH, fmt.TOPIC_POSE, fmt.TOPIC_POSE_MATRIX)
+_FRAME_TOPICS = (fmt.TOPIC_DEPTH, fmt.TOPIC_POSE, fmt.TOPIC_POSE_MATRIX, fmt.TOPIC_STAMPS)
 
 
 def _in_flight(index: fmt.FileIndex, kept: set[int]) -> set[int]:

@@ -158,6 +158,9 @@ class FolderSource(Source):
     depth_to_color: Any = None
     has_color: bool = True
     camera_notes: tuple[str, ...] = ()
+    #: Each pair's depth image's own time (ns) where the folder stamps depth apart from color
+    #: (TUM lists), else None: the pair's time is both images'.
+    depth_times: list[int] | None = None
 
     @property
     def path(self) -> Path:  # type: ignore[override]
@@ -200,6 +203,7 @@ class FolderSource(Source):
             )
         for i, (t, c, d) in enumerate(self.pairs[start:stop], start):
             pose = None if self.poses is None else self.poses[i]
+            depth_t = None if self.depth_times is None else self.depth_times[i]
             color = _read_color(c) if c is not None else None
             depth = _read_depth(d)
             if c is not None and color is not None:
@@ -219,7 +223,9 @@ class FolderSource(Source):
                     f"{shape[1]}x{shape[0]}"
                 )
             shape = depth.shape
-            yield Frame(color, depth, t, index=i, pose=pose, projector=projector)
+            yield Frame(
+                color, depth, t, index=i, pose=pose, projector=projector, depth_timestamp_ns=depth_t
+            )
 
 
 def _size_problem(
@@ -263,11 +269,10 @@ def open_folder(
         raise InputError(f"RGB-D folder {str(root)!r} does not exist or is not a folder")
     if max_frames is not None and max_frames < 1:
         raise InputError(f"max_frames must be at least 1, got {max_frames}")
-    pairs, note, is_tum_pairs = folder_pairs(
-        root, layout, fps, max_dt, depth_pattern, color_pattern
-    )
+    pairs, note, depth_times = folder_pairs(root, layout, fps, max_dt, depth_pattern, color_pattern)
     if max_frames is not None:
         pairs = pairs[:max_frames]
+        depth_times = None if depth_times is None else depth_times[:max_frames]
     if not pairs:
         raise InputError(
             f"RGB-D folder {str(root)!r} holds no color/depth pairs; looked for {LOOKED_FOR}"
@@ -331,9 +336,9 @@ def open_folder(
     else:
         color_camera, d2c = None, None
 
-    from .poses import folder_poses
+    from .poses import POSE_LAYOUT_KEY, folder_poses
 
-    poses = folder_poses(root, pairs, tum=is_tum_pairs)
+    poses, pose_layout = folder_poses(root, pairs, depth_times=depth_times)
     source = FolderSource(
         root,
         pairs,
@@ -345,8 +350,11 @@ def open_folder(
         color_intrinsics=color_camera,
         depth_to_color=d2c,
         has_color=has_color,
+        depth_times=depth_times,
     )
     source.metadata["timestamps"] = note
+    if pose_layout is not None:
+        source.metadata[POSE_LAYOUT_KEY] = pose_layout
     if camera_from not in ("", "given", "camera.json"):
         source.metadata["intrinsics_file"] = camera_from
     return source
