@@ -58,6 +58,9 @@ TOPIC_POSE = "/camera/pose"  # camera-to-world pose per frame (FrameTransform)
 TOPIC_POSE_MATRIX = "/camera/pose/matrix"  # the same pose, bit for bit: 16 float64 values
 ENCODING_POSE_MATRIX = "pcdcodec.pose"  # 4 x 4 float64, row-major, little-endian, no schema
 
+#: The latest time a recording holds (ns): ROS time, in the calibration and video messages,
+#: has int32 seconds.
+MAX_TIMESTAMP_NS = 2**31 * 1_000_000_000 - 1
 #: Each image's own time, for frames whose color or depth was stamped apart from the frame's
 #: time (TUM lists): :data:`STAMPS_RECORD`. Not one of the :data:`SEALED_TOPICS` (earlier
 #: readers check those); the seal covers these messages with keys of their own.

@@ -21,9 +21,6 @@ from ..errors import DecodeError
 from ..ros.foxglove import CompressedVideo
 from . import _index as fmt
 
-#: Times a recording holds are below 2**31 s (int32 seconds of ROS time).
-_TIME_LIMIT_NS = 2**31 * 1_000_000_000
-
 
 class PacketAccess:
     """Color packets and frame digests of a :class:`~pcdcodec.Recording`."""
@@ -237,7 +234,7 @@ class PacketAccess:
                     f"{where}: no message of {fmt.STAMPS_RECORD.size} bytes at {t} ns there"
                 )
             stamps: tuple[int, int] = fmt.STAMPS_RECORD.unpack(data)
-            if not all(0 <= v < _TIME_LIMIT_NS for v in stamps):
+            if not all(0 <= v <= fmt.MAX_TIMESTAMP_NS for v in stamps):
                 raise DecodeError(f"{where}: times {stamps} ns are not times a recording holds")
             sealer.note(fmt.TOPIC_STAMPS, int(t), data)
             out[int(t)] = stamps

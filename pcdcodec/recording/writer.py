@@ -27,6 +27,7 @@ from ..geometry.projector import check_color_camera
 from ..geometry.transform import as_rigid
 from ..registry import as_codec
 from . import _header as header
+from . import _index as fmt
 from ._container import Container, SharedFile
 from ._inputs import FrameInputs
 from ._pipeline import Pipeline
@@ -36,7 +37,7 @@ __all__ = ["MAX_TIMESTAMP_NS", "RecordingWriter"]
 _NS = 1_000_000_000
 #: The latest timestamp a recording holds: the ROS messages it stores (camera calibration,
 #: CompressedVideo) keep time as int32 seconds, so 2038-01-19 03:14:07.999999999 UTC.
-MAX_TIMESTAMP_NS = (2**31) * _NS - 1
+MAX_TIMESTAMP_NS = fmt.MAX_TIMESTAMP_NS
 
 
 def open_output(path: Path, overwrite: bool) -> tuple[Path, IO[bytes]]:
@@ -394,8 +395,8 @@ class RecordingWriter(FrameInputs):
         rigid = None if pose is None else as_rigid(pose, "pose")
         if self._mode == "encoded":
             raise InputError("this recording takes encoded color (write_encoded), not images")
-        own = [_own_stamp(t, name) for t, name in zip(stamps, _STAMP_NAMES, strict=True)]
         timestamp = self._next_timestamp(timestamp)
+        own = [_own_stamp(t, name) for t, name in zip(stamps, _STAMP_NAMES, strict=True)]
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
         self._check_float_scale(d)
         rgb: npt.NDArray[np.uint8] | None = None
