@@ -6,10 +6,14 @@ same target), and renamed onto the target once complete. A rename within one fol
 atomic, so a reader sees the old output or the new one, never half of one, and a failed or
 killed writer leaves its target as it was. A leftover of a killed process is recognised by
 :func:`is_partial`.
+
+An error met writing the output (a read-only folder, a full disk) is raised naming the target,
+the user's own path, and what to do, not the hidden partial name (:func:`output_error`).
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import uuid
@@ -17,7 +21,17 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
-__all__ = ["MARK", "atomic_output", "is_partial", "partial_path", "remove"]
+from .errors import DiskFullError, OutputError
+
+__all__ = [
+    "MARK",
+    "atomic_output",
+    "is_partial",
+    "named_output_errors",
+    "output_error",
+    "partial_path",
+    "remove",
+]
 
 MARK = ".partial-"
 """What every partial name holds after the target's name."""
@@ -69,7 +83,66 @@ def atomic_output(
     tmp = partial_path(final, unique=unique)
     remove(tmp)
     try:
-        yield tmp
-        (place or os.replace)(tmp, final)
+        with named_output_errors(final):
+            yield tmp
+            (place or os.replace)(tmp, final)
     finally:
         remove(tmp)
+
+
+_NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
+_NOT_WRITABLE = (errno.EACCES, errno.EPERM, errno.EROFS)
+
+
+def _is_output(name: object, target: Path) -> bool:
+    """Whether the file ``name`` (an ``OSError``'s filename) is ``target``, in it, or a partial
+    file or folder beside it (or in one)."""
+    if not isinstance(name, (str, os.PathLike)):
+        return False
+    path = Path(os.fsdecode(name))
+    return any(p == target or is_partial(p.name) for p in (path, *path.parents))
+
+
+def output_error(target: str | os.PathLike[str], exc: BaseException) -> BaseException:
+    """The error to raise for ``exc``, met writing the output ``target``: one that names
+    ``target`` and says what to do when ``exc`` (or an error behind it) is a full disk
+    (:class:`~pcdcodec.DiskFullError`) or a failure to write ``target`` or its partial file
+    (:class:`~pcdcodec.OutputError`); else ``exc`` itself (an error of the input, say)."""
+    final = Path(target)
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if isinstance(e, (DiskFullError, OutputError)):
+            return e
+        if isinstance(e, OSError) and e.errno in _NO_SPACE:
+            return DiskFullError(
+                f"no space left to write {str(final)!r} ({e.strerror}): free space on its disk, "
+                "or write it elsewhere; nothing half-written was left under that name"
+            )
+        if isinstance(e, OSError) and (
+            _is_output(e.filename, final) or _is_output(e.filename2, final)
+        ):
+            if e.errno in _NOT_WRITABLE:
+                what = "a read-only file system" if e.errno == errno.EROFS else "not writable"
+                hint = (
+                    f"its folder {str(final.parent)!r} is {what} for this user: write it to a "
+                    "folder you can write to, or change the folder's permissions"
+                )
+            else:
+                hint = "nothing half-written was left under that name"
+            return OutputError(f"cannot write {str(final)!r} ({e.strerror}): {hint}")
+        e = e.__cause__ or e.__context__
+    return exc
+
+
+@contextmanager
+def named_output_errors(target: str | os.PathLike[str]) -> Iterator[None]:
+    """Raise an error met in the block as :func:`output_error` gives it for ``target``."""
+    try:
+        yield
+    except Exception as exc:
+        named = output_error(target, exc)
+        if named is exc:
+            raise
+        raise named from exc

@@ -46,8 +46,6 @@ __all__ = [
     "write_rig_folder",
 ]
 
-_NS_PER_S = 1_000_000_000
-
 #: Names of the folder reader (:mod:`pcdcodec.sources.folder`) that import from here too.
 _FOLDER_NAMES = frozenset(
     {
@@ -210,24 +208,37 @@ def write_folder(
     progress: Any = None,
     color_intrinsics: CameraIntrinsics | None = None,
     depth_to_color: Any = None,
+    pose_layout: str | None = None,
 ) -> int:
     """Write frames as a TUM RGB-D folder that :func:`load_folder` reads back.
 
     ``rgb/NNNNNN.png`` (8-bit RGB), ``depth/NNNNNN.png`` (16-bit depth units; float32 depth as
-    ``.tiff`` metres), ``rgb.txt`` and ``depth.txt`` with the timestamps in seconds (no
-    ``rgb/`` and ``rgb.txt`` when no frame has color: a depth-only folder), and
-    ``camera.json`` (intrinsics and depth scale) when ``intrinsics`` is given, with the color
-    camera of color not registered to depth (``color_intrinsics``, and ``depth_to_color``,
-    the 4 × 4 transform in metres) as ``color`` and ``depth_to_color``. ``clouds`` names
-    point-cloud formats to write per frame into ``clouds/`` (``"ply"``, ``"pcd"``; the frames
-    need a projector, as frames of a recording have). The folder is written beside its target
-    and moved into place when complete; an existing non-empty folder needs ``overwrite``.
+    ``.tiff`` metres), ``rgb.txt`` and ``depth.txt`` with each image's own time in seconds
+    (``frame.color_timestamp_ns`` and ``frame.depth_timestamp_ns``, as TUM writes times), and
+    ``associations.txt`` pairing them as the frames do (no ``rgb/``, ``rgb.txt`` and
+    ``associations.txt`` when no frame has color: a depth-only folder), and ``camera.json``
+    (intrinsics and depth scale) when ``intrinsics`` is given, with the color camera of color
+    not registered to depth (``color_intrinsics``, and ``depth_to_color``, the 4 × 4
+    transform in metres) as ``color`` and ``depth_to_color``.
+
+    Frames with a pose have it written in ``pose_layout`` (see
+    :data:`pcdcodec.sources.poses.POSE_LAYOUTS`; default ``"tum"``): ``"tum"`` writes
+    ``groundtruth.txt``, a line ``timestamp tx ty tz qx qy qz qw`` per pose at its frame's
+    depth time; ``"7scenes"`` names the files as 7-Scenes does (``rgb/frame-NNNNNN.color.png``,
+    ``depth/frame-NNNNNN.depth.png``) and writes ``pose/frame-NNNNNN.pose.txt``, the 4 × 4
+    matrix. Either reads back as the same poses.
+
+    ``clouds`` names point-cloud formats to write per frame into ``clouds/`` (``"ply"``,
+    ``"pcd"``: binary, with the cloud's float32 points and 8-bit colors; the frames need a
+    projector, as frames of a recording have). The folder is written beside its target and
+    moved into place when complete; an existing non-empty folder needs ``overwrite``.
     ``progress`` is called with the number of frames written. Returns that number.
     """
     import imagecodecs
 
     from ._atomic import atomic_output  # not loaded by `import pcdcodec`
     from .sources.folder import as_transform
+    from .sources.poses import DEFAULT_POSE_LAYOUT, POSE_LAYOUTS, seconds_text
 
     out = Path(path)
     if hasattr(frames, "rig_frame_id"):  # a RigRecording: its frames are per camera
@@ -238,11 +249,18 @@ def write_folder(
     for fmt_name in clouds:
         if fmt_name not in ("ply", "pcd"):
             raise InputError(f"point cloud format must be 'ply' or 'pcd', got {fmt_name!r}")
+    layout = DEFAULT_POSE_LAYOUT if pose_layout is None else pose_layout
+    if layout not in POSE_LAYOUTS:
+        raise InputError(
+            f"pose_layout must be one of {', '.join(map(repr, POSE_LAYOUTS))}, got {layout!r}"
+        )
     if out.exists() and not out.is_dir():
         raise InputError(f"{str(out)!r} is a file, not a folder")
     if out.is_dir() and any(out.iterdir()) and not overwrite:
         raise InputError(f"{str(out)!r} is not empty; pass overwrite=True to write into it")
     out.parent.mkdir(parents=True, exist_ok=True)
+    # 7-Scenes names its files frame-NNNNNN.<kind>.<ext>, the pose file's name from them.
+    seven = layout == "7scenes"
     with atomic_output(out, place=_place_folder) as tmp:
         (tmp / "rgb").mkdir(parents=True)
         (tmp / "depth").mkdir()
@@ -250,36 +268,42 @@ def write_folder(
             (tmp / "clouds").mkdir()
         rgb_list = ["# color images", "# timestamp filename"]
         depth_list = ["# depth maps", "# timestamp filename"]
+        pairs = ["# color timestamp, file, depth timestamp, file"]
+        poses: list[tuple[str, int, Any]] = []
         count = 0
         for i, frame in enumerate(frames):
-            t = int(frame.timestamp_ns)
-            stamp = f"{t // _NS_PER_S}.{t % _NS_PER_S:09d}"
-            name = f"{i:06d}"
+            name = f"frame-{i:06d}" if seven else f"{i:06d}"
+            rgb_file = f"rgb/{name}.color.png" if seven else f"rgb/{name}.png"
+            depth_stamp = seconds_text(frame.depth_timestamp_ns)
             if frame.color is not None:
-                (tmp / "rgb" / f"{name}.png").write_bytes(imagecodecs.png_encode(frame.color))
-                rgb_list.append(f"{stamp} rgb/{name}.png")
+                (tmp / rgb_file).write_bytes(imagecodecs.png_encode(frame.color))
+                rgb_list.append(f"{seconds_text(frame.color_timestamp_ns)} {rgb_file}")
+            depth_file = f"depth/{name}.depth" if seven else f"depth/{name}"
             if frame.depth.dtype == np.uint16:
-                depth_file = f"depth/{name}.png"
+                depth_file += ".png"
                 data = imagecodecs.png_encode(frame.depth)
             else:
-                depth_file = f"depth/{name}.tiff"
+                depth_file += ".tiff"
                 data = imagecodecs.tiff_encode(frame.depth)
             (tmp / depth_file).write_bytes(data)
-            depth_list.append(f"{stamp} {depth_file}")
+            depth_list.append(f"{depth_stamp} {depth_file}")
+            if frame.color is not None:
+                pairs.append(f"{rgb_list[-1]} {depth_list[-1]}")
+            if frame.pose is not None:
+                poses.append((name, int(frame.depth_timestamp_ns), frame.pose))
             if clouds:
-                import open3d as o3d
-
-                cloud = frame.to_point_cloud()
-                for ext in clouds:
-                    o3d.io.write_point_cloud(tmp / "clouds" / f"{name}.{ext}", cloud)
+                _write_clouds(frame, tmp / "clouds" / f"{i:06d}", clouds)
             count = i + 1
             if progress is not None:
                 progress(count)
         if len(rgb_list) > 2:
             (tmp / "rgb.txt").write_text("\n".join(rgb_list) + "\n")
+            (tmp / "associations.txt").write_text("\n".join(pairs) + "\n")
         else:  # no color: depth.txt alone reads back as a depth-only folder
             (tmp / "rgb").rmdir()
         (tmp / "depth.txt").write_text("\n".join(depth_list) + "\n")
+        if poses:
+            _write_poses(tmp, layout, poses)
         if intrinsics is not None:
             camera: dict[str, Any] = {**intrinsics.to_dict(), "depth_scale": depth_scale}
             if color_intrinsics is not None:
@@ -290,6 +314,35 @@ def write_folder(
                     ).tolist()
             (tmp / "camera.json").write_text(json.dumps(camera, indent=2) + "\n")
     return count
+
+
+def _write_poses(folder: Path, layout: str, poses: list[tuple[str, int, Any]]) -> None:
+    """The frames' ``(name, depth time, pose)`` written in ``layout``: TUM's
+    ``groundtruth.txt`` or 7-Scenes' ``pose/<name>.pose.txt``."""
+    from .sources.poses import write_pose_file, write_tum_trajectory
+
+    if layout == "7scenes":
+        (folder / "pose").mkdir()
+        for name, _, pose in poses:
+            write_pose_file(folder / "pose" / f"{name}.pose.txt", pose)
+    else:
+        write_tum_trajectory(
+            folder / "groundtruth.txt", [t for _, t, _ in poses], [p for _, _, p in poses]
+        )
+
+
+def _write_clouds(frame: Any, stem: Path, formats: tuple[str, ...]) -> None:
+    """The frame's point cloud as ``stem.ply`` (float32 points, :func:`write_ply`) and/or
+    ``stem.pcd`` (Open3D's writer, which stores float32 points too)."""
+    from .geometry.ply import write_ply
+
+    points, colors = frame.to_points()
+    if "ply" in formats:
+        write_ply(stem.with_suffix(".ply"), points, colors)
+    if "pcd" in formats:
+        import open3d as o3d
+
+        o3d.io.write_point_cloud(stem.with_suffix(".pcd"), frame.to_point_cloud())
 
 
 def write_rig_folder(

@@ -15,6 +15,7 @@ __all__ = [
     "IncompleteRecordingWarning",
     "InputError",
     "InputTypeError",
+    "OutputError",
     "PcdcodecError",
     "PcdcodecWarning",
     "UnknownCodecError",
@@ -56,6 +57,11 @@ class ArchiveLockedError(PcdcodecError, RuntimeError):
 
 class DiskFullError(PcdcodecError, OSError):
     """The disk being written to is full; nothing half-written is left under a final name."""
+
+
+class OutputError(PcdcodecError, OSError):
+    """An output could not be written (a folder not writable, say); the message names the
+    output and what to do."""
 
 
 class VerificationError(PcdcodecError, ValueError):

@@ -1,11 +1,12 @@
 """One RGB-D frame, the same object from sources, recordings and evaluation.
 
 A :class:`Frame` holds a color image (H×W×3 uint8 RGB, or ``None`` for depth only), a depth
-image (H×W uint16 depth units or float32 metres), its time ``timestamp_ns`` (nanoseconds), and
-optionally its position in a sequence (``index``) and the camera pose (``pose``, 4×4 float64
-camera-to-world). Frames read from a recording also carry the recording's
-:class:`~pcdcodec.Projector`, so they turn into points and Open3D objects directly; frames from
-elsewhere take a projector as an argument.
+image (H×W uint16 depth units or float32 metres), its time ``timestamp_ns`` (nanoseconds; each
+image's own time, where an input stamps them apart, in ``color_timestamp_ns`` and
+``depth_timestamp_ns``), and optionally its position in a sequence (``index``) and the camera
+pose (``pose``, 4×4 float64 camera-to-world). Frames read from a recording also carry the
+recording's :class:`~pcdcodec.Projector`, so they turn into points and Open3D objects directly;
+frames from elsewhere take a projector as an argument.
 
 Frames compare equal when their arrays, timestamps and poses are equal (``index`` and the
 projector are where the frame came from, not what it holds), and any frame can be handed to
@@ -69,7 +70,9 @@ class Frame:
     or float32 metres, ``timestamp_ns`` nanoseconds, ``index`` the frame's position in its
     recording or sequence (``None`` when unknown), ``pose`` the 4×4 float64 camera-to-world
     transform (``None`` when unknown), and ``projector`` the camera that turns the depth into
-    points (set on frames read from a recording).
+    points (set on frames read from a recording). ``color_timestamp_ns`` and
+    ``depth_timestamp_ns`` are each image's own time, where the input stamps them apart
+    (default: ``timestamp_ns``; the color's is ``None`` without color).
     """
 
     color: npt.NDArray[np.uint8] | None
@@ -78,6 +81,20 @@ class Frame:
     index: int | None = None
     pose: npt.NDArray[np.float64] | None = None
     projector: Projector | None = field(default=None, repr=False)
+    #: The color image's own time (ns), where it differs from :attr:`timestamp_ns`: an input
+    #: that stamps color and depth apart (TUM's ``rgb.txt`` and ``depth.txt``) pairs images
+    #: taken a little apart. ``None`` given means the frame's time; ``None`` without color.
+    color_timestamp_ns: int | None = None
+    #: The depth image's own time (ns); ``None`` given means the frame's time.
+    depth_timestamp_ns: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.depth_timestamp_ns is None:
+            self.depth_timestamp_ns = self.timestamp_ns
+        if self.color is None:
+            self.color_timestamp_ns = None
+        elif self.color_timestamp_ns is None:
+            self.color_timestamp_ns = self.timestamp_ns
 
     # -- identity ---------------------------------------------------------------------
 
@@ -86,6 +103,8 @@ class Frame:
             return NotImplemented
         return (
             self.timestamp_ns == other.timestamp_ns
+            and self.color_timestamp_ns == other.color_timestamp_ns
+            and self.depth_timestamp_ns == other.depth_timestamp_ns
             and _same(self.depth, other.depth)
             and _same(self.color, other.color)
             and _same(self.pose, other.pose)
@@ -96,6 +115,9 @@ class Frame:
     def __repr__(self) -> str:
         parts = [] if self.index is None else [f"index={self.index}"]
         parts.append(f"timestamp_ns={self.timestamp_ns}")
+        for what, own in (("color", self.color_timestamp_ns), ("depth", self.depth_timestamp_ns)):
+            if own is not None and own != self.timestamp_ns:
+                parts.append(f"{what}_timestamp_ns={own}")
         parts.append(f"color={_describe(self.color)}")
         parts.append(f"depth={_describe(self.depth)}")
         if self.pose is not None:

@@ -98,7 +98,7 @@ def test_cli_encodes_a_camera_recording(tmp_path: Path, capsys: pytest.CaptureFi
     from pcdcodec.cli import main
 
     out = tmp_path / "ak.pcdc"
-    assert main(["encode", str(MKV), "-o", str(out), "--color", "ffv1", "-q"]) == 0
+    assert main(["encode", str(MKV), "-o", str(out), "--color", "ffv1"]) == 0
     assert "depth scale  1000 units per metre" in capsys.readouterr().out
     assert main(["info", str(out), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
@@ -330,7 +330,7 @@ def test_cli_encode_prints_why_captures_were_dropped(
 
     path = _mkv(tmp_path, _cut_color(1))
     out = tmp_path / "out.pcdc"
-    assert main(["encode", str(path), "-o", str(out), "--color", "ffv1", "-q"]) == 0
+    assert main(["encode", str(path), "-o", str(out), "--color", "ffv1"]) == 0
     printed = capsys.readouterr().out
     assert "wrote 2 frames" in printed
     assert "dropped      1 color and 1 depth" in printed

@@ -460,3 +460,52 @@ def test_options_go_anywhere_among_a_commands_arguments() -> None:
         args = parse_args([name, *words])
         assert args.command == name
         assert {k: getattr(args, k) for k in want} == want, name
+
+
+def test_encode_and_export_quiet_print_nothing_but_errors(encoded: Path, tmp_path: Path) -> None:
+    made = run(
+        "encode", str(sample_dir()), "-o", str(tmp_path / "q.pcdc"), "--max-frames", "3", "-q"
+    )
+    assert made.returncode == 0, made.stderr
+    assert (made.stdout, made.stderr) == ("", "")
+    assert (tmp_path / "q.pcdc").is_file()
+    for extra in (["--to", "rosbag1"], ["--layout", "paper"]):
+        target = tmp_path / f"out-{extra[1]}"
+        target = target.with_suffix(".bag") if extra[1] == "rosbag1" else target
+        exported = run("export", str(encoded), str(target), *extra, "-q")
+        assert exported.returncode == 0, exported.stderr
+        assert (exported.stdout, exported.stderr) == ("", "")
+        assert target.exists()
+    refused = run("encode", str(sample_dir()), "-o", str(tmp_path / "q.pcdc"), "-q")
+    assert refused.returncode == 1
+    assert "error:" in refused.stderr  # errors still say what went wrong
+
+
+def test_decode_ply_holds_the_float32_cloud(encoded: Path, tmp_path: Path) -> None:
+    import open3d as o3d
+
+    out = tmp_path / "clouds"
+    result = run("decode", str(encoded), "-o", str(out), "--ply", "--pcd", "-q")
+    assert result.returncode == 0, result.stderr
+    with pcdcodec.open(encoded) as rec:
+        frame = rec[2]
+        points, colors = frame.to_points()
+    assert colors is not None
+    ply = out / "clouds" / "000002.ply"
+    data = ply.read_bytes()
+    head, _, body = data.partition(b"end_header\n")
+    assert b"property float x\nproperty float y\nproperty float z\n" in head
+    assert b"double" not in head
+    assert b"property uchar red" in head
+    # 12 bytes of points and 3 of color per point: the float32 cloud, nothing wider.
+    assert len(body) == len(points) * 15
+    rows = np.frombuffer(
+        body,
+        dtype=[("p", "<f4", 3), ("c", "u1", 3)],
+    )
+    np.testing.assert_array_equal(rows["p"], points)
+    np.testing.assert_array_equal(rows["c"], colors)
+    read = o3d.t.io.read_point_cloud(str(ply))  # other tools read it back the same
+    np.testing.assert_array_equal(read.point.positions.numpy(), points)
+    pcd = o3d.t.io.read_point_cloud(str(out / "clouds" / "000002.pcd"))
+    np.testing.assert_array_equal(pcd.point.positions.numpy(), points)

@@ -146,8 +146,14 @@ def test_write_folder_round_trip_and_no_partial_output(tmp_path: Path) -> None:
     out = tmp_path / "out"
     assert write_folder(seq, out, intrinsics=seq.intrinsics, depth_scale=5000.0) == 3
     back = pcdcodec.load_folder(out)
-    # Image folders hold no poses; the sample's own (from its groundtruth.txt) stay behind.
-    assert list(back) == [dataclasses.replace(f, pose=None) for f in seq]
+    # The poses go out as groundtruth.txt, as quaternions: equal to float64 rounding.
+    assert [dataclasses.replace(f, pose=None) for f in back] == [
+        dataclasses.replace(f, pose=None) for f in seq
+    ]
+    for a, b in zip(back, seq, strict=True):
+        assert a.pose is not None
+        assert b.pose is not None
+        np.testing.assert_allclose(a.pose, b.pose, rtol=0, atol=1e-12)
     assert back.intrinsics == seq.intrinsics
     with pytest.raises(pcdcodec.InputError, match="overwrite=True"):
         write_folder(seq, out)

@@ -28,6 +28,7 @@ PUBLIC = [
     "InputError",
     "InputTypeError",
     "KINDS",
+    "OutputError",
     "PcdcodecError",
     "Projector",
     "RGBDFrame",

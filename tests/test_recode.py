@@ -195,7 +195,7 @@ def test_cli_recodes_a_recording(tmp_path: Path) -> None:
     out = tmp_path / "train.pcdc"
     cmd = [sys.executable, "-m", "pcdcodec", "encode", str(src), "-o", str(out)]
     done = subprocess.run(
-        [*cmd, "--color", AV1_CLI, "--depth", "zstd", "-q"],
+        [*cmd, "--color", AV1_CLI, "--depth", "zstd"],
         capture_output=True,
         text=True,
         cwd=REPO,
@@ -353,7 +353,7 @@ def test_cli_recodes_a_rig_with_another_input(tmp_path: Path) -> None:
     out = tmp_path / "again.pcdc"
     cmd = [sys.executable, "-m", "pcdcodec", "encode"]
     done = subprocess.run(
-        [*cmd, str(src), "-o", str(out), "--depth", "zstd", "-q"],
+        [*cmd, str(src), "-o", str(out), "--depth", "zstd"],
         capture_output=True,
         text=True,
         cwd=REPO,

@@ -802,3 +802,27 @@ def test_rig_errors_name_the_record_the_topic_and_the_camera(tmp_path: Path) -> 
     with pytest.raises(DecodeError, match=r"cut short.*`pcdcodec recover`") as info:
         RecordingSource(cut)
     assert "camera=NAME" not in str(info.value)
+
+
+def test_framesets_default_tolerance_too_wide_names_the_fps(tmp_path: Path) -> None:
+    # At fps 1e-7, half a frame is 5e6 s: the error says where that tolerance came from.
+    path = tmp_path / "slow.pcdc"
+    depth = load_depths("sample", 1)[0]
+    cams = [
+        CameraSpec("a", SEQUENCES["sample"].camera, 5000.0, fps=1e-7, color=None, depth="zstd"),
+        CameraSpec("b", SEQUENCES["sample"].camera, 5000.0, fps=1e-7, color=None, depth="zstd"),
+    ]
+    with pcdcodec.open(path, "w", cameras=cams) as w:
+        w.write("a", None, depth, 0)
+        w.write("b", None, depth, 1_000)
+    with pcdcodec.open(path) as rec:
+        with pytest.raises(InputError) as err:
+            rec.framesets()
+        message = str(err.value)
+        assert "default tolerance" in message
+        assert "camera 'a'" in message
+        assert "fps 1e-07" in message
+        assert "pass tolerance=" in message
+        assert len(rec.framesets(tolerance=0.01)) == 1
+        with pytest.raises(InputError, match=r"got 2000000\.0"):
+            rec.framesets(tolerance=2e6)

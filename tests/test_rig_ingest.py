@@ -296,7 +296,7 @@ def test_inputs_whose_clocks_do_not_overlap_are_reported(
     head = write_rig_bag(tmp_path / "head.bag", cams[:1], ros2=False)
     late = write_rig_bag(tmp_path / "wrist.bag", cams[1:2], ros2=False, offset=30_000 * _MS)
     out = tmp_path / "rig.pcdc"
-    assert main(["encode", str(head), str(late), "-o", str(out), "-q"]) == 0
+    assert main(["encode", str(head), str(late), "-o", str(out)]) == 0
     text = capsys.readouterr().out
     assert "wrote 9 frames of 2 cameras" in text
     assert "rig frame    base_link" in text
@@ -315,7 +315,7 @@ def test_cli_reads_a_bag_of_several_cameras_as_a_rig(
 
     bag = write_rig_bag(tmp_path / "rig", cams, ros2=True)
     out = tmp_path / "rig.pcdc"
-    assert main(["encode", str(bag), "-o", str(out), "-q", "--max-frames", "2"]) == 0
+    assert main(["encode", str(bag), "-o", str(out), "--max-frames", "2"]) == 0
     text = capsys.readouterr().out
     assert "wrote 6 frames of 3 cameras" in text
     for ns in ("cam_head", "cam_wrist", "cam_side"):

@@ -277,7 +277,7 @@ def test_cli_encode_of_a_tum_folder_prints_the_scale_and_camera_used(tmp_path: P
     root = _tum_copy(tmp_path, camera=False)
     out = tmp_path / "o.pcdc"
     cam = ("--fx", "525", "--fy", "525", "--cx", "319.5", "--cy", "239.5")
-    result = _cli("encode", str(root), "-o", str(out), "--max-frames", "2", "-q", *cam)
+    result = _cli("encode", str(root), "-o", str(out), "--max-frames", "2", *cam)
     assert result.returncode == 0, result.stderr
     assert "depth scale  5000 units per metre (from TUM RGB-D dataset)" in result.stdout
     with pcdcodec.open(out) as rec:

@@ -11,9 +11,11 @@ into the library's arguments.
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 from collections.abc import Sequence
+from contextlib import nullcontext, redirect_stdout
 from typing import Any, TextIO
 
 from ..errors import PcdcodecError, PcdcodecWarning
@@ -21,6 +23,10 @@ from .options import cli_message, parse_codec
 from .parser import build_parser, parse_args
 
 __all__ = ["build_parser", "cli_message", "main", "parse_args", "parse_codec"]
+
+#: The commands whose ``-q`` means "only errors": no progress and no summary; their warnings
+#: and errors still go to stderr.
+ONLY_ERRORS_WHEN_QUIET = frozenset({"encode", "decode", "export"})
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -48,8 +54,10 @@ def _show_warning(
 
 
 def _run(args: Any) -> int:
+    quiet = getattr(args, "quiet", False) and args.command in ONLY_ERRORS_WHEN_QUIET
     try:
-        status: int = args.func(args)
+        with _stdout_silenced() if quiet else nullcontext():
+            status: int = args.func(args)
     except PcdcodecError as exc:
         print(f"error: {cli_message(str(exc))}", file=sys.stderr)
         return 1
@@ -60,3 +68,13 @@ def _run(args: Any) -> int:
         print("interrupted", file=sys.stderr)
         return 130
     return status
+
+
+def _stdout_silenced() -> Any:
+    """A context in which what a command prints to stdout goes nowhere."""
+    from contextlib import ExitStack
+
+    stack = ExitStack()
+    sink = stack.enter_context(open(os.devnull, "w"))  # noqa: SIM115  # closed by the stack
+    stack.enter_context(redirect_stdout(sink))
+    return stack

@@ -33,10 +33,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
         path = Path(tmp) / "sample.pcdc"
         m = measure_roundtrip(seq, path)
         with open_recording(path) as rec:
-            import open3d as o3d
+            from ..geometry.ply import write_ply
 
             ply = out_dir / "frame0000.ply"
-            o3d.io.write_point_cloud(ply, rec[0].to_point_cloud())
+            write_ply(ply, *rec[0].to_points())
     rows = [
         ("color stream", m.bytes_color, m.color_codec),
         ("depth stream", m.bytes_depth, m.depth_codec),

@@ -185,7 +185,9 @@ def _encode_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--max-frames", type=int, default=None, help="encode only the first N")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+    p.add_argument(
+        "-q", "--quiet", action="store_true", help="only errors: no progress, no summary"
+    )
     _add_camera_options(p)
     _add_topic_options(p)
 
@@ -334,7 +336,9 @@ def _export_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--layout", default="paper", help="without --to: paper (video + LZ4 + JSON)")
     p.add_argument("--overwrite", action="store_true")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+    p.add_argument(
+        "-q", "--quiet", action="store_true", help="only errors: no progress, no summary"
+    )
 
 
 def _import_options(p: argparse.ArgumentParser) -> None:

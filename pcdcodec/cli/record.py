@@ -195,11 +195,20 @@ def cmd_decode(args: argparse.Namespace) -> int:
     from ..datasets import write_folder
     from ..recording import open as open_recording
     from ..recording.rig_reader import RigRecording
+    from ..sources.poses import DEFAULT_POSE_LAYOUT, POSE_LAYOUT_KEY, POSE_LAYOUTS
 
     clouds = tuple(ext for ext, on in (("ply", args.ply), ("pcd", args.pcd)) if on)
     with open_recording(args.input, threads=args.threads) as rec:
         if isinstance(rec, RigRecording):
             return _decode_rig(rec, args, clouds)
+        # The poses go out as the input had them; recordings that do not say get TUM's file.
+        layout = rec.metadata.get(POSE_LAYOUT_KEY, DEFAULT_POSE_LAYOUT)
+        if layout not in POSE_LAYOUTS:
+            raise InputError(
+                f"{args.input!r} says its poses came as {layout!r}, a layout this pcdcodec "
+                f"does not know (it knows {', '.join(POSE_LAYOUTS)}); a newer pcdcodec may"
+            )
+        poses = rec.has_poses
         with Progress(len(rec), "decoding", enabled=None if not args.quiet else False) as bar:
             count = write_folder(
                 rec,
@@ -211,9 +220,11 @@ def cmd_decode(args: argparse.Namespace) -> int:
                 clouds=clouds,
                 overwrite=args.overwrite,
                 progress=bar.update,
+                pose_layout=layout,
             )
-    if not args.quiet:
-        print(f"wrote {count} frames to {args.output}")
+    print(f"wrote {count} frames to {args.output}")
+    if poses:
+        print(f"  poses        {POSE_LAYOUTS[layout]}")
     return 0
 
 

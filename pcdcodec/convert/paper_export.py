@@ -15,7 +15,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from .._atomic import partial_path
+from .._atomic import named_output_errors, partial_path
 from .._validate import check_depth
 from ..color.base import StreamCodec
 from ..color.ffmpeg import ffmpeg_packet
@@ -67,7 +67,8 @@ def export_paper(
         raise InputError(
             f"folder {str(out)!r} is not empty; pass overwrite=True to replace the files in it"
         )
-    with Recording(recording_path) as rec:
+    # An error writing the output names the folder, not a partial file in it.
+    with named_output_errors(out), Recording(recording_path) as rec:
         n = len(rec)
         if n == 0:
             raise InputError(f"recording {str(rec.path)!r} has no frames to export")

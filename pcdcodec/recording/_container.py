@@ -175,7 +175,7 @@ class Container:
             raise PcdcodecError(
                 f"{str(self.writing)!r} is not written further: writing it failed before "
                 f"({self.broken!r})"
-            )
+            ) from self.broken
         try:
             with self.lock:
                 step()
@@ -221,13 +221,22 @@ class Container:
             self.group_pts.append(packet.pts)
 
     def write_frame(
-        self, timestamp: int, data: bytes, pose: npt.NDArray[np.float64] | None
+        self,
+        timestamp: int,
+        data: bytes,
+        pose: npt.NDArray[np.float64] | None,
+        stamps: tuple[int, int] | None = None,
     ) -> None:
-        """Write the rest of a frame after its color packets: depth, pose and digest."""
-        self.to_file(lambda: self._write_frame(timestamp, data, pose))
+        """Write the rest of a frame after its color packets: depth, pose, the images' own
+        times (``stamps``: color's and depth's, where either is not the frame's) and digest."""
+        self.to_file(lambda: self._write_frame(timestamp, data, pose, stamps))
 
     def _write_frame(
-        self, timestamp: int, data: bytes, pose: npt.NDArray[np.float64] | None
+        self,
+        timestamp: int,
+        data: bytes,
+        pose: npt.NDArray[np.float64] | None,
+        stamps: tuple[int, int] | None,
     ) -> None:
         s = self.settings
         self.mcap.add_message(
@@ -252,6 +261,14 @@ class Container:
             self.sealer.note(fmt.TOPIC_POSE_MATRIX, timestamp)
             pose_digest = fmt.data_digest(msg, exact)
             self.poses_written += 1
+        if stamps is not None:
+            if "stamps" not in self.channels:
+                self.channels["stamps"] = self.mcap.register_channel(
+                    self.topic(fmt.TOPIC_STAMPS), fmt.ENCODING_STAMPS, 0, {}
+                )
+            own = fmt.STAMPS_RECORD.pack(*stamps)
+            self.mcap.add_message(self.channels["stamps"], timestamp, own, timestamp)
+            self.sealer.note(fmt.TOPIC_STAMPS, timestamp, own)
         # Last of the frame: the digests of the color packets written since the previous
         # frame's (its group), of its depth and of its pose; the frame is readable from here.
         record = self.sealer.frame_record(data, pose_digest)

@@ -60,6 +60,19 @@ TOPIC_POSE = "/camera/pose"  # camera-to-world pose per frame (FrameTransform)
 TOPIC_POSE_MATRIX = "/camera/pose/matrix"  # the same pose, bit for bit: 16 float64 values
 ENCODING_POSE_MATRIX = "pcdcodec.pose"  # 4 x 4 float64, row-major, little-endian, no schema
 
+#: The latest time a recording holds (ns): ROS time, in the calibration and video messages,
+#: has int32 seconds.
+MAX_TIMESTAMP_NS = 2**31 * 1_000_000_000 - 1
+#: Each image's own time, for frames whose color or depth was stamped apart from the frame's
+#: time (TUM lists): :data:`STAMPS_RECORD`. Not one of the :data:`SEALED_TOPICS` (earlier
+#: readers check those); the seal covers these messages with keys of their own.
+TOPIC_STAMPS = "/camera/stamps"
+ENCODING_STAMPS = "pcdcodec.stamps"
+#: A ``/camera/stamps`` message: the color image's and the depth image's time (ns, int64).
+STAMPS_RECORD = struct.Struct("<qq")
+#: The seal's keys for the ``/camera/stamps`` messages (present only when there are some).
+SEAL_STAMPS_KEYS = ("stamps", "stamps_digest")
+
 ENCODING_DEPTH = "pcdcodec.depth"  # one encoded depth frame (docs/format.md), no schema
 ENCODING_COLOR = "pcdcodec.color"  # one raw codec packet, for codecs without a standard schema
 ENCODING_KEYFRAME = "pcdcodec.keyframe"  # an empty marker at each keyframe's pts
@@ -130,8 +143,8 @@ RIG_POSE_KEY = "rig_pose"
 ONE_CAMERA_NAMESPACE = "/camera"
 #: Camera names: what ROS takes as a namespace, and what a folder or record name can hold.
 CAMERA_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}")
-#: A one-camera file's own topics beside the sealed ones (none today).
-_LANE_TOPICS = SEALED_TOPICS
+#: A one-camera file's topics: the sealed ones and the stamps.
+_LANE_TOPICS = (*SEALED_TOPICS, TOPIC_STAMPS)
 
 
 def parse_json(text: str, what: str) -> Any:
@@ -361,6 +374,7 @@ def _listed(main: dict[str, str], what: str) -> list[str]:
 
 #: What a color packet adds to its group's digest: pts, dts (as stored), keyframe flag, length.
 _PACKET_FIELDS = struct.Struct("<QQBQ")
+_STAMP_FIELDS = struct.Struct("<QQ")
 #: A ``/camera/frame_digest`` message: the number of color packets in the frame's group and
 #: their SHA-256, the SHA-256 of the depth message's data, and the SHA-256 of the pose and pose
 #: matrix messages' data (32 zero bytes for a frame without a pose).
@@ -391,9 +405,17 @@ class Sealer:
         self.last: int | None = None
         self._group = hashlib.sha256()
         self._group_count = 0
+        self._stamps = hashlib.sha256()
+        self._stamp_count = 0
 
-    def note(self, topic: str, log_time: int) -> None:
-        """A message on ``topic`` at ``log_time`` (ns), the next one in the file."""
+    def note(self, topic: str, log_time: int, data: bytes | memoryview = b"") -> None:
+        """A message on ``topic`` at ``log_time`` (ns), the next one in the file; ``data`` is
+        its data (used for ``/camera/stamps``, whose messages the seal digests)."""
+        if topic == TOPIC_STAMPS:
+            self._stamps.update(_STAMP_FIELDS.pack(log_time, len(data)))
+            self._stamps.update(data)
+            self._stamp_count += 1
+            return
         if topic not in SEALED_TOPICS:
             return
         self._structure.update(f"{topic} {log_time}\n".encode())
@@ -423,11 +445,19 @@ class Sealer:
     def seal(self) -> dict[str, str]:
         """The seal record (before its own digest is added by :func:`seal`)."""
         count, digest_ = self.group()
-        return {
+        out = {
             **self.summary(),
             "tail_packets": str(count),
             "tail_digest": "sha256:" + digest_.hex(),
         }
+        if self._stamp_count:
+            out.update(zip(SEAL_STAMPS_KEYS, self.stamps_seal(), strict=True))
+        return out
+
+    def stamps_seal(self) -> tuple[str, str]:
+        """The seal's ``stamps`` and ``stamps_digest``: the number of ``/camera/stamps``
+        messages noted and the SHA-256 of their times and data, in file order."""
+        return str(self._stamp_count), "sha256:" + self._stamps.hexdigest()
 
     def summary(self) -> dict[str, str]:
         """The part of the seal that an index alone can be checked against."""

@@ -32,11 +32,25 @@ class FrameInputs:
     _sync: Any
 
     def write(
-        self, color: Any, depth: Any, timestamp: int | None = None, *, pose: Any = None
+        self,
+        color: Any,
+        depth: Any,
+        timestamp: int | None = None,
+        *,
+        pose: Any = None,
+        color_timestamp: int | None = None,
+        depth_timestamp: int | None = None,
     ) -> None:
         raise NotImplementedError
 
-    def _take(self, color: Any, depth: Any, timestamp: int | None, pose: Any) -> None:
+    def _take(
+        self,
+        color: Any,
+        depth: Any,
+        timestamp: int | None,
+        pose: Any,
+        stamps: tuple[int | None, int | None] = (None, None),
+    ) -> None:
         raise NotImplementedError
 
     def _check_open(self) -> None:
@@ -108,7 +122,14 @@ class FrameInputs:
         count = 0
         for item in frames:
             if isinstance(item, Frame):
-                self.write(item.color, item.depth, item.timestamp_ns, pose=item.pose)
+                self.write(
+                    item.color,
+                    item.depth,
+                    item.timestamp_ns,
+                    pose=item.pose,
+                    color_timestamp=item.color_timestamp_ns,
+                    depth_timestamp=item.depth_timestamp_ns,
+                )
             elif open3d_rgbd_kind(item) is not None:
                 self._write_rgbd(item, None, rgbd_depth_scale, "rgbd_depth_scale")
             elif (
@@ -180,7 +201,14 @@ class FrameInputs:
         if source.has_color and self.color_codec is None:
             # The color is left out; the pose stays.
             frames: Iterable[Any] = (
-                Frame(None, f.depth, f.timestamp_ns, pose=f.pose) for f in source
+                Frame(
+                    None,
+                    f.depth,
+                    f.timestamp_ns,
+                    pose=f.pose,
+                    depth_timestamp_ns=f.depth_timestamp_ns,
+                )
+                for f in source
             )
         else:
             frames = source
@@ -200,10 +228,11 @@ class FrameInputs:
     def write_color(self, color: Any, timestamp: int) -> None:
         """Add a color image that arrives on its own; it is paired with the depth image nearest
         in time (within :attr:`max_sync_difference`) and written as one frame at the depth's
-        timestamp. Images that find no partner are dropped and counted in :attr:`unpaired`.
-        An error met encoding or writing an earlier frame is raised before the image is taken
-        (call again to hand it in); the pairs it completes are all written, and the first
-        error among them is raised after.
+        timestamp, the color keeping its own (``frame.color_timestamp_ns``). Images that find
+        no partner are dropped and counted in :attr:`unpaired`. An error met encoding or
+        writing an earlier frame is raised before the image is taken (call again to hand it
+        in); the pairs it completes are all written, and the first error among them is raised
+        after.
         """
         self._check_open()
         # Raised before the image is taken (call again to hand it in), not between the pairs
@@ -222,9 +251,10 @@ class FrameInputs:
         (a pair not written is lost: it is in neither the file nor :attr:`unpaired`); the
         first error is raised at the end."""
         first: Exception | None = None
-        for _, rgb, depth_ts, depth in pairs:
+        for color_ts, rgb, depth_ts, depth in pairs:
             try:
-                self._take(rgb, depth, depth_ts, None)
+                # At the depth's time; the color keeps its own (frame.color_timestamp_ns).
+                self._take(rgb, depth, depth_ts, None, (color_ts, None))
             except Exception as exc:
                 first = first or exc
         if first is not None:

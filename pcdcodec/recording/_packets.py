@@ -59,6 +59,9 @@ class PacketAccess:
         times = [t for t in self._times.tolist() if int(t) in posed]
         return np.asarray(times, np.int64)
 
+    #: The images' own times by frame time, once read (:meth:`_own_stamps`).
+    _stamps_read: dict[int, tuple[int, int]] | None = None
+
     @property
     def extradata(self) -> bytes | None:
         """The color decoder's set-up bytes (FFV1, HuffYUV), or ``None``."""
@@ -208,3 +211,53 @@ class PacketAccess:
                 "removed"
             )
         return ""
+
+    def _own_stamps(self) -> dict[int, tuple[int, int]]:
+        """The color and depth images' own times (ns) by frame time, for the frames whose
+        images were stamped apart from the frame (``/camera/stamps``); read once, all at a
+        time, and checked against the seal in a sealed file."""
+        if self._stamps_read is not None:
+            return self._stamps_read
+        name = repr(str(self.path))
+        channel = self.index.channel(fmt.TOPIC_STAMPS)
+        entries = zip(
+            self.index.times.get(fmt.TOPIC_STAMPS, []),
+            self.index.offsets.get(fmt.TOPIC_STAMPS, []),
+            strict=True,
+        )
+        out: dict[int, tuple[int, int]] = {}
+        sealer = fmt.Sealer()
+        for t, offset in sorted(entries, key=lambda e: e[1]):  # file order
+            where = f"{name}: the {fmt.TOPIC_STAMPS} message at byte offset {offset}"
+            with self._lock:
+                messages = fmt.read_chunk_messages(
+                    self._file, offset, what=where, size=self.index.size or None
+                )
+            data = next(
+                (
+                    bytes(m.data)
+                    for m in messages
+                    if channel is not None and m.channel_id == channel.id and m.log_time == t
+                ),
+                None,
+            )
+            if data is None or len(data) != fmt.STAMPS_RECORD.size:
+                raise DecodeError(
+                    f"{where}: no message of {fmt.STAMPS_RECORD.size} bytes at {t} ns there"
+                )
+            stamps: tuple[int, int] = fmt.STAMPS_RECORD.unpack(data)
+            if not all(0 <= v <= fmt.MAX_TIMESTAMP_NS for v in stamps):
+                raise DecodeError(f"{where}: times {stamps} ns are not times a recording holds")
+            sealer.note(fmt.TOPIC_STAMPS, int(t), data)
+            out[int(t)] = stamps
+        if self._seal is not None:
+            sealed = tuple(self._seal.get(k) for k in fmt.SEAL_STAMPS_KEYS)
+            found = sealer.stamps_seal() if out else (None, None)
+            if sealed != found:
+                raise DecodeError(
+                    f"{name}: the {fmt.TOPIC_STAMPS} messages (each image's own time) do not "
+                    f"match the seal (sealed {sealed[0] or 0}, found {len(out)}): they were "
+                    "changed, added or removed"
+                )
+        self._stamps_read = out
+        return out

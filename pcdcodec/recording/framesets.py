@@ -304,6 +304,10 @@ def _match_in_order(ref: list[int], oth: list[int], tol: int) -> Iterator[tuple[
             yield (first + c, first_other + c) if side == 0 else (first_other + c, first + c)
 
 
+#: The widest tolerance framesets() takes, in seconds (about 11.6 days).
+_MAX_TOLERANCE_S = 1e6
+
+
 def framesets(rig: _Rig, tolerance: float | None, reference: str | None) -> FrameSets:
     """:meth:`RigRecording.framesets <pcdcodec.recording.rig_reader.RigRecording.framesets>`
     of ``rig``."""
@@ -311,12 +315,21 @@ def framesets(rig: _Rig, tolerance: float | None, reference: str | None) -> Fram
     ref_rec = rig.frames(ref)
     if tolerance is None:
         tolerance = 0.5 / ref_rec.fps
+        if not tolerance < _MAX_TOLERANCE_S:
+            raise InputError(
+                f"the default tolerance, half a frame of camera {ref!r} at its fps "
+                f"{ref_rec.fps:g}, is {tolerance:g} s, more than framesets() takes (under "
+                f"{_MAX_TOLERANCE_S:g} s); pass tolerance= in seconds"
+            )
     if (
         isinstance(tolerance, bool)
         or not isinstance(tolerance, (int, float))
-        or not (0 <= tolerance < 1e6)
+        or not (0 <= tolerance < _MAX_TOLERANCE_S)
     ):
-        raise InputError(f"tolerance must be a number of seconds >= 0, got {tolerance!r}")
+        raise InputError(
+            f"tolerance must be a number of seconds from 0 to under {_MAX_TOLERANCE_S:g}, "
+            f"got {tolerance!r}"
+        )
     tol = round(tolerance * _NS)
     ref_times = ref_rec.timestamps
     columns = [

@@ -270,7 +270,7 @@ def _copy_part(
                     frame = lane.pending.pop(m.log_time, {})
                     payload = _rejoin(m.data, lane, frame, _where(path, camera, m.log_time, offset))
                 writer.add_message(topic_ids[real], m.log_time, payload, m.publish_time, sequence)
-                lane.sealer.note(topic, m.log_time)
+                lane.sealer.note(topic, m.log_time, m.data)
     frames = 0
     for camera, view in views.items():
         lane = lanes[camera]

@@ -527,8 +527,17 @@ class Recording(PacketAccess, OneCamera):
                     f"({ch}, {cw}, 3) for the recording's color camera"
                 )
             depth, pose = rest_of()
+            ts = int(self._times[i])
+            own = self._own_stamps().get(ts, (ts, ts))
             return Frame(
-                color, depth, int(self._times[i]), index=i, pose=pose, projector=self.projector
+                color,
+                depth,
+                ts,
+                index=i,
+                pose=pose,
+                projector=self.projector,
+                color_timestamp_ns=own[0],
+                depth_timestamp_ns=own[1],
             )
         except PcdcodecError:
             raise

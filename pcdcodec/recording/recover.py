@@ -535,7 +535,7 @@ def _write(
                     count, color = sealer.group()
                     _, _, depth, pose = lane.records[t]
                     data = fmt.DIGEST_RECORD.pack(count, color, depth, pose)
-                sealer.note(topic, t)
+                sealer.note(topic, t, data)
             elif cameras is not None:
                 continue  # a rig keeps its cameras' channels only
             writer.add_message(channel(m.channel_id), m.log_time, data, m.publish_time, m.sequence)
@@ -547,7 +547,7 @@ def _write(
 
 
 #: A frame's own messages, left out with the frame.
-_FRAME_TOPICS = (fmt.TOPIC_DEPTH, fmt.TOPIC_POSE, fmt.TOPIC_POSE_MATRIX)
+_FRAME_TOPICS = (fmt.TOPIC_DEPTH, fmt.TOPIC_POSE, fmt.TOPIC_POSE_MATRIX, fmt.TOPIC_STAMPS)
 
 
 def _listing(main: dict[str, str], recovered: set[str], added: set[str]) -> dict[str, str]:

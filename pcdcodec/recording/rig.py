@@ -209,12 +209,21 @@ class RigWriter:
         timestamp: int | None = None,
         *,
         pose: Any = None,
+        color_timestamp: int | None = None,
+        depth_timestamp: int | None = None,
     ) -> None:
         """Add a frame of ``camera``: as :meth:`pcdcodec.RecordingWriter.write`, for that
         camera (its color size, its depth, its own increasing timestamps)."""
         check_not_inherited(self, f"the writer of {str(self.path)!r}")
         self._check_open()
-        self.camera(camera).write(color, depth, timestamp, pose=pose)
+        self.camera(camera).write(
+            color,
+            depth,
+            timestamp,
+            pose=pose,
+            color_timestamp=color_timestamp,
+            depth_timestamp=depth_timestamp,
+        )
 
     @property
     def frames_complete(self) -> dict[str, int]:

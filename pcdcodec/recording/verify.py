@@ -178,7 +178,8 @@ def verify_recording(rec: Any) -> VerifyReport:
         try:
             rec.frame(i)
         except PcdcodecError as exc:
-            errors.append(str(exc))
+            if str(exc) not in errors:  # one of the whole file (its stamps) is said once
+                errors.append(str(exc))
             with rec._lock:
                 rec._stream.reset()
     return VerifyReport(len(rec), errors, index.indexed, index.truncated_at)

@@ -28,6 +28,7 @@ from ..geometry.projector import check_color_camera
 from ..geometry.transform import as_rigid
 from ..registry import as_codec
 from . import _header as header
+from . import _index as fmt
 from ._container import Container, SharedFile
 from ._inputs import FrameInputs
 from ._pipeline import Pipeline
@@ -37,7 +38,7 @@ __all__ = ["MAX_TIMESTAMP_NS", "RecordingWriter"]
 _NS = 1_000_000_000
 #: The latest timestamp a recording holds: the ROS messages it stores (camera calibration,
 #: CompressedVideo) keep time as int32 seconds, so 2038-01-19 03:14:07.999999999 UTC.
-MAX_TIMESTAMP_NS = (2**31) * _NS - 1
+MAX_TIMESTAMP_NS = fmt.MAX_TIMESTAMP_NS
 
 
 def open_output(path: Path, overwrite: bool) -> tuple[Path, IO[bytes]]:
@@ -48,11 +49,14 @@ def open_output(path: Path, overwrite: bool) -> tuple[Path, IO[bytes]]:
         raise InputError(f"{str(path)!r} already exists; pass overwrite=True to replace it")
     if path.is_dir():
         raise InputError(f"{str(path)!r} is a folder, not a file")
-    from .._atomic import partial_path  # not loaded by `import pcdcodec`
+    from .._atomic import is_partial, named_output_errors, partial_path  # not loaded at import
 
     writing = partial_path(path) if path.exists() else path
     mode = "xb" if writing == path else "wb"
-    return writing, open(writing, mode)
+    if is_partial(path.name):  # the caller's output, written beside it: the caller names it
+        return writing, open(writing, mode)
+    with named_output_errors(path):  # a folder not writable is said of `path`, not a partial
+        return writing, open(writing, mode)
 
 
 def end_close(
@@ -63,12 +67,12 @@ def end_close(
     swap the new file in."""
     if broken is not None and not errors:
         # Raised before, by the call it failed in: the file is still unfinished.
-        errors.append(
-            PcdcodecError(
-                f"{str(writing)!r} was left unfinished: writing it failed before ({broken!r}); "
-                "its frames before the failure read, and `pcdcodec recover` gives it an index"
-            )
+        unfinished = PcdcodecError(
+            f"{str(writing)!r} was left unfinished: writing it failed before ({broken!r}); "
+            "its frames before the failure read, and `pcdcodec recover` gives it an index"
         )
+        unfinished.__cause__ = broken  # what broke it: a full disk, say
+        errors.append(unfinished)
     if errors:
         add_note = getattr(errors[0], "add_note", None)  # Python 3.11+
         if writing != target and add_note is not None:
@@ -78,6 +82,20 @@ def end_close(
         raise errors[0]
     if writing != target:
         os.replace(writing, target)
+
+
+_STAMP_NAMES = ("color_timestamp", "depth_timestamp")
+
+
+def _own_stamp(value: Any, name: str) -> int | None:
+    """An image's own time (ns) as :meth:`RecordingWriter.write` takes it, checked."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputTypeError(f"{name} must be an int (ns), got {type(value).__name__}")
+    if not 0 <= int(value) <= MAX_TIMESTAMP_NS:
+        raise InputError(f"{name} {int(value)} ns is outside 0 to {MAX_TIMESTAMP_NS} ns")
+    return int(value)
 
 
 def _checked_packet(k: int, packet: Any) -> Packet:
@@ -247,6 +265,7 @@ class RecordingWriter(FrameInputs):
         self._last_ts: int | None = None
         self._sync: Any = None
         self._poses: dict[int, npt.NDArray[np.float64]] = {}
+        self._stamps: dict[int, tuple[int, int]] = {}
         self._mode: str | None = None  # "frames" (write) or "encoded" (write_encoded)
         self._closed = False
 
@@ -364,7 +383,14 @@ class RecordingWriter(FrameInputs):
         )
 
     def write(
-        self, color: Any, depth: Any, timestamp: int | None = None, *, pose: Any = None
+        self,
+        color: Any,
+        depth: Any,
+        timestamp: int | None = None,
+        *,
+        pose: Any = None,
+        color_timestamp: int | None = None,
+        depth_timestamp: int | None = None,
     ) -> None:
         """Add one frame: ``color`` H×W×3 uint8 RGB (``None`` when recording depth only) and
         ``depth`` H×W uint16 depth units (or float32 metres where the depth codec takes it).
@@ -373,7 +399,10 @@ class RecordingWriter(FrameInputs):
         ``timestamp`` is in nanoseconds and must increase; without it, frames are spaced at
         ``1/fps`` from 0. ``pose`` is the camera-to-world pose of the depth camera at this
         frame, a rigid 4 × 4 transform in metres, stored as a ``FrameTransform`` from
-        ``world_frame_id`` to ``frame_id`` on ``/camera/pose``. Raises
+        ``world_frame_id`` to ``frame_id`` on ``/camera/pose``. ``color_timestamp`` and
+        ``depth_timestamp`` (ns) are each image's own time where the input stamps them apart
+        from the frame's (TUM lists); they are kept (``/camera/stamps``) and read back as
+        ``frame.color_timestamp_ns`` and ``frame.depth_timestamp_ns``. Raises
         :class:`~pcdcodec.InputError` for frames of another size than the first, color of
         another size than the color camera's, timestamps that do not increase, a pose that is
         not a rigid 4 × 4 transform, or bad arrays; the frames already written stay intact.
@@ -386,7 +415,7 @@ class RecordingWriter(FrameInputs):
         check_not_inherited(self, f"the writer of {str(self.path)!r}")
         self._check_open()
         self._raise_background_error()
-        self._take(color, depth, timestamp, pose)
+        self._take(color, depth, timestamp, pose, (color_timestamp, depth_timestamp))
 
     def _check_float_scale(self, depth: npt.NDArray[Any]) -> None:
         if depth.dtype == np.float32 and not self._scale_given:
@@ -396,12 +425,20 @@ class RecordingWriter(FrameInputs):
                 "uint16 millimetres and would scale float metres 1000x too small"
             )
 
-    def _take(self, color: Any, depth: Any, timestamp: int | None, pose: Any) -> None:
+    def _take(
+        self,
+        color: Any,
+        depth: Any,
+        timestamp: int | None,
+        pose: Any,
+        stamps: tuple[int | None, int | None] = (None, None),
+    ) -> None:
         """:meth:`write` past its checks for an open writer and earlier errors."""
         rigid = None if pose is None else as_rigid(pose, "pose")
         if self._mode == "encoded":
             raise InputError("this recording takes encoded color (write_encoded), not images")
         timestamp = self._next_timestamp(timestamp)
+        own = [_own_stamp(t, name) for t, name in zip(stamps, _STAMP_NAMES, strict=True)]
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
         self._check_float_scale(d)
         rgb: npt.NDArray[np.uint8] | None = None
@@ -430,6 +467,13 @@ class RecordingWriter(FrameInputs):
         )
         if rigid is not None:
             self._poses[timestamp] = rigid
+        if color is None:
+            own[0] = None  # no color image, no color time
+        if any(t is not None and t != timestamp for t in own):
+            self._stamps[timestamp] = (
+                timestamp if own[0] is None else own[0],
+                timestamp if own[1] is None else own[1],
+            )
         self._enqueue(timestamp, fut_color, d)
 
     def write_encoded(
@@ -570,7 +614,9 @@ class RecordingWriter(FrameInputs):
                 f"the frame at {timestamp} ns, expected bytes"
             )
         depth = data if isinstance(data, bytes) else bytes(data)
-        self._container.write_frame(timestamp, depth, self._poses.pop(timestamp, None))
+        self._container.write_frame(
+            timestamp, depth, self._poses.pop(timestamp, None), self._stamps.pop(timestamp, None)
+        )
 
     # -- closing -------------------------------------------------------------------------
 

@@ -73,23 +73,35 @@ def seconds_to_ns(text: str) -> int:
 Pair = tuple[int, Path | None, Path]
 
 
-def _tum_pairs(root: Path, max_difference: int, dropped: dict[str, int]) -> list[Pair]:
-    """The pairs of TUM lists: ``associations.txt`` as it is, else ``rgb.txt`` and
-    ``depth.txt`` paired by the rule of every reader (:mod:`pcdcodec.sync`), the images left
-    without a partner counted in ``dropped``."""
+def _tum_pairs(
+    root: Path, max_difference: int, dropped: dict[str, int]
+) -> tuple[list[Pair], list[int]]:
+    """The pairs of TUM lists, each at its color image's time, and each depth image's own
+    listed time (TUM stamps color and depth apart): ``associations.txt`` as it is, else
+    ``rgb.txt`` and ``depth.txt`` paired by the rule of every reader (:mod:`pcdcodec.sync`),
+    the images left without a partner counted in ``dropped``."""
     assoc = root / "associations.txt"
     if assoc.exists():
-        return [(t, root / r[1], root / r[3]) for t, r in _read_list(assoc, 4)]
+        rows = _read_list(assoc, 4)
+        depth_times = []
+        for _, r in rows:
+            if not _DECIMAL_SECONDS.fullmatch(r[2]):
+                raise InputError(
+                    f"{assoc}: depth timestamp {r[2]!r} of the line at {r[0]} is not seconds "
+                    "(a decimal number such as 1305031229.528748)"
+                )
+            depth_times.append(seconds_to_ns(r[2]))
+        return [(t, root / r[1], root / r[3]) for t, r in rows], depth_times
     depth = [(t, root / r[1]) for t, r in _read_list(root / "depth.txt", 2)]
     if not (root / "rgb.txt").exists():
-        return [(t, None, d) for t, d in depth]  # depth only
+        return [(t, None, d) for t, d in depth], [t for t, _ in depth]  # depth only
     from ..sync import associate
 
     rgb = [(t, root / r[1]) for t, r in _read_list(root / "rgb.txt", 2)]
     pairs = associate([t for t, _ in rgb], [t for t, _ in depth], max_difference=max_difference)
     dropped["color"] = len(pairs.unmatched_color)
     dropped["depth"] = len(pairs.unmatched_depth)
-    return [(rgb[i][0], rgb[i][1], depth[j][1]) for i, j in pairs]
+    return [(rgb[i][0], rgb[i][1], depth[j][1]) for i, j in pairs], [depth[j][0] for _, j in pairs]
 
 
 #: What the layouts look for, for the error of a folder that matches none.
@@ -305,22 +317,24 @@ def folder_pairs(
     depth_pattern: str | None,
     color_pattern: str | None,
     dropped: dict[str, int],
-) -> tuple[list[Pair], str, bool]:
-    """The folder's pairs, how their times were made, and whether they are TUM lists; the
-    images of TUM lists left without a partner within ``max_difference`` ns are counted in
-    ``dropped`` (other layouts pair by name)."""
+) -> tuple[list[Pair], str, list[int] | None]:
+    """The folder's pairs, how their times were made, and for TUM lists each depth image's own
+    listed time (``None`` for the other layouts, whose pairs have one time); the images of TUM
+    lists left without a partner within ``max_difference`` ns are counted in ``dropped``
+    (other layouts pair by name)."""
     if layout not in ("auto", "tum", "folders", "flat"):
         raise InputError(f"layout must be 'auto', 'tum', 'folders' or 'flat', got {layout!r}")
     if depth_pattern is not None:
         colors, depths = _pattern_files(root, depth_pattern, color_pattern)
-        return (*_named_pairs(colors, depths, fps), False)
+        return (*_named_pairs(colors, depths, fps), None)
     if color_pattern is not None:
         raise InputError("color_pattern needs depth_pattern too")
     if layout == "tum" or (layout == "auto" and (root / "depth.txt").is_file()):
-        return _tum_pairs(root, max_difference, dropped), "recorded (TUM lists)", True
+        pairs, depth_times = _tum_pairs(root, max_difference, dropped)
+        return pairs, "recorded (TUM lists)", depth_times
     if layout in ("auto", "folders") and (root / "depth").is_dir():
-        return (*_named_pairs(*_subfolder_files(root), fps), False)
+        return (*_named_pairs(*_subfolder_files(root), fps), None)
     flat = _flat_files(root) if layout in ("auto", "flat") else None
     if flat is None:
         raise InputError(f"{str(root)!r} is not an RGB-D folder: expected {LOOKED_FOR}")
-    return (*_named_pairs(*flat, fps), False)
+    return (*_named_pairs(*flat, fps), None)

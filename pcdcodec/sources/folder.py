@@ -192,6 +192,9 @@ class FolderSource(Source):
     read_entries: frozenset[str] = frozenset()
     #: Images of TUM lists left without a partner when pairing them by time, by stream.
     dropped: dict[str, int] = field(default_factory=lambda: {"color": 0, "depth": 0})
+    #: Each pair's depth image's own time (ns) where the folder stamps depth apart from color
+    #: (TUM lists), else None: the pair's time is both images'.
+    depth_times: list[int] | None = None
 
     @property
     def path(self) -> Path:  # type: ignore[override]
@@ -255,6 +258,7 @@ class FolderSource(Source):
             )
         for i, (t, c, d) in enumerate(self.pairs[start:stop], start):
             pose = None if self.poses is None else self.poses[i]
+            depth_t = None if self.depth_times is None else self.depth_times[i]
             color = _read_color(c) if c is not None else None
             depth = _read_depth(d)
             if c is not None and color is not None:
@@ -274,7 +278,9 @@ class FolderSource(Source):
                     f"{shape[1]}x{shape[0]}"
                 )
             shape = depth.shape
-            yield Frame(color, depth, t, index=i, pose=pose, projector=projector)
+            yield Frame(
+                color, depth, t, index=i, pose=pose, projector=projector, depth_timestamp_ns=depth_t
+            )
 
 
 def _size_problem(
@@ -325,11 +331,12 @@ def open_folder(
 
     tolerance = round(max_dt * 1_000_000_000) if max_difference is None else max_difference
     dropped = {"color": 0, "depth": 0}
-    pairs, note, is_tum_pairs = folder_pairs(
+    pairs, note, depth_times = folder_pairs(
         root, layout, fps, as_max_difference(tolerance), depth_pattern, color_pattern, dropped
     )
     if max_frames is not None:
         pairs = pairs[:max_frames]
+        depth_times = None if depth_times is None else depth_times[:max_frames]
     if not pairs:
         raise InputError(
             f"RGB-D folder {str(root)!r} holds no color/depth pairs; looked for {LOOKED_FOR}"
@@ -399,9 +406,9 @@ def open_folder(
     else:
         color_camera, d2c = None, None
 
-    from .poses import folder_poses
+    from .poses import POSE_LAYOUT_KEY, folder_poses
 
-    poses = folder_poses(root, pairs, tum=is_tum_pairs)
+    poses, pose_layout = folder_poses(root, pairs, depth_times=depth_times)
     source = FolderSource(
         root,
         pairs,
@@ -413,11 +420,15 @@ def open_folder(
         color_intrinsics=color_camera,
         depth_to_color=d2c,
         has_color=has_color,
+        depth_times=depth_times,
     )
     source.metadata["timestamps"] = note
     source.dropped = dropped
+    if pose_layout is not None:
+        source.metadata[POSE_LAYOUT_KEY] = pose_layout
     if camera_from not in ("", "given", "camera.json"):
         source.metadata["intrinsics_file"] = camera_from
+    is_tum_pairs = depth_times is not None
     source.read_entries = _read_entries(root, pairs, is_tum_pairs, poses is not None, camera_from)
     return source
 

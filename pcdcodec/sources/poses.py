@@ -7,6 +7,11 @@
   the trajectory, or in a gap longer than :data:`MAX_GAP_NS`, gets no pose.
 * **7-Scenes**: ``pose/frame-NNNNNN.pose.txt`` holds the 4 × 4 camera-to-world matrix of frame
   ``NNNNNN`` as text.
+
+Which of the two a folder's poses came in is kept in the source's metadata under
+:data:`POSE_LAYOUT_KEY` (``"tum"`` or ``"7scenes"``), so a recording of the folder says it and
+``pcdcodec decode`` writes the poses back the same way (:func:`write_tum_trajectory`,
+:func:`write_pose_file`).
 """
 
 from __future__ import annotations
@@ -18,14 +23,41 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InputError
-from ..geometry.transform import as_rigid, interpolate_poses, rigid_from_quaternion
-from ._folder_layouts import seconds_to_ns
+from ..geometry.transform import (
+    as_rigid,
+    interpolate_poses,
+    matrix_to_quaternion,
+    rigid_from_quaternion,
+)
+from ._folder_layouts import NS_PER_S, seconds_to_ns
 
-__all__ = ["MAX_GAP_NS", "folder_poses", "read_tum_trajectory"]
+__all__ = [
+    "DEFAULT_POSE_LAYOUT",
+    "MAX_GAP_NS",
+    "POSE_LAYOUTS",
+    "POSE_LAYOUT_KEY",
+    "folder_poses",
+    "read_tum_trajectory",
+    "seconds_text",
+    "write_pose_file",
+    "write_tum_trajectory",
+]
 
 #: The longest gap between two trajectory samples that is interpolated across (0.1 s).
 MAX_GAP_NS = 100_000_000
 Pose = npt.NDArray[np.float64]
+
+#: The metadata key (a source's, then a recording's) that names the layout a folder's poses
+#: came in: one of :data:`POSE_LAYOUTS`.
+POSE_LAYOUT_KEY = "pose_layout"
+#: The layouts of poses, by name: TUM's trajectory file and 7-Scenes' file per frame.
+POSE_LAYOUTS = {
+    "tum": "groundtruth.txt (timestamp tx ty tz qx qy qz qw)",
+    "7scenes": "pose/frame-NNNNNN.pose.txt (a 4 x 4 matrix per frame)",
+}
+#: The layout for poses whose recording does not name one (recordings of earlier versions,
+#: poses from bags or handed to the writer).
+DEFAULT_POSE_LAYOUT = "tum"
 
 
 def read_tum_trajectory(path: Path) -> tuple[list[int], list[Pose]]:
@@ -56,23 +88,51 @@ def read_tum_trajectory(path: Path) -> tuple[list[int], list[Pose]]:
     return [sorted_times[k] for k in keep], [poses[order[k]] for k in keep]
 
 
-def _depth_time(path: Path, fallback: int) -> int:
-    try:
-        return seconds_to_ns(path.name.rsplit(".", 1)[0])
-    except ValueError:
-        return fallback
+def seconds_text(ns: int) -> str:
+    """A time in ns as TUM writes times: decimal seconds, 6 decimals when the time is whole
+    microseconds (as TUM's own), else 9; :func:`seconds_to_ns` reads it back exactly."""
+    t = int(ns)
+    whole, frac = divmod(t, NS_PER_S)
+    return f"{whole}.{frac // 1000:06d}" if frac % 1000 == 0 else f"{whole}.{frac:09d}"
+
+
+def write_tum_trajectory(path: Path, times: Sequence[int], poses: Sequence[Pose]) -> None:
+    """Write timed 4 × 4 camera-to-world poses as a TUM trajectory file (what
+    :func:`read_tum_trajectory` reads): ``timestamp tx ty tz qx qy qz qw`` per line, the
+    numbers in the shortest text that reads back as the same float64."""
+    lines = ["# camera-to-world poses", "# timestamp tx ty tz qx qy qz qw"]
+    for t, pose in zip(times, poses, strict=True):
+        m = np.asarray(pose, dtype=np.float64)
+        values = [*m[:3, 3].tolist(), *matrix_to_quaternion(m).tolist()]
+        lines.append(" ".join([seconds_text(t), *(repr(float(v)) for v in values)]))
+    path.write_text("\n".join(lines) + "\n")
+
+
+def write_pose_file(path: Path, pose: Pose) -> None:
+    """Write a 4 × 4 pose as a 7-Scenes pose file: four rows of four numbers, each in the
+    shortest text that reads back as the same float64 (bit for bit)."""
+    m = np.asarray(pose, dtype=np.float64)
+    path.write_text("".join(" ".join(repr(float(v)) for v in row) + "\n" for row in m.tolist()))
 
 
 def folder_poses(
-    root: Path, pairs: Sequence[tuple[int, Path | None, Path]], *, tum: bool
-) -> list[Pose | None] | None:
+    root: Path,
+    pairs: Sequence[tuple[int, Path | None, Path]],
+    *,
+    depth_times: Sequence[int] | None = None,
+) -> tuple[list[Pose | None] | None, str | None]:
     """The pose of each ``(timestamp, color, depth)`` pair, or ``None`` when the folder has no
-    poses at all. Pairs without a pose of their own get ``None`` in the list."""
+    poses at all, and the layout they came in (a name of :data:`POSE_LAYOUTS`, or ``None``).
+    Pairs without a pose of their own get ``None`` in the list.
+
+    ``depth_times`` are the depth images' own times of TUM lists (``None`` for other
+    layouts): the TUM trajectory is read only beside them, and each frame's pose is taken at
+    its depth image's time.
+    """
     trajectory = root / "groundtruth.txt"
-    if tum and trajectory.is_file():
+    if depth_times is not None and trajectory.is_file():
         times, poses = read_tum_trajectory(trajectory)
-        query = [_depth_time(d, t) for t, _, d in pairs]
-        return interpolate_poses(times, poses, query, max_gap=MAX_GAP_NS)
+        return interpolate_poses(times, poses, list(depth_times), max_gap=MAX_GAP_NS), "tum"
     pose_dir = root / "pose"
     if pose_dir.is_dir():
         out: list[Pose | None] = []
@@ -90,5 +150,5 @@ def folder_poses(
                 out.append(None)
                 continue
             out.append(as_rigid(matrix, f"pose {str(file)!r}"))
-        return out
-    return None
+        return out, "7scenes"
+    return None, None
