@@ -16,9 +16,8 @@ from pcdcodec.bench.sequences import SEQUENCES
 from pcdcodec.cli import main
 from pcdcodec.datasets import open_folder, sample_dir
 from pcdcodec.recording import _index as fmt
+from pcdcodec.recording.rewrite import positions, rewrite, with_data
 from pcdcodec.sources.poses import POSE_LAYOUT_KEY, seconds_text
-
-from .recording_rewrite import positions, rewrite, with_data
 
 
 def _ns(text: str) -> int:

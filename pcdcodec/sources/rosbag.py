@@ -37,7 +37,6 @@ from typing import Any
 
 import numpy as np
 
-from ..color.base import Packet
 from ..errors import InputError, PcdcodecError
 from ..frame import Frame
 from ..geometry.camera import as_intrinsics
@@ -54,8 +53,9 @@ from ..ros.topics import (
     VIDEO_TYPES,
     TopicCandidate,
 )
-from ..sync import MAX_DIFFERENCE, Synchronizer, as_max_difference
+from ..sync import MAX_DIFFERENCE, as_max_difference
 from ._bag_color import color_camera
+from ._bag_video import paired_packets
 from .base import FrameIndex, InputStream, Source, read_magic, register_source, streams_by_name
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
@@ -753,52 +753,18 @@ class RosbagSource(Source):
             raise InputError(f"video topic {video_topic!r} is a {vconn.msgtype}")
         if self.mode != "images":
             raise InputError("pass-through pairs video with depth images, not with clouds")
-        dconn = self._depth_conn
         self.color_topic = video_topic
         self.stats = _Stats()
-        sync: Synchronizer[Any, Any] = Synchronizer(max_difference=self.max_difference)
-        waiting: list[tuple[int, bytes, bool]] = []  # video packets not yet written
-        last = {"depth": -1, "video": -1}
-        fmt_seen: str | None = None
-
-        def groups(ready: list[Any]) -> Iterator[tuple[str, Any, Any, int]]:
-            for cts, _, dts, dmsg in ready:
-                group = []
-                while waiting and waiting[0][0] <= cts:
-                    ts, data, key = waiting.pop(0)
-                    pts = dts if ts == cts else ts
-                    group.append(Packet.create(data, pts, pts, key))
-                depth = self._decode(dmsg, dconn, "depth", dts)
-                self.stats.frames += 1
-                assert fmt_seen is not None
-                yield fmt_seen, group, depth, dts
-
-        for conn, t, msg in self._messages([dconn, vconn]):
-            role = "depth" if conn.topic == dconn.topic else "video"
-            ts = self._stamp(msg, t, conn.topic)
-            if ts <= last[role]:
-                self.stats.out_of_order += 1
-                continue
-            last[role] = ts
-            if role == "video":
-                fmt, data, key = rm.video_packet(msg, video_topic)
-                if fmt_seen is not None and fmt != fmt_seen:
-                    raise InputError(
-                        f"video topic {video_topic!r} changes from {fmt_seen} to {fmt}"
-                    )
-                fmt_seen = fmt
-                waiting.append((ts, data, key))
-                ready = sync.add_color(ts, None)
-            else:
-                ready = sync.add_depth(ts, msg)
-            self.stats.dropped_color = len(sync.dropped_color)
-            self.stats.dropped_depth = len(sync.dropped_depth)
-            yield from groups(ready)
-            if self.max_frames is not None and self.stats.frames >= self.max_frames:
-                return
-        yield from groups(sync.flush())
-        self.stats.dropped_color = len(sync.dropped_color)
-        self.stats.dropped_depth = len(sync.dropped_depth)
+        yield from paired_packets(
+            self._messages([self._depth_conn, vconn]),
+            self._depth_conn.topic,
+            video_topic,
+            stamp=self._stamp,
+            decode=partial(self._decode, conn=self._depth_conn, role="depth"),
+            stats=self.stats,
+            max_difference=self.max_difference,
+            max_frames=self.max_frames,
+        )
 
     def close(self) -> None:
         reader = getattr(self, "_reader", None)
