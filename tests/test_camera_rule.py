@@ -61,7 +61,7 @@ def test_encode_camera_flag_keeps_a_tum_folders_own_depth_scale(
 ) -> None:
     root = _tum_copy(tmp_path / "tum")
     out = tmp_path / "x.pcdc"
-    assert main(["encode", str(root), "-o", str(out), "--camera", "kinect-v1", "-q"]) == 0
+    assert main(["encode", str(root), "-o", str(out), "--camera", "kinect-v1"]) == 0
     text = capsys.readouterr().out
     with pcdcodec.open(out) as rec:
         assert rec.depth_scale == 5000.0  # not kinect-v1's 1000: clouds 5x too deep
@@ -69,7 +69,7 @@ def test_encode_camera_flag_keeps_a_tum_folders_own_depth_scale(
     assert "--camera kinect-v1 depth scale 1000 differs from the input's own 5000" in text
     assert "--override replaces it" in text
     # --override replaces it, and the summary says so.
-    argv = ["encode", str(root), "-o", str(out), "--camera", "kinect-v1", "-q"]
+    argv = ["encode", str(root), "-o", str(out), "--camera", "kinect-v1"]
     assert main([*argv, "--overwrite", "--override"]) == 0
     text = capsys.readouterr().out
     with pcdcodec.open(out) as rec:
@@ -84,7 +84,7 @@ def test_encode_camera_flag_keeps_a_seven_scenes_intrinsics_file(
 ) -> None:
     root = _seven_copy(tmp_path / "seven")
     out = tmp_path / "x.pcdc"
-    assert main(["encode", str(root), "-o", str(out), "--camera", "tum-ros", "-q"]) == 0
+    assert main(["encode", str(root), "-o", str(out), "--camera", "tum-ros"]) == 0
     text = capsys.readouterr().out
     with pcdcodec.open(out) as rec:
         assert (rec.intrinsics.fx, rec.depth_scale) == (585.0, 1000.0)
@@ -106,7 +106,7 @@ def test_a_flag_fills_only_what_the_input_lacks(
     depth_txt = root / "depth.txt"
     depth_txt.write_text(depth_txt.read_text().replace("rgbd_dataset_", "my_own_"))
     out = tmp_path / "x.pcdc"
-    assert main(["encode", str(root), "-o", str(out), "--camera", "kinect-v1", "-q"]) == 0
+    assert main(["encode", str(root), "-o", str(out), "--camera", "kinect-v1"]) == 0
     text = capsys.readouterr().out
     with pcdcodec.open(out) as rec:
         assert (rec.intrinsics.fx, rec.depth_scale) == (525.0, 1000.0)
@@ -146,7 +146,7 @@ def test_a_tum_folder_encodes_with_its_datasets_camera(
 ) -> None:
     root = _tum_copy(tmp_path / "tum")
     out = tmp_path / "x.pcdc"
-    assert main(["encode", str(root), "-o", str(out), "-q"]) == 0
+    assert main(["encode", str(root), "-o", str(out)]) == 0
     text = capsys.readouterr().out
     with pcdcodec.open(out) as rec:
         assert (rec.intrinsics.fx, rec.intrinsics.cx, rec.depth_scale) == (525.0, 319.5, 5000.0)
@@ -162,7 +162,7 @@ def test_the_real_tum_folder_encodes_as_info_describes_it(
     info = capsys.readouterr().out
     assert "camera       640x480, fx=525" in info
     out = tmp_path / "x.pcdc"
-    assert main(["encode", str(TUM), "-o", str(out), "--max-frames", "2", "-q"]) == 0
+    assert main(["encode", str(TUM), "-o", str(out), "--max-frames", "2"]) == 0
     with pcdcodec.open(out) as rec:
         assert (rec.intrinsics.fx, rec.depth_scale, len(rec)) == (525.0, 5000.0, 2)
 
@@ -282,7 +282,7 @@ def test_bench_reads_its_input_by_the_same_rule(
 ) -> None:
     root = _tum_copy(tmp_path / "tum", 2)
     argv = ["bench", str(root), "--frames", "2", "--no-rd", "--no-plots", "--depth", "zstd"]
-    assert main([*argv, "--camera", "kinect-v1", "-q"]) == 0
+    assert main([*argv, "--camera", "kinect-v1"]) == 0
     err = capsys.readouterr().err
     assert "--camera kinect-v1 depth scale 1000 differs from the input's own 5000" in err
 

@@ -352,42 +352,6 @@ class Recording(PacketAccess, OneCamera):
         """Whether frames were written with a pose."""
         return bool(self._pose_at)
 
-    def _pose_messages(self, i: int, ts: int) -> dict[str, bytes]:
-        """The frame's pose messages by topic, each read once, checked against its digest."""
-        what = f"{str(self.path)!r}: frame {i} (t={ts} ns) pose"
-        found: dict[str, bytes] = {}
-        for topic, at in (
-            (fmt.TOPIC_POSE, self._pose_at),
-            (fmt.TOPIC_POSE_MATRIX, self._pose_matrix_at),
-        ):
-            offset = at.get(ts)
-            if offset is None:
-                continue
-            with self._lock:
-                messages = fmt.read_chunk_messages(
-                    self._file, offset, what=what, size=self.index.size or None
-                )
-            channel = self.index.channel(topic)
-            data = next(
-                (
-                    bytes(m.data)
-                    for m in messages
-                    if channel is not None and m.channel_id == channel.id and m.log_time == ts
-                ),
-                None,
-            )
-            if data is None:
-                raise DecodeError(f"{what}: no {topic} message at byte offset {offset}")
-            found[topic] = data
-        record = self._frame_record(i, what)
-        digest = fmt.data_digest(*found.values()) if found else fmt.NO_POSE
-        if record is not None and digest != record[3]:
-            raise DecodeError(
-                f"{what} does not match the frame's digest: its pose messages were changed, "
-                "added or removed"
-            )
-        return found
-
     def _pose(self, i: int) -> npt.NDArray[np.float64] | None:
         ts = int(self._times[i])
         found = self._pose_messages(i, ts)

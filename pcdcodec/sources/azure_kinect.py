@@ -30,6 +30,7 @@ import numpy.typing as npt
 from ..errors import DecodeError, InputError
 from ..geometry.camera import CameraIntrinsics, as_intrinsics
 from ..sync import MAX_DIFFERENCE, Synchronizer, as_max_difference
+from . import _k4a_calibration as k4a
 from ._mkv import EBML_MAGIC, blocks_by_track, declared_tag, has_cluster, list_tracks, walk_blocks
 from ._mkv import track_name as _name
 from .base import InputStream, Source, read_magic, register_source
@@ -69,92 +70,6 @@ def _is_azure_kinect(path: Path) -> bool:
     with path.open("rb") as f:
         head = f.read(1 << 16)
     return b"K4A_" in head
-
-
-def _field(value: Any, keys: tuple[str | int, ...], where: str) -> Any:
-    """``value[k0][k1]...``, or an :class:`~pcdcodec.InputError` naming the missing field."""
-    path = "calibration.json"
-    for k in keys:
-        path += f"[{k}]" if isinstance(k, int) else f".{k}"
-        ok = (
-            isinstance(value, dict) and k in value
-            if isinstance(k, str)
-            else (isinstance(value, list) and 0 <= k < len(value))
-        )
-        if not ok:
-            raise InputError(f"{where}: {path} is missing or not of the expected type")
-        value = value[k]
-    return value
-
-
-def _numbers(value: Any, n: int | None, field: str, where: str) -> list[float]:
-    """A list of ``n`` (or at least 1) finite numbers from the calibration, or an
-    :class:`~pcdcodec.InputError` naming ``field`` and what it holds."""
-    if not isinstance(value, list) or (len(value) != n if n is not None else not value):
-        got = f"{len(value)} values" if isinstance(value, list) else repr(value)[:60]
-        raise InputError(
-            f"{where}: calibration.json {field} holds {got}; expected a list of "
-            f"{n if n is not None else 'some'} numbers"
-        )
-    for i, v in enumerate(value):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
-            raise InputError(
-                f"{where}: calibration.json {field}[{i}] is {v!r}; expected a finite number"
-            )
-    return [float(v) for v in value]
-
-
-def _camera(
-    cal: dict[str, Any],
-    mode: tuple[tuple[int, int], tuple[int, int], tuple[int, int]],
-    what: str,
-    where: str,
-) -> CameraIntrinsics:
-    raw = _field(cal, ("Intrinsics", "ModelParameters"), where)
-    if not isinstance(raw, list) or len(raw) < 14:
-        got = f"{len(raw)}" if isinstance(raw, list) else repr(raw)[:60]
-        raise InputError(
-            f"{where}: {what} calibration has {got} model parameters, expected 14 numbers"
-        )
-    params = _numbers(raw[:14], 14, f"{what} Intrinsics.ModelParameters", where)
-    (bw, bh), (ox, oy), (w, h) = mode
-    cx, cy, fx, fy = params[:4]
-    if not (fx > 0 and fy > 0):
-        raise InputError(f"{where}: {what} calibration has focal lengths {fx}, {fy}; expected > 0")
-    k1, k2, k3, k4, k5, k6 = params[4:10]
-    p2, p1 = params[12], params[13]
-    try:
-        return CameraIntrinsics(
-            w,
-            h,
-            fx * bw,
-            fy * bh,
-            cx * bw - ox - 0.5,
-            cy * bh - oy - 0.5,
-            "rational_polynomial",
-            (k1, k2, p1, p2, k3, k4, k5, k6),
-        )
-    except InputError as exc:
-        raise InputError(f"{where}: calibration.json {what} Intrinsics: {exc}") from None
-
-
-def _rt(cal: dict[str, Any], what: str, where: str) -> npt.NDArray[np.float64]:
-    """The 4 × 4 transform from the depth camera to this camera (``Rt``: rotation row-major,
-    translation in metres)."""
-    rotation = _numbers(_field(cal, ("Rt", "Rotation"), where), 9, f"{what} Rt.Rotation", where)
-    translation = _numbers(
-        _field(cal, ("Rt", "Translation"), where), 3, f"{what} Rt.Translation", where
-    )
-    m = np.eye(4)
-    m[:3, :3] = np.reshape(rotation, (3, 3))
-    m[:3, 3] = translation
-    with np.errstate(all="ignore"):
-        orthonormal = np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-3)
-    if not orthonormal:
-        raise InputError(
-            f"{where}: calibration.json {what} Rt.Rotation {rotation} is not a rotation matrix"
-        )
-    return m
 
 
 def _start_offset(tags: dict[str, Any], where: str) -> int:
@@ -282,7 +197,7 @@ class AzureKinectSource(Source):
             calibration = json.loads(bytes(attachment.data))
         except (ValueError, TypeError, AttributeError) as exc:
             raise InputError(f"{name!r}: calibration.json is not JSON: {exc}") from None
-        cameras = _field(calibration, ("CalibrationInformation", "Cameras"), where)
+        cameras = k4a.field(calibration, ("CalibrationInformation", "Cameras"), where)
         if not isinstance(cameras, list) or not all(isinstance(c, dict) for c in cameras):
             raise InputError(
                 f"{where}: calibration.json CalibrationInformation.Cameras is not a list of cameras"
@@ -311,7 +226,9 @@ class AzureKinectSource(Source):
                 f"{name!r}: depth mode {depth_mode} is {mode[2][0]}x{mode[2][1]}, but its track "
                 f"is {depth_ctx.width}x{depth_ctx.height}"
             )
-        self.intrinsics: CameraIntrinsics | None = _camera(depth_cal, mode, "depth camera", where)
+        self.intrinsics: CameraIntrinsics | None = k4a.camera_of(
+            depth_cal, mode, "depth camera", where
+        )
         self._depth_shape = (mode[2][1], mode[2][0])
         self.depth_scale = 1000.0
         self._depth_index = depth.index
@@ -362,9 +279,9 @@ class AzureKinectSource(Source):
                     f"{name!r}: color track is {w}x{h}, not an Azure Kinect color resolution "
                     f"({sizes})"
                 )
-            self.color_intrinsics = _camera(color_cal, COLOR_MODES[h], "color camera", where)
-            self.depth_to_color = _rt(color_cal, "color camera", where) @ np.linalg.inv(
-                _rt(depth_cal, "depth camera", where)
+            self.color_intrinsics = k4a.camera_of(color_cal, COLOR_MODES[h], "color camera", where)
+            self.depth_to_color = k4a.rt(color_cal, "color camera", where) @ np.linalg.inv(
+                k4a.rt(depth_cal, "depth camera", where)
             )
             self._color_index = color.index
             self._color_format = fmt

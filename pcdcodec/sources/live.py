@@ -429,7 +429,7 @@ class RealSenseLiveSource(Source):
             except PcdcodecError:
                 found = False
             self._bag_topics = found
-        return found or None
+        return None if found is False else found
 
     def input_streams(self) -> list[InputStream]:
         """Of a played-back ``.bag``, its topics (a camera's other streams, infrared and IMU,

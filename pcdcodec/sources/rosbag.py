@@ -381,6 +381,12 @@ class RosbagSource(Source):
         if found is not None:
             self.color_intrinsics, self.depth_to_color, note, self._color_problem = found
             self.notes.append(note)
+            # The color camera's own CameraInfo is read, and so recorded, not left out.
+            info = topics.choose_color_info(
+                cands, self._color_conn.topic, self._depth_conn.topic, self.info_topic
+            )
+            if info:
+                self.metadata["ros_color_info_topic"] = info
 
     def _check_color_camera(self) -> None:
         if getattr(self, "_color_problem", None):
