@@ -119,6 +119,9 @@ def test_the_color_camera_apart_is_recorded_with_the_bags_tf(tmp_path: Path, ros
     notes = " ".join(summary.source["notes"])
     assert "camera apart from the depth" in notes
     assert f"from /tf_static ({DEPTH_FRAME} -> camera_link -> {COLOR_FRAME})" in notes
+    # Both CameraInfo topics and the /tf_static that placed the cameras are recorded.
+    left_out = {item["name"] for item in summary.left_out}
+    assert not {"/tf_static", COLOR.rsplit("/", 1)[0] + "/camera_info"} & left_out, left_out
     frames = _frames()
     with pcdcodec.open(out) as rec:
         assert rec.intrinsics == DEPTH_CAM

@@ -381,6 +381,8 @@ class RosbagSource(Source):
         if found is not None:
             self.color_intrinsics, self.depth_to_color, note, self._color_problem = found
             self.notes.append(note)
+            # depth_to_color read from the bag's tf: /tf and /tf_static are recorded in it.
+            self._tf_for_extrinsics = self._color_problem is None and "as given" not in note
             # The color camera's own CameraInfo is read, and so recorded, not left out.
             info = topics.choose_color_info(
                 cands, self._color_conn.topic, self._depth_conn.topic, self.info_topic
@@ -429,7 +431,7 @@ class RosbagSource(Source):
         topics |= {
             v for k, v in self.metadata.items() if k.startswith("ros_") and k.endswith("_topic")
         }
-        if self._tf is not False:
+        if self._tf is not False or getattr(self, "_tf_for_extrinsics", False):
             topics |= {s.name for s in self._streams if "/" + s.name.lstrip("/") in tf.TF_TOPICS}
         return {t for t in topics if t}
 
