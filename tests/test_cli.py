@@ -481,6 +481,24 @@ def test_encode_and_export_quiet_print_nothing_but_errors(encoded: Path, tmp_pat
     assert "error:" in refused.stderr  # errors still say what went wrong
 
 
+def test_verify_recover_and_join_quiet_print_only_problems(encoded: Path, tmp_path: Path) -> None:
+    checked = run("verify", str(encoded), "-q")
+    assert (checked.returncode, checked.stdout, checked.stderr) == (0, "", "")
+    copy = tmp_path / "copy.pcdc"
+    recovered = run("recover", str(encoded), "-o", str(copy), "-q")
+    assert (recovered.returncode, recovered.stdout, recovered.stderr) == (0, "", "")
+    joined = run("join", str(encoded), "-o", str(tmp_path / "joined.pcdc"), "-q")
+    assert (joined.returncode, joined.stdout, joined.stderr) == (0, "", "")
+    damaged = tmp_path / "damaged.pcdc"
+    data = bytearray(encoded.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    damaged.write_bytes(bytes(data))
+    bad = run("verify", str(damaged), "-q")
+    assert bad.returncode == 1
+    assert bad.stdout == ""
+    assert "problem(s)" in bad.stderr  # the problems are said, on stderr
+
+
 def test_decode_ply_holds_the_float32_cloud(encoded: Path, tmp_path: Path) -> None:
     import open3d as o3d
 

@@ -26,7 +26,7 @@ __all__ = ["build_parser", "cli_message", "main", "parse_args", "parse_codec"]
 
 #: The commands whose ``-q`` means "only errors": no progress and no summary; their warnings
 #: and errors still go to stderr.
-ONLY_ERRORS_WHEN_QUIET = frozenset({"encode", "decode", "export"})
+ONLY_ERRORS_WHEN_QUIET = frozenset({"encode", "decode", "export", "recover", "join"})
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -305,18 +305,27 @@ def _info_options(p: argparse.ArgumentParser) -> None:
 
 def _verify_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("input")
+    p.add_argument(
+        "-q", "--quiet", action="store_true", help="print only problems (on stderr), if any"
+    )
 
 
 def _recover_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("input")
     p.add_argument("-o", "--output", required=True)
     p.add_argument("--overwrite", action="store_true")
+    p.add_argument(
+        "-q", "--quiet", action="store_true", help="only errors: no progress, no summary"
+    )
 
 
 def _join_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("parts", nargs="+", metavar="PART", help="closed recordings, in time order")
     p.add_argument("-o", "--output", required=True, help="the joined .pcdc file")
     p.add_argument("--overwrite", action="store_true")
+    p.add_argument(
+        "-q", "--quiet", action="store_true", help="only errors: no progress, no summary"
+    )
 
 
 def _export_options(p: argparse.ArgumentParser) -> None:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import operator
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -259,15 +260,23 @@ def cmd_verify(args: argparse.Namespace) -> int:
             if isinstance(rec, RigRecording)
             else {}
         )
+    if args.quiet and report.ok:
+        return 0
+    out = sys.stderr if args.quiet else sys.stdout  # -q: only a report of problems, on stderr
     for name, frames in per_camera.items():
         bad = sum(1 for e in report.errors if e.startswith(f"camera {name!r}:"))
-        print(f"  camera {name}: {frames} frames, " + (f"{bad} problem(s)" if bad else "OK"))
+        print(
+            f"  camera {name}: {frames} frames, " + (f"{bad} problem(s)" if bad else "OK"), file=out
+        )
     for error in report.errors:
-        print(f"  {error}")
+        print(f"  {error}", file=out)
     if not report.indexed:
-        print("  note: the file has no index (unfinished writer); `pcdcodec recover` rewrites it")
+        print(
+            "  note: the file has no index (unfinished writer); `pcdcodec recover` rewrites it",
+            file=out,
+        )
     status = "OK" if report.ok else f"{len(report.errors)} problem(s)"
-    print(f"{args.input}: {report.frames} frames checked, {status}")
+    print(f"{args.input}: {report.frames} frames checked, {status}", file=out)
     return 0 if report.ok else 1
 
 
