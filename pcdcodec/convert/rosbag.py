@@ -5,7 +5,9 @@
 stamp and the bag time): the depth image and its camera info at the depth image's own time, the
 color image and its camera info at the color image's (``Frame.depth_timestamp_ns``,
 ``Frame.color_timestamp_ns``: they differ where the input stamped them apart, as TUM's lists
-do), the cloud and ``/tf`` at the frame's time. Messages go into the bag in time order (a
+do). The cloud, in the depth camera's pixels, and ``/tf`` are at the depth's time too: a
+frame's pose is the camera's at its depth image (TUM's trajectory is sampled there, and a bag
+read back looks its poses up there). Messages go into the bag in time order (a
 message stamped before one already written, which only inputs whose stamps go back in time
 give, keeps its header stamp and is logged at the time of the one before):
 
@@ -355,18 +357,19 @@ class _Export:
                 )
                 emit(self.t_cinfo, c_ts, info)
         if self.projector is not None:
-            emit(self.t_cloud, ts, msgs.cloud(ts, cloud_array(self.projector, depth, color)))
+            cloud = cloud_array(self.projector, depth, color)
+            emit(self.t_cloud, d_ts, msgs.cloud(d_ts, cloud))
         if pose is not None:
             if "/tf" not in bag.conns:
                 self._add(bag, "/tf", "tf2_msgs/msg/TFMessage")
             if self.rig_pose is None:
-                emit("/tf", ts, msgs.tf(ts, pose, "world"))
+                emit("/tf", d_ts, msgs.tf(d_ts, pose, "world"))
             else:
                 # One tree, world -> rig -> camera: the rig's pose through the camera's.
                 rig_frame, rig_pose = self.rig_pose
                 rig_in_world = np.asarray(pose, np.float64) @ np.linalg.inv(rig_pose)
                 edge = ("world", rig_frame, rig_in_world)
-                emit("/tf", ts, msgs.transforms(ts, [edge]))
+                emit("/tf", d_ts, msgs.transforms(d_ts, [edge]))
 
 
 #: Hands one message (topic, log time in ns, serialized data) to the bag being written.
