@@ -156,6 +156,81 @@ def test_7scenes_poses_decode_as_pose_files(tmp_path: Path) -> None:
     ]
 
 
+def _flat_seven_scenes(tmp_path: Path, real: bool) -> Path:
+    """7-Scenes as Microsoft ships it, flat: ``frame-NNNNNN.color.*``, ``.depth.png`` and
+    ``.pose.txt`` side by side, from the real redkitchen's first frames or from the sample;
+    frame 3 untracked (its pose ``-inf``)."""
+    root = tmp_path / "flat"
+    root.mkdir()
+    if real:
+        seq = SEQUENCES["7scenes_redkitchen"]
+        if not seq.present:
+            pytest.skip("7-Scenes redkitchen is not present")
+        for i in range(6):
+            name = f"frame-{i:06d}"
+            for sub, suffix in (("depth", ".depth.png"), ("pose", ".pose.txt")):
+                shutil.copy(seq.root / sub / f"{name}{suffix}", root / f"{name}{suffix}")
+            (color,) = (seq.root / "rgb").glob(f"{name}.color.*")
+            shutil.copy(color, root / color.name)
+        shutil.copy(seq.root / "camera-intrinsics.txt", root / "camera-intrinsics.txt")
+    else:
+        depths = sorted((sample_dir() / "depth").glob("*.png"))[:6]
+        colors = sorted((sample_dir() / "rgb").glob("*.png"))[:6]
+        rng = np.random.default_rng(11)
+        for i, (d, c) in enumerate(zip(depths, colors, strict=True)):
+            shutil.copy(d, root / f"frame-{i:06d}.depth.png")
+            shutil.copy(c, root / f"frame-{i:06d}.color.png")
+            pose = pcdcodec.geometry.transform.rigid_from_quaternion(
+                rng.normal(size=3), rng.normal(size=4)
+            )
+            text = "\n".join("\t".join(f"{v:.17e}" for v in row) for row in pose)
+            (root / f"frame-{i:06d}.pose.txt").write_text(text + "\n")
+        (root / "camera-intrinsics.txt").write_text("585 0 320\n0 585 240\n0 0 1\n")
+    (root / "frame-000003.pose.txt").write_text("\n".join(["-inf -inf -inf -inf"] * 4) + "\n")
+    (root / "notes.txt").write_text("not a frame\n")
+    return root
+
+
+@pytest.mark.parametrize("real", [False, True], ids=["sample", "redkitchen"])
+def test_flat_7scenes_poses_are_read_and_decode_as_pose_files(tmp_path: Path, real: bool) -> None:
+    root = _flat_seven_scenes(tmp_path, real)
+    files = [root / f"frame-{i:06d}.pose.txt" for i in range(6)]
+    given = [np.loadtxt(f, dtype=np.float64) for f in files]
+    src = open_folder(root)
+    assert src.metadata[POSE_LAYOUT_KEY] == "7scenes"
+    assert src.depth_scale == 1000.0
+    # The pose files are read, so not left out; the folder's other file is.
+    assert [s.name for s in src.left_out] == ["notes.txt"]
+    rec = tmp_path / "flat.pcdc"
+    pcdcodec.encode(root, rec)
+    with pcdcodec.open(rec) as r:
+        assert r.metadata[POSE_LAYOUT_KEY] == "7scenes"
+        recorded = list(r)
+    assert len(recorded) == 6
+    for i, (f, m) in enumerate(zip(recorded, given, strict=True)):
+        if i == 3:
+            assert f.pose is None  # untracked
+        else:
+            assert f.pose is not None
+            np.testing.assert_array_equal(f.pose, m)  # the file's matrix, bit for bit
+    out = tmp_path / "decoded"
+    _decode(rec, out)
+    names = sorted(p.name for p in (out / "pose").iterdir())
+    assert names == [f.name for i, f in enumerate(files) if i != 3]
+    for name in names:
+        written = np.loadtxt(out / "pose" / name, dtype=np.float64)
+        original = np.loadtxt(root / name, dtype=np.float64)
+        assert written.tobytes() == original.tobytes()
+    decoded = list(open_folder(out))
+    for a, b in zip(decoded, recorded, strict=True):
+        np.testing.assert_array_equal(a.depth, b.depth)
+        if b.pose is None:
+            assert a.pose is None
+        else:
+            assert a.pose is not None
+            assert a.pose.tobytes() == b.pose.tobytes()
+
+
 def test_poses_of_a_recording_that_names_no_layout_go_to_groundtruth(tmp_path: Path) -> None:
     # Recordings of earlier versions, and poses handed to write(), name no layout.
     rec = tmp_path / "posed.pcdc"

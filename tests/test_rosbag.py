@@ -421,7 +421,8 @@ def test_cloud_bag_round_trip_rebuilds_every_point(tmp_path: Path, to: str, info
         assert rec.depth_scale == (5000.0 if info else 1.0)
         assert rec[0].depth.dtype == (np.uint16 if info else np.float32)
         for frame, original in zip(rec, seq, strict=True):
-            assert frame.timestamp_ns == original.timestamp_ns
+            # A cloud is stamped as its depth image (TUM's is 10 to 40 us after the color).
+            assert frame.timestamp_ns == original.depth_timestamp_ns
             want = projector.to_organized(original.depth)
             got = rec.projector.to_organized(frame.depth)
             valid = np.isfinite(want[..., 2])
@@ -537,7 +538,9 @@ def test_exported_bags_carry_definitions_hashes_and_valid_mcap(tmp_path: Path) -
     assert "mcap" in meta
     with pcdcodec.open_source(ros2) as src:
         back = list(src)
-    assert [f.timestamp_ns for f in back] == [f.timestamp_ns for f in seq]
+    # Each image at its own stamp; a bag's frame is at its depth's time.
+    assert [f.timestamp_ns for f in back] == [f.depth_timestamp_ns for f in seq]
+    assert [f.color_timestamp_ns for f in back] == [f.color_timestamp_ns for f in seq]
     assert src.depth_scale == 1.0  # 5000 per metre is not millimetres: exported as 32FC1
     for f, g in zip(back, seq, strict=True):
         assert np.array_equal(f.depth, to_metres(g.depth, 5000.0), equal_nan=True)
@@ -549,6 +552,63 @@ def test_exported_bags_carry_definitions_hashes_and_valid_mcap(tmp_path: Path) -
     assert not list(tmp_path.glob(".c.bag*"))
     with pytest.raises(InputError, match="bag format must be one of"):
         pcdcodec.export_bag(rec_path, tmp_path / "x", to="rosbag3")
+
+
+def _header_stamps(bag: Path) -> dict[str, list[tuple[int, int]]]:
+    """Each topic's (log time, header stamp) in bag order, and every message's log time under
+    the key ``""``."""
+    from rosbags.highlevel import AnyReader
+
+    out: dict[str, list[tuple[int, int]]] = {"": []}
+    with AnyReader([bag]) as r:
+        for conn, t, raw in r.messages():
+            out[""].append((t, t))
+            msg = r.deserialize(raw, conn.msgtype)
+            header = getattr(msg, "header", None)
+            if header is None and conn.topic == "/tf":
+                header = msg.transforms[0].header
+            if header is not None:
+                ns = header.stamp.sec * NS + header.stamp.nanosec
+                out.setdefault(conn.topic, []).append((t, ns))
+    return out
+
+
+@pytest.mark.parametrize("to", ["rosbag1", "rosbag2"])
+def test_export_stamps_each_image_with_its_own_time(tmp_path: Path, to: str) -> None:
+    """TUM stamps color and depth apart; the bag's images and camera infos keep each its own."""
+    rec_path = tmp_path / "tum.pcdc"
+    pcdcodec.encode(pcdcodec.datasets.sample_dir(), rec_path, max_frames=6)
+    with pcdcodec.open(rec_path) as r:
+        frames = list(r)
+    colors = [f.color_timestamp_ns for f in frames]
+    depths = [f.depth_timestamp_ns for f in frames]
+    assert all(c != d for c, d in zip(colors, depths, strict=True))  # TUM's own stamps
+    out = tmp_path / ("tum.bag" if to == "rosbag1" else "tum2")
+    pcdcodec.export_bag(rec_path, out, to=to, cloud=True)
+    got = _header_stamps(out)
+    for topic, want in (
+        ("/camera/color/image_raw", colors),
+        ("/camera/color/camera_info", colors),
+        ("/camera/depth/image_raw", depths),
+        ("/camera/depth/camera_info", depths),
+    ):
+        assert [ns for _, ns in got[topic]] == want, topic
+        assert [t for t, _ in got[topic]] == want, topic  # logged at its stamp too
+    # The cloud (in the depth camera's pixels) and the pose at the depth's time.
+    assert [ns for _, ns in got["/camera/depth_registered/points"]] == depths
+    assert [ns for _, ns in got["/tf"]] == depths
+    # The bag is in time order.
+    logged = [t for t, _ in got[""]]
+    assert logged == sorted(logged)
+    # Read back, the images pair as they were, each with its own stamp.
+    with pcdcodec.open_source(out) as src:
+        back = list(src)
+    assert len(back) == len(frames)
+    for a, b in zip(back, frames, strict=True):
+        assert a.depth_timestamp_ns == b.depth_timestamp_ns
+        assert a.color_timestamp_ns == b.color_timestamp_ns
+        np.testing.assert_array_equal(a.color, b.color)
+        np.testing.assert_array_equal(a.depth, to_metres(b.depth, 5000.0))
 
 
 def test_cli_export_and_encode_a_bag(tmp_path: Path) -> None:

@@ -11,6 +11,7 @@ import pytest
 
 import pcdcodec
 from pcdcodec import CameraIntrinsics, CameraSpec, InputError, InputTypeError
+from pcdcodec.errors import PcdcodecWarning
 
 torch = pytest.importorskip("torch")
 pt = pytest.importorskip("pcdcodec.torch")
@@ -393,3 +394,99 @@ def test_a_dataset_without_any_item_is_refused(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="hold no frame"):
         pt.RecordingDataset(empty)
     assert len(pt.RecordingDataset([empty, rig], ["depth"])) == 6
+
+
+# -- frames kept by recover without their color ---------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def recovered(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A recording whose color from frame 3 on was lost to a flipped byte, recovered: frames
+    3, 4 and 5 read with ``color`` None."""
+    from pcdcodec.recording import _index as fmt
+
+    from .test_integrity import CAMERA, small_frames
+
+    root = tmp_path_factory.mktemp("recovered")
+    path = root / "one.pcdc"
+    with pcdcodec.open(path, "w", intrinsics=CAMERA, depth_scale=5000.0) as w:
+        for color, depth, ts in small_frames(6):
+            w.write(color, depth, ts)
+    with pcdcodec.open(path) as rec:
+        color_at = sorted(rec.index.offsets[fmt.TOPIC_COLOR])
+    data = bytearray(path.read_bytes())
+    data[color_at[3] + 200] ^= 0x20
+    damaged = root / "damaged.pcdc"
+    damaged.write_bytes(bytes(data))
+    back = root / "back.pcdc"
+    got = pcdcodec.recover(damaged, back)
+    assert got == 6
+    assert got.color_missing == 3
+    with pcdcodec.open(back) as rec:
+        assert rec.color_missing == [3, 4, 5]
+    return back
+
+
+def test_a_recording_with_frames_without_color_is_refused_for_color(recovered: Path) -> None:
+    for fields in (["color"], ["depth", "point_colors"]):
+        with pytest.raises(InputError) as err:
+            pt.RecordingDataset(recovered, fields)
+        message = str(err.value)
+        assert repr(str(recovered)) in message
+        assert "3 frame(s)" in message
+        assert "frames 3, 4, 5" in message
+        assert "skip_missing_color=True" in message
+    with pytest.raises(InputError, match="skip_missing_color=True"):
+        pt.IterableRecordingDataset(recovered)
+    with pytest.raises(InputTypeError, match="skip_missing_color must be True or False"):
+        pt.RecordingDataset(recovered, skip_missing_color="yes")
+
+
+def test_fields_without_color_read_every_frame_of_it(recovered: Path) -> None:
+    with pcdcodec.open(recovered) as rec:
+        want = [rec.depth(i) for i in range(len(rec))]
+    dataset = pt.RecordingDataset(recovered, ["depth", "index"])
+    assert len(dataset) == 6
+    assert dataset.skipped == {}
+    for i, item in enumerate(dataset):
+        assert item["index"] == i
+        np.testing.assert_array_equal(item["depth"], want[i])
+
+
+@pytest.mark.parametrize("framesets", [False, True])
+def test_skip_missing_color_leaves_those_frames_out_and_says_so(
+    recovered: Path, framesets: bool
+) -> None:
+    with pcdcodec.open(recovered) as rec:
+        frames = list(rec)
+    with pytest.warns(PcdcodecWarning, match=r"3 item\(s\) left out"):
+        dataset = pt.RecordingDataset(
+            recovered,
+            ["color", "depth", "index"],
+            skip_missing_color=True,
+            framesets=framesets,
+        )
+    assert len(dataset) == 3
+    assert dataset.skipped == {str(recovered): 3}
+    assert "3 left out without color" in repr(dataset)
+    items = [dataset[i] for i in range(len(dataset))]
+    if framesets:
+        items = [next(iter(item.values())) for item in items]
+    assert [item["index"] for item in items] == [0, 1, 2]
+    for item in items:
+        frame = frames[item["index"]]
+        assert frame.color is not None
+        np.testing.assert_array_equal(item["color"], frame.color)
+        np.testing.assert_array_equal(item["depth"], frame.depth)
+    # The default collate gets no None; a dataset pickled into a worker skips the same frames.
+    again = pickle.loads(pickle.dumps(dataset))
+    batch = next(iter(DataLoader(again, batch_size=3)))
+    colors = next(iter(batch.values()))["color"] if framesets else batch["color"]
+    assert tuple(colors.shape) == (3, *frames[0].color.shape)
+
+
+def test_iterable_dataset_skips_the_same_frames(recovered: Path) -> None:
+    with pytest.warns(PcdcodecWarning):
+        dataset = pt.IterableRecordingDataset(recovered, skip_missing_color=True)
+    assert [item["color"] is not None for item in dataset] == [True] * 3
+    assert len(dataset) == 3

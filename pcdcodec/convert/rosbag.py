@@ -1,8 +1,15 @@
 """Recordings (or any source) back into ROS 1 and ROS 2 bags that ``rosbag play`` and
 ``ros2 bag play`` accept.
 
-:func:`export_bag` writes, per frame and at the frame's recorded stamp (as both the header stamp
-and the bag time):
+:func:`export_bag` writes, per frame, each message at its own recorded stamp (as both the header
+stamp and the bag time): the depth image and its camera info at the depth image's own time, the
+color image and its camera info at the color image's (``Frame.depth_timestamp_ns``,
+``Frame.color_timestamp_ns``: they differ where the input stamped them apart, as TUM's lists
+do). The cloud, in the depth camera's pixels, and ``/tf`` are at the depth's time too: a
+frame's pose is the camera's at its depth image (TUM's trajectory is sampled there, and a bag
+read back looks its poses up there). Messages go into the bag in time order (a
+message stamped before one already written, which only inputs whose stamps go back in time
+give, keeps its header stamp and is logged at the time of the one before):
 
 * ``<ns>/depth/image_raw``: ``sensor_msgs/Image``, 16UC1 millimetres when the depth scale is 1000
   per metre, else 32FC1 metres; or, with ``compressed_depth``, image_transport's
@@ -45,6 +52,7 @@ import numpy as np
 
 from .._atomic import atomic_output
 from ..errors import InputError
+from ..frame import Frame
 from ..geometry.projector import Projector
 from ..recording.reader import Recording
 from ..recording.rig_reader import RigRecording
@@ -62,7 +70,7 @@ STORAGES = ("mcap", "sqlite3")
 
 @dataclass
 class _Input:
-    frames: Iterator[tuple[Any, Any, int, Any]]
+    frames: Iterator[Frame]
     intrinsics: Any
     depth_scale: float
     metadata: dict[str, str]
@@ -106,9 +114,8 @@ def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
                 f"source {str(src.path)!r} has no camera: pass intrinsics to write camera info "
                 "and clouds"
             )
-        frames = ((f.color, f.depth, int(f.timestamp_ns), f.pose) for f in src)
         return _Input(
-            frames,
+            iter(src),
             intr,
             float(depth_scale if depth_scale is not None else src.depth_scale),
             dict(src.metadata),
@@ -124,9 +131,8 @@ def _input(src: Any, intrinsics: Any, depth_scale: float | None) -> _Input:
 
 
 def _from_recording(rec: Any, close: Callable[[], None]) -> _Input:
-    frames = ((f.color, f.depth, int(f.timestamp_ns), f.pose) for f in rec)
     return _Input(
-        frames,
+        iter(rec),
         rec.intrinsics,
         rec.depth_scale,
         dict(rec.metadata),
@@ -315,9 +321,13 @@ class _Export:
         if opts.cloud:
             self._add(bag, self.t_cloud, "sensor_msgs/msg/PointCloud2")
 
-    def write_frame(self, bag: BagWriter, color: Any, depth: Any, ts: int, pose: Any) -> None:
-        """Every message of one frame, at its stamp."""
+    def write_frame(self, bag: BagWriter, emit: _Emit, frame: Frame) -> None:
+        """Every message of one frame, each at its own stamp, handed to ``emit``."""
         opts, msgs, intr, scale = self.opts, self.msgs, self.intr, self.scale
+        color, depth, pose = frame.color, frame.depth, frame.pose
+        ts = int(frame.timestamp_ns)
+        d_ts = int(frame.depth_timestamp_ns if frame.depth_timestamp_ns is not None else ts)
+        c_ts = int(frame.color_timestamp_ns if frame.color_timestamp_ns is not None else ts)
         if depth.shape != intr.shape:
             raise InputError(
                 f"frame at {ts} ns is {depth.shape[1]}x{depth.shape[0]}, the camera "
@@ -327,38 +337,73 @@ class _Export:
             if opts.compressed_depth:
                 payload = compressed_depth_encode(np.asarray(depth, np.uint16))
                 fmt = "16UC1; compressedDepth png"
-                bag.write(self.t_cdepth, ts, msgs.compressed(ts, payload, fmt))
+                emit(self.t_cdepth, d_ts, msgs.compressed(d_ts, payload, fmt))
             elif depth.dtype == np.uint16 and scale == 1000.0:
-                bag.write(self.t_depth, ts, msgs.image(ts, depth, "16UC1"))
+                emit(self.t_depth, d_ts, msgs.image(d_ts, depth, "16UC1"))
             else:
                 if depth.dtype == np.float32 and scale == 1.0:
                     metres = depth
                 else:
                     metres = (depth / np.float32(scale)).astype(np.float32)
                     metres[depth == 0] = np.nan  # ROS 32FC1: NaN is no measurement
-                bag.write(self.t_depth, ts, msgs.image(ts, metres, "32FC1"))
+                emit(self.t_depth, d_ts, msgs.image(d_ts, metres, "32FC1"))
             if color is not None:
-                bag.write(self.t_color, ts, self.color_msgs.image(ts, color, "rgb8"))
+                emit(self.t_color, c_ts, self.color_msgs.image(c_ts, color, "rgb8"))
         if opts.camera_info:
-            bag.write(self.t_dinfo, ts, msgs.camera_info(ts, intr, self.model, self.dist))
+            emit(self.t_dinfo, d_ts, msgs.camera_info(d_ts, intr, self.model, self.dist))
             if color is not None:
                 info = self.color_msgs.camera_info(
-                    ts, self.color_cam, self.color_model, self.color_dist
+                    c_ts, self.color_cam, self.color_model, self.color_dist
                 )
-                bag.write(self.t_cinfo, ts, info)
+                emit(self.t_cinfo, c_ts, info)
         if self.projector is not None:
-            bag.write(self.t_cloud, ts, msgs.cloud(ts, cloud_array(self.projector, depth, color)))
+            cloud = cloud_array(self.projector, depth, color)
+            emit(self.t_cloud, d_ts, msgs.cloud(d_ts, cloud))
         if pose is not None:
             if "/tf" not in bag.conns:
                 self._add(bag, "/tf", "tf2_msgs/msg/TFMessage")
             if self.rig_pose is None:
-                bag.write("/tf", ts, msgs.tf(ts, pose, "world"))
+                emit("/tf", d_ts, msgs.tf(d_ts, pose, "world"))
             else:
                 # One tree, world -> rig -> camera: the rig's pose through the camera's.
                 rig_frame, rig_pose = self.rig_pose
                 rig_in_world = np.asarray(pose, np.float64) @ np.linalg.inv(rig_pose)
                 edge = ("world", rig_frame, rig_in_world)
-                bag.write("/tf", ts, msgs.transforms(ts, [edge]))
+                emit("/tf", d_ts, msgs.transforms(d_ts, [edge]))
+
+
+#: Hands one message (topic, log time in ns, serialized data) to the bag being written.
+_Emit = Callable[[str, int, bytes], None]
+
+
+class _InTimeOrder:
+    """The messages of a bag, written in time order: those of a frame wait until a frame
+    stamped no earlier arrives (a frame's depth may be stamped after its color, or after the
+    next frame's color). A message stamped before one already written is logged at that
+    one's time (its header keeps its own stamp), so the bag's log times never go back."""
+
+    def __init__(self, bag: BagWriter) -> None:
+        self.bag = bag
+        self.waiting: list[tuple[int, int, str, bytes]] = []
+        self.count = 0
+        self.last = -1
+
+    def emit(self, topic: str, ns: int, data: bytes) -> None:
+        heapq.heappush(self.waiting, (ns, self.count, topic, data))
+        self.count += 1
+
+    def flush(self, until: int | None = None) -> None:
+        """Write the waiting messages stamped at or before ``until`` (all with ``None``)."""
+        while self.waiting and (until is None or self.waiting[0][0] <= until):
+            ns, _, topic, data = heapq.heappop(self.waiting)
+            self.last = max(self.last, ns)
+            self.bag.write(topic, self.last, data)
+
+
+def _earliest(frame: Frame) -> int:
+    """The earliest of a frame's stamps: no message of it is stamped before."""
+    stamps = (frame.timestamp_ns, frame.depth_timestamp_ns, frame.color_timestamp_ns)
+    return min(int(t) for t in stamps if t is not None)
 
 
 def _write(
@@ -369,17 +414,17 @@ def _write(
     progress: Callable[[int], None] | None,
 ) -> dict[str, Any]:
     export = _Export(inp, opts)
-    frames = (("", color, depth, ts, pose) for color, depth, ts, pose in inp.frames)
+    frames = (("", frame) for frame in inp.frames)
     summary, _ = _to_bag(frames, {"": export}, target, opts, max_frames, progress)
     return summary
 
 
-#: What :func:`_to_bag` starts a bag with, at the first frame's stamp (``/tf_static``).
-_Start = Callable[[BagWriter, int], None]
+#: What :func:`_to_bag` starts a bag with, at the first frame's earliest stamp (``/tf_static``).
+_Start = Callable[[BagWriter, _Emit, int], None]
 
 
 def _to_bag(
-    frames: Iterator[tuple[str, Any, Any, int, Any]],
+    frames: Iterator[tuple[str, Frame]],
     exports: dict[str, _Export],
     target: Path,
     opts: _Options,
@@ -387,22 +432,25 @@ def _to_bag(
     progress: Callable[[int], None] | None,
     start: _Start | None = None,
 ) -> tuple[dict[str, Any], dict[str, int]]:
-    """Write ``frames`` (``(camera, color, depth, stamp, pose)``, each camera's through its
-    export) into a bag at ``target``; the summary, and the frames written per camera."""
+    """Write ``frames`` (``(camera, frame)``, each camera's through its export) into a bag at
+    ``target``, the messages in time order; the summary, and the frames written per camera."""
     counts = dict.fromkeys(exports, 0)
     count = 0
     with atomic_output(target, place=_swap_in) as staging:
         staging.mkdir(parents=True)
         first = next(iter(exports.values()))
         bag = BagWriter(staging / target.name, opts.to, opts.storage, first.msgs)
+        order = _InTimeOrder(bag)
         try:
-            for camera, color, depth, ts, pose in frames:
+            for camera, frame in frames:
+                earliest = _earliest(frame)
+                order.flush(earliest)
                 if count == 0 and start is not None:
-                    start(bag, ts)
+                    start(bag, order.emit, earliest)
                 export = exports[camera]
                 if counts[camera] == 0:
-                    export.add_topics(bag, color is not None)
-                export.write_frame(bag, color, depth, ts, pose)
+                    export.add_topics(bag, frame.color is not None)
+                export.write_frame(bag, order.emit, frame)
                 counts[camera] += 1
                 count += 1
                 if progress is not None:
@@ -411,6 +459,7 @@ def _to_bag(
                     break
             if count == 0:
                 raise InputError("the input has no frames to write")
+            order.flush()
         except BaseException:
             with contextlib.suppress(Exception):
                 bag.abort()
@@ -492,13 +541,11 @@ def _write_rig(
     exports = {name: _camera_export(rig, name, opts) for name in rig.camera_names}
     tf_msgs = MessageBuilder(opts.to == "rosbag2", rig.rig_frame_id)
 
-    def start(bag: BagWriter, ts: int) -> None:
+    def start(bag: BagWriter, emit: _Emit, ts: int) -> None:
         bag.add("/tf_static", "tf2_msgs/msg/TFMessage", latched=True)
-        bag.write("/tf_static", ts, tf_msgs.transforms(ts, rig_transforms(rig)))
+        emit("/tf_static", ts, tf_msgs.transforms(ts, rig_transforms(rig)))
 
-    frames = (
-        (name, frame.color, frame.depth, ts, frame.pose) for ts, name, frame in _in_time_order(rig)
-    )
+    frames = ((name, frame) for _, name, frame in _in_time_order(rig))
     summary, counts = _to_bag(frames, exports, target, opts, max_frames, progress, start)
     return {**summary, "cameras": counts}
 

@@ -9,8 +9,10 @@ Folder layouts understood (``layout="auto"`` tries them in this order):
 * **Subfolders**: ``rgb/`` (or ``color/``) and ``depth/`` holding images that pair up in
   sorted file-name order; ``depth/`` alone is depth only.
 * **Flat**: one folder whose file names say what they hold: ``frame_000001_depth.tiff`` beside
-  ``frame_000001_rgb.tiff`` (as PCL writes), ``0001_depth.png`` beside ``0001_color.png``...
-  Depth and color files pair up by the rest of their names.
+  ``frame_000001_rgb.tiff`` (as PCL writes), ``0001_depth.png`` beside ``0001_color.png``,
+  ``frame-000000.depth.png`` beside ``frame-000000.color.png`` (7-Scenes as Microsoft ships
+  it, with its ``frame-000000.pose.txt`` poses)... Depth and color files pair up by the rest of
+  their names.
 * **Patterns**: ``depth_pattern`` and ``color_pattern``, glob patterns relative to the
   folder (``"depth_*.npy"``, ``"cam0/*.png"``), pair up by the text their wildcards match.
 
@@ -174,7 +176,8 @@ class FolderSource(Source):
     intrinsics: CameraIntrinsics | None
     depth_scale: float
     metadata: dict[str, str] = field(default_factory=dict)
-    #: Camera-to-world pose per pair (TUM groundtruth.txt, 7-Scenes pose/), or None.
+    #: Camera-to-world pose per pair (TUM groundtruth.txt, 7-Scenes pose/ or pose files beside
+    #: the depth images), or None.
     poses: list[npt.NDArray[np.float64] | None] | None = None
     #: Where :attr:`depth_scale` came from: ``"given"``, ``"camera.json"``,
     #: ``"TUM RGB-D dataset"`` or ``"7-Scenes dataset"``.
@@ -450,7 +453,14 @@ def _read_entries(
     if camera_from not in ("", "given", "camera.json"):
         read.add(camera_from)
     if posed:
-        read.add("groundtruth.txt" if tum and (root / "groundtruth.txt").is_file() else "pose")
+        if tum and (root / "groundtruth.txt").is_file():
+            read.add("groundtruth.txt")
+        elif (root / "pose").is_dir():
+            read.add("pose")
+        else:  # 7-Scenes as shipped: a pose file beside each depth image
+            from .poses import flat_pose_files
+
+            read.update(flat_pose_files(root))
     return frozenset(read)
 
 

@@ -6,7 +6,9 @@
   the two trajectory samples around it: translation linearly, rotation by slerp. A frame outside
   the trajectory, or in a gap longer than :data:`MAX_GAP_NS`, gets no pose.
 * **7-Scenes**: ``pose/frame-NNNNNN.pose.txt`` holds the 4 × 4 camera-to-world matrix of frame
-  ``NNNNNN`` as text.
+  ``NNNNNN`` as text; in the dataset as Microsoft ships it, the folder is flat and
+  ``frame-NNNNNN.pose.txt`` lies beside the frame's ``frame-NNNNNN.depth.png``. Either way, a
+  matrix of ``-inf`` marks a frame without tracking: it gets no pose.
 
 Which of the two a folder's poses came in is kept in the source's metadata under
 :data:`POSE_LAYOUT_KEY` (``"tum"`` or ``"7scenes"``), so a recording of the folder says it and
@@ -36,6 +38,7 @@ __all__ = [
     "MAX_GAP_NS",
     "POSE_LAYOUTS",
     "POSE_LAYOUT_KEY",
+    "flat_pose_files",
     "folder_poses",
     "read_tum_trajectory",
     "seconds_text",
@@ -55,6 +58,8 @@ POSE_LAYOUTS = {
     "tum": "groundtruth.txt (timestamp tx ty tz qx qy qz qw)",
     "7scenes": "pose/frame-NNNNNN.pose.txt (a 4 x 4 matrix per frame)",
 }
+#: How a 7-Scenes pose file's name ends (``frame-NNNNNN.pose.txt``).
+POSE_SUFFIX = ".pose.txt"
 #: The layout for poses whose recording does not name one (recordings of earlier versions,
 #: poses from bags or handed to the writer).
 DEFAULT_POSE_LAYOUT = "tum"
@@ -135,20 +140,38 @@ def folder_poses(
         return interpolate_poses(times, poses, list(depth_times), max_gap=MAX_GAP_NS), "tum"
     pose_dir = root / "pose"
     if pose_dir.is_dir():
-        out: list[Pose | None] = []
-        for _, _, depth in pairs:
-            file = pose_dir / f"{depth.name.split('.')[0]}.pose.txt"
-            if not file.is_file():
-                out.append(None)
-                continue
-            try:
-                matrix = np.loadtxt(file, dtype=np.float64)
-            except ValueError as exc:
-                raise InputError(f"{str(file)!r} is not a 4x4 matrix of numbers: {exc}") from None
-            if not np.isfinite(matrix).all():
-                # 7-Scenes marks frames without tracking with -inf: no pose.
-                out.append(None)
-                continue
-            out.append(as_rigid(matrix, f"pose {str(file)!r}"))
-        return out, "7scenes"
-    return None, None
+        files = [pose_dir / _pose_name(depth) for _, _, depth in pairs]
+    else:
+        # 7-Scenes as shipped: frame-NNNNNN.pose.txt beside frame-NNNNNN.depth.png.
+        files = [depth.parent / _pose_name(depth) for _, _, depth in pairs]
+        if not any(f.is_file() for f in files):
+            return None, None
+    return [_read_pose_file(f) if f.is_file() else None for f in files], "7scenes"
+
+
+def _pose_name(depth: Path) -> str:
+    """The name of the 7-Scenes pose file of a depth image (``frame-000012.depth.png`` ->
+    ``frame-000012.pose.txt``)."""
+    return depth.name.split(".")[0] + POSE_SUFFIX
+
+
+def flat_pose_files(root: Path) -> list[str]:
+    """The names of the pose files lying in ``root`` itself (7-Scenes' flat layout), sorted."""
+    try:
+        return sorted(
+            p.name for p in root.iterdir() if p.name.endswith(POSE_SUFFIX) and p.is_file()
+        )
+    except OSError:
+        return []
+
+
+def _read_pose_file(file: Path) -> Pose | None:
+    """The 4 × 4 matrix of a 7-Scenes pose file, or ``None`` for a frame without tracking."""
+    try:
+        matrix = np.loadtxt(file, dtype=np.float64)
+    except ValueError as exc:
+        raise InputError(f"{str(file)!r} is not a 4x4 matrix of numbers: {exc}") from None
+    if not np.isfinite(matrix).all():
+        # 7-Scenes marks frames without tracking with -inf: no pose.
+        return None
+    return as_rigid(matrix, f"pose {str(file)!r}")

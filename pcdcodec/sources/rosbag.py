@@ -94,6 +94,11 @@ def _add_time(exc: PcdcodecError, what: str) -> None:
         exc.args = (f"{exc.args[0]} ({what})", *exc.args[1:])
 
 
+#: A frame's images as a reader's passes give them: color (or None), depth, the frame's time
+#: (the depth's), and the color image's own time where it has one apart (else None).
+_Images = tuple[Any, Any, int, int | None]
+
+
 @dataclass
 class _Stats(bagindex.PairStats):
     frames: int = 0
@@ -508,10 +513,10 @@ class RosbagSource(Source):
             frames = self._paired_frames()
         return self._emit(frames, self.max_frames)
 
-    def _emit(self, frames: Iterator[tuple[Any, Any, int]], limit: int | None) -> Iterator[Any]:
+    def _emit(self, frames: Iterator[_Images], limit: int | None) -> Iterator[Any]:
         shape = self._shape
         assert shape is not None  # set when the source opens
-        for color, depth, ts in frames:
+        for color, depth, ts, color_ts in frames:
             if depth.shape != shape:
                 topic = self.depth_topic or self.cloud_topic
                 raise InputError(
@@ -519,7 +524,7 @@ class RosbagSource(Source):
                     f"the first frame {shape[1]}x{shape[0]}"
                 )
             self.stats.frames += 1
-            yield Frame(color, depth, ts, pose=self._pose(ts))
+            yield Frame(color, depth, ts, pose=self._pose(ts), color_timestamp_ns=color_ts)
             if limit is not None and self.stats.frames >= limit:
                 return
 
@@ -556,11 +561,11 @@ class RosbagSource(Source):
             last = ts
             yield msg, ts
 
-    def _depth_frames(self) -> Iterator[tuple[Any, Any, int]]:
+    def _depth_frames(self) -> Iterator[_Images]:
         for msg, ts in self._in_order(self._depth_conn):
-            yield None, self._decode(msg, self._depth_conn, "depth", ts), ts
+            yield None, self._decode(msg, self._depth_conn, "depth", ts), ts, None
 
-    def _paired_frames(self) -> Iterator[tuple[Any, Any, int]]:
+    def _paired_frames(self) -> Iterator[_Images]:
         dtopic = self._depth_conn.topic
         messages = (
             (conn.topic == dtopic, self._stamp(msg, t, conn.topic), msg)
@@ -569,7 +574,7 @@ class RosbagSource(Source):
         for dts, dmsg, cmsg in bagindex.pair_in_order(messages, self.max_difference, self.stats):
             yield self._pair(cmsg, dmsg, dts)
 
-    def _pair(self, cmsg: Any, dmsg: Any, dts: int) -> tuple[Any, Any, int]:
+    def _pair(self, cmsg: Any, dmsg: Any, dts: int) -> _Images:
         cconn, dconn = self._color_conn, self._depth_conn
         assert cconn is not None
         color = self._decode(cmsg, cconn, "color", dts)
@@ -580,13 +585,16 @@ class RosbagSource(Source):
                 f"depth topic {dconn.topic!r} is {depth.shape[1]}x{depth.shape[0]} "
                 f"at {dts} ns"
             )
-        return color, depth, dts
+        # The frame is at the depth's time; the color keeps its own header stamp (an unset
+        # one, 0, is the frame's).
+        color_ts = rm.stamp_ns(cmsg, cconn.topic, ros1=not self._reader.is2)
+        return color, depth, dts, (color_ts if color_ts > 0 else None)
 
-    def _cloud_frames(self) -> Iterator[tuple[Any, Any, int]]:
+    def _cloud_frames(self) -> Iterator[_Images]:
         for msg, ts in self._in_order(self._depth_conn):
             yield self._cloud_frame(msg, ts)
 
-    def _cloud_frame(self, msg: Any, ts: int) -> tuple[Any, Any, int]:
+    def _cloud_frame(self, msg: Any, ts: int) -> _Images:
         topic = self._depth_conn.topic
         first = self._layout
         if (int(msg.width), int(msg.height)) != (first.width, first.height):
@@ -613,10 +621,10 @@ class RosbagSource(Source):
                     f"whole 1/{self.depth_scale:g} m steps, unlike the first cloud; open the "
                     "bag with cloud_depth='float32' to keep z as float32 metres"
                 )
-            return rgb, units, ts
+            return rgb, units, ts, None
         with np.errstate(invalid="ignore"):
             z[~np.isfinite(z)] = np.nan
-        return rgb, z, ts
+        return rgb, z, ts, None
 
     # -- reading a stretch of frames without reading the bag from the top --------------------
 
@@ -705,7 +713,7 @@ class RosbagSource(Source):
         self.stats = _Stats()
         return self._emit(self._indexed(rows, index.first), None)
 
-    def _indexed(self, rows: Any, first: int) -> Iterator[tuple[Any, Any, int]]:
+    def _indexed(self, rows: Any, first: int) -> Iterator[_Images]:
         if rows.shape[0] == 0:
             return
         dconn, cconn = self._depth_conn, self._color_conn
@@ -730,7 +738,7 @@ class RosbagSource(Source):
             elif self.mode == "cloud":
                 yield self._cloud_frame(dmsg, ts)
             else:
-                yield None, self._decode(dmsg, dconn, "depth", ts), ts
+                yield None, self._decode(dmsg, dconn, "depth", ts), ts, None
 
     # -- pass-through of encoded video -------------------------------------------------------
 

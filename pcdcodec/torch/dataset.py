@@ -7,6 +7,7 @@ work in a ``DataLoader`` with worker processes, forked or spawned (``docs/learni
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -15,7 +16,7 @@ import numpy.typing as npt
 import torch
 from torch.utils.data import Dataset, IterableDataset, get_worker_info
 
-from ..errors import InputError, InputTypeError
+from ..errors import InputError, InputTypeError, PcdcodecWarning
 from ..recording.framesets import match_times
 from .catalog import Readers, find_recordings
 from .items import COLOR_FIELDS, DEFAULT_FIELDS, Decoded, build_item, check_fields
@@ -95,6 +96,13 @@ class RecordingDataset(Dataset[Any]):
     ``transform``, if given, is applied to the item last and its result returned. ``threads``
     is the decoder threads of each reader (``1``, the default, suits one worker per core);
     ``max_open`` bounds the recordings a process keeps open.
+
+    Frames that ``pcdcodec recover`` kept without their color (``Recording.color_missing``)
+    have no item with a color field: such a recording is refused when the dataset is made
+    (:class:`~pcdcodec.InputError` naming the file, the camera and the frames), unless
+    ``skip_missing_color=True``, which leaves those frames (and frame sets holding one) out and
+    says how many, in :attr:`skipped` and a :class:`~pcdcodec.PcdcodecWarning`. Fields
+    without color read every frame.
     """
 
     def __init__(
@@ -109,8 +117,13 @@ class RecordingDataset(Dataset[Any]):
         tensors: bool = False,
         threads: int | None = 1,
         max_open: int = MAX_OPEN,
+        skip_missing_color: bool = False,
     ) -> None:
         self.fields = check_fields(fields)
+        if not isinstance(skip_missing_color, bool):
+            raise InputTypeError(
+                f"skip_missing_color must be True or False, got {skip_missing_color!r}"
+            )
         if transform is not None and not callable(transform):
             raise InputTypeError(f"transform must be callable, got {type(transform).__name__}")
         if isinstance(max_open, bool) or not isinstance(max_open, int) or max_open < 1:
@@ -130,16 +143,35 @@ class RecordingDataset(Dataset[Any]):
         self._readers = Readers(_check_threads(threads), max_open)
         self._color = bool(COLOR_FIELDS & set(self.fields))
         self._pose = "pose" in self.fields
+        self.skip_missing_color = skip_missing_color and self._color
         self.sources = [str(p) for p in find_recordings(recordings)]
         #: per part (a camera's frames, or a recording's frame sets): source, cameras, items
         self.parts: list[tuple[str, tuple[str, ...], int]] = []
+        #: Items left out for lack of color (``skip_missing_color``), by recording: frames, or
+        #: frame sets holding such a frame.
+        self.skipped: dict[str, int] = {}
         self._sets: dict[str, npt.NDArray[np.int64]] = {}
+        self._kept: dict[tuple[str, str], npt.NDArray[np.int64] | None] = {}
         try:
             self._catalog(None if cameras is None else tuple(cameras))
         finally:
             self._readers.close()  # nothing stays open in the process that made the dataset
+        if self.skipped:
+            warnings.warn(
+                f"{sum(self.skipped.values())} item(s) left out: their frames were kept by "
+                "`pcdcodec recover` without their color ("
+                + ", ".join(f"{n} of {s!r}" for s, n in self.skipped.items())
+                + ")",
+                PcdcodecWarning,
+                stacklevel=2,
+            )
         counts = np.array([n for _, _, n in self.parts], np.int64)
         self._starts: npt.NDArray[np.int64] = np.concatenate([[0], np.cumsum(counts)])
+        if not len(self) and self.skipped:
+            raise InputError(
+                f"no item left in {self.sources}: every frame asked for was kept by `pcdcodec "
+                "recover` without its color; ask for fields without color"
+            )
         if not len(self):  # a sampler would fail later, saying nothing of why
             raise InputError(
                 f"no complete frame set in {self.sources}: in each, some camera of "
@@ -149,6 +181,7 @@ class RecordingDataset(Dataset[Any]):
                 else f"the recordings {self.sources} hold no frame"
             )
         self._sets.clear()  # rebuilt where read: they are not worth pickling
+        self._kept.clear()
 
     def _catalog(self, wanted: tuple[str, ...] | None) -> None:
         found: set[str] = set()
@@ -172,14 +205,21 @@ class RecordingDataset(Dataset[Any]):
                         f"{source!r}: camera {name!r} was recorded without color, and fields "
                         f"{list(self.fields)} ask for it"
                     )
+                if self._color and not self.skip_missing_color:
+                    self._refuse_missing_color(source, name, cam.recording.color_missing)
             if self.framesets:
                 if chosen:
-                    self.parts.append((source, tuple(chosen), len(self._matches(source, chosen))))
+                    sets = len(self._matches(source, chosen))
+                    self.parts.append((source, tuple(chosen), sets))
+                    if self.skip_missing_color:
+                        left = len(self._matches(source, chosen, every=True)) - sets
+                        self._count_skipped(source, left)
             else:
-                self.parts.extend(
-                    (source, (name,), len(self._readers.camera(source, name).timestamps))
-                    for name in chosen
-                )
+                for name in chosen:
+                    frames = len(self._readers.camera(source, name).timestamps)
+                    kept = self._kept_frames(source, name)
+                    self.parts.append((source, (name,), frames if kept is None else len(kept)))
+                    self._count_skipped(source, 0 if kept is None else frames - len(kept))
         if wanted is not None:
             absent = [c for c in wanted if c not in found]
             if absent:
@@ -187,10 +227,45 @@ class RecordingDataset(Dataset[Any]):
                     f"no recording has camera {absent[0]!r}; their cameras are {sorted(every)}"
                 )
 
-    def _matches(self, source: str, cameras: tuple[str, ...] | list[str]) -> npt.NDArray[np.int64]:
-        """The complete frame sets of ``cameras`` in ``source``: sets × cameras frame indexes."""
+    def _refuse_missing_color(self, source: str, camera: str, lost: list[int]) -> None:
+        if not lost:
+            return
+        shown = ", ".join(str(i) for i in lost[:8]) + (", ..." if len(lost) > 8 else "")
+        raise InputError(
+            f"{source!r}: camera {camera!r} holds {len(lost)} frame(s) that `pcdcodec recover` "
+            f"kept without their color, lost to damage (frames {shown}), and fields "
+            f"{list(self.fields)} ask for color: pass skip_missing_color=True to leave those "
+            "frames out, or ask for fields without color"
+        )
+
+    def _count_skipped(self, source: str, left: int) -> None:
+        if left:
+            self.skipped[source] = self.skipped.get(source, 0) + left
+
+    def _kept_frames(self, source: str, camera: str) -> npt.NDArray[np.int64] | None:
+        """The frames of ``camera`` in ``source`` that items are made of, where
+        ``skip_missing_color`` leaves some out; ``None`` for every frame."""
+        key = (source, camera)
+        if key in self._kept:
+            return self._kept[key]
+        kept = None
+        if self.skip_missing_color:
+            cam = self._readers.camera(source, camera)
+            lost = cam.recording.color_missing
+            if lost:
+                every = np.arange(len(cam.timestamps), dtype=np.int64)
+                kept = np.setdiff1d(every, np.asarray(lost, np.int64))
+        self._kept[key] = kept
+        return kept
+
+    def _matches(
+        self, source: str, cameras: tuple[str, ...] | list[str], every: bool = False
+    ) -> npt.NDArray[np.int64]:
+        """The complete frame sets of ``cameras`` in ``source``: sets × cameras frame indexes;
+        with ``skip_missing_color``, those without a frame that lacks its color (unless
+        ``every``)."""
         got = self._sets.get(source)
-        if got is not None:
+        if got is not None and not every:
             return got
         times = [self._readers.camera(source, c).timestamps for c in cameras]
         ref = self._readers.camera(source, cameras[0]).recording
@@ -200,12 +275,19 @@ class RecordingDataset(Dataset[Any]):
         columns += [match_times(times[0], t, tol) for t in times[1:]]
         matches = np.stack(columns, axis=1)
         matches = matches[(matches >= 0).all(axis=1)]
+        if every:
+            return matches
+        for k, camera in enumerate(cameras):
+            kept = self._kept_frames(source, camera)
+            if kept is not None:
+                matches = matches[np.isin(matches[:, k], kept)]
         self._sets[source] = matches
         return matches
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state["_sets"] = {}  # rebuilt from the files, in each worker
+        state["_kept"] = {}
         return state
 
     def __len__(self) -> int:
@@ -260,8 +342,11 @@ class RecordingDataset(Dataset[Any]):
             row = sets[j]
             return {c: self._frame(source, c, int(k)) for c, k in zip(cameras, row, strict=True)}
         frames = len(self._readers.camera(source, cameras[0]).timestamps)
+        kept = self._kept_frames(source, cameras[0])
+        if kept is not None:
+            frames = len(kept)
         self._check_count(source, f"frames of camera {cameras[0]!r}", counted, frames)
-        return self._frame(source, cameras[0], j)
+        return self._frame(source, cameras[0], j if kept is None else int(kept[j]))
 
     @staticmethod
     def _check_count(source: str, what: str, counted: int, now: int) -> None:
@@ -287,9 +372,11 @@ class RecordingDataset(Dataset[Any]):
 
     def __repr__(self) -> str:
         kind = "frame sets" if self.framesets else "frames"
+        skipped = sum(self.skipped.values())
+        left = f", {skipped} left out without color" if skipped else ""
         return (
             f"<{type(self).__name__}: {len(self)} {kind} of {len(self.sources)} recording(s), "
-            f"fields {list(self.fields)}>"
+            f"fields {list(self.fields)}{left}>"
         )
 
 
