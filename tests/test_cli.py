@@ -527,3 +527,20 @@ def test_decode_ply_holds_the_float32_cloud(encoded: Path, tmp_path: Path) -> No
     np.testing.assert_array_equal(read.point.positions.numpy(), points)
     pcd = o3d.t.io.read_point_cloud(str(out / "clouds" / "000002.pcd"))
     np.testing.assert_array_equal(pcd.point.positions.numpy(), points)
+
+
+def test_bench_pairs_an_input_as_encode_does(tmp_path: Path) -> None:
+    from tests.conftest import SHARED_DATA
+
+    bag = SHARED_DATA / "bags" / "realsense" / "single_depth_color_640x480.bag"
+    if not bag.is_file():
+        pytest.skip(f"{bag} is not present")
+    common = ["bench", str(bag), "--frames", "1", "--no-rd", "--no-plots", "--color", "h264"]
+    common += ["--depth", "zstd"]
+    # The bag's one color frame is 268 ms from the depth: within 300 ms it pairs, as in encode.
+    paired = run(*common, "--max-difference", "300ms")
+    assert paired.returncode == 0, paired.stderr
+    assert "zstd" in paired.stdout
+    refused = run(*common, "--passthrough")
+    assert refused.returncode == 1
+    assert "pcdcodec encode" in refused.stderr

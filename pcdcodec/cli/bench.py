@@ -14,7 +14,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..registry import parse_codec_specs
-from .options import camera_defaults, cli_message, folder_options, mib
+from .options import camera_defaults, cli_message, mib, source_options
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -99,7 +99,9 @@ def _bench_input(args: argparse.Namespace, frames: int) -> Any:
     from ..datasets import RGBDSequence
     from ..sources import open_source
 
-    options: dict[str, Any] = {"max_frames": frames, **folder_options(args)}
+    if getattr(args, "passthrough", False):
+        raise InputError("--passthrough records a bag's video as it is: `pcdcodec encode` takes it")
+    options: dict[str, Any] = {**source_options(args), "max_frames": frames}
     with open_source(args.src, defaults=camera_defaults(args), **options) as src:
         taken = list(src)
         for note in src.camera_notes:

@@ -385,6 +385,8 @@ def _bench_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     _add_camera_options(p)
+    _add_topic_options(p)
+    p.set_defaults(max_frames=None)  # --frames says how many; options.source_options reads it
 
 
 def _archive_options(p: argparse.ArgumentParser) -> None:
