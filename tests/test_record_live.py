@@ -40,7 +40,13 @@ def rs() -> Any:
     return pytest.importorskip("pyrealsense2")
 
 
-def _made_bag(path: Path, serial: str, count: int = FRAMES, start_ns: int = 10**10) -> Path:
+def _made_bag(
+    path: Path,
+    serial: str,
+    count: int = FRAMES,
+    start_ns: int = 10**10,
+    color_delays_ns: list[int] | None = None,
+) -> Path:
     seq = SEQUENCES["realsense_d435"]
     if not (seq.present and TEMPLATE_BAG.is_file()):
         pytest.skip("the shared RealSense data is not present")
@@ -55,6 +61,7 @@ def _made_bag(path: Path, serial: str, count: int = FRAMES, start_ns: int = 10**
         intrinsics=seq.camera,
         frame_numbers=numbers,
         start_ns=start_ns,
+        color_delays_ns=color_delays_ns,
     )
 
 
@@ -81,9 +88,13 @@ def _digest(depth: np.ndarray[Any, Any]) -> str:
 def test_real_bag_plays_back_bit_exact_with_the_bag_readers_camera(rs: Any) -> None:
     if not TEMPLATE_BAG.is_file():
         pytest.skip(f"{TEMPLATE_BAG} is not present")
-    with RealSenseBagSource(TEMPLATE_BAG) as ref:
-        frames = {f.timestamp_ns: f for f in ref}
-        with pcdcodec.sources.realsense_live(playback=TEMPLATE_BAG) as live:
+    wide = 300_000_000  # the bag's only color frame is 268 ms before its last depth frame
+    with pcdcodec.sources.realsense_live(playback=TEMPLATE_BAG, color=False) as live:
+        depths = {f.timestamp_ns: f.depth for f in live}
+    with RealSenseBagSource(TEMPLATE_BAG, max_difference=wide) as ref:
+        paired = list(ref)
+        assert ref.dropped == {"color": 0, "depth": 1}
+        with pcdcodec.sources.realsense_live(playback=TEMPLATE_BAG, max_difference=wide) as live:
             got = list(live)
             assert live.intrinsics == ref.intrinsics
             assert live.color_intrinsics == ref.color_intrinsics
@@ -92,10 +103,81 @@ def test_real_bag_plays_back_bit_exact_with_the_bag_readers_camera(rs: Any) -> N
             for key in ("device", "serial", "firmware"):
                 assert live.metadata[key] == ref.metadata[key]
             assert live.metadata["timestamp_domain"] == "hardware_clock"
-    assert got  # librealsense pairs the first depth frame with no color: one frame of two
-    for frame in got:
-        assert np.array_equal(frame.depth, frames[frame.timestamp_ns].depth)
-        assert np.array_equal(frame.color, frames[frame.timestamp_ns].color)
+            assert live.dropped == {"color": 0, "depth": 0}
+    # Depth alone, the playback hands over both depth frames, bit-exact with the bag reader's.
+    assert len(depths) == 2
+    assert len(paired) == 1
+    assert np.array_equal(depths[paired[0].timestamp_ns], paired[0].depth)
+    # With color, librealsense hands over the last depth frame only (with the color frame),
+    # while the bag reader pairs that color with the nearer, first depth frame.
+    assert [f.timestamp_ns for f in got] == [max(depths)]
+    assert np.array_equal(got[0].depth, depths[max(depths)])
+    assert np.array_equal(got[0].color, paired[0].color)
+
+
+@pytest.mark.shared_data
+@pytest.mark.parametrize("align", [False, True])
+def test_real_bag_at_the_default_limit_pairs_nothing_as_the_bag_reader(
+    rs: Any, align: bool
+) -> None:
+    if not TEMPLATE_BAG.is_file():
+        pytest.skip(f"{TEMPLATE_BAG} is not present")
+    with RealSenseBagSource(TEMPLATE_BAG) as ref:
+        assert list(ref) == []
+        assert ref.dropped == {"color": 1, "depth": 2}
+    with pcdcodec.sources.realsense_live(playback=TEMPLATE_BAG, align=align) as live:
+        assert live.max_difference == pcdcodec.sync.MAX_DIFFERENCE
+        assert list(live) == []
+        # the one depth frame librealsense hands over, and the color frame 268 ms before it
+        assert live.dropped == {"color": 1, "depth": 1}
+        assert live.describe()["dropped"] == live.dropped
+
+
+@pytest.fixture(scope="module")
+def late_bag(rs: Any, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """12 frames, color frame 5 stamped 25 ms after its depth frame (8.3 ms before the next)."""
+    delays = [25_000_000 if i == 5 else 0 for i in range(12)]
+    path = tmp_path_factory.mktemp("rs") / "late.bag"
+    return _made_bag(path, "000000000002", count=12, color_delays_ns=delays)
+
+
+@pytest.mark.shared_data
+@pytest.mark.parametrize("align", [False, True])
+def test_live_playback_drops_and_reports_what_the_bag_reader_drops(
+    late_bag: Path, align: bool
+) -> None:
+    with RealSenseBagSource(late_bag) as ref:
+        reference = {f.timestamp_ns: f for f in ref}
+        dropped = ref.dropped
+    # color 5 is 25 ms from depth 5, over the 20 ms limit, and depth 6 has its own color
+    assert dropped == {"color": 1, "depth": 1}
+    assert len(reference) == 11
+    with pcdcodec.sources.realsense_live(playback=late_bag, align=align) as live:
+        frames = list(live)
+        assert live.dropped == dropped
+    assert [f.timestamp_ns for f in frames] == sorted(reference)
+    for frame in frames:
+        assert np.array_equal(frame.depth, reference[frame.timestamp_ns].depth)
+        if not align:
+            assert np.array_equal(frame.color, reference[frame.timestamp_ns].color)
+    # a wider limit pairs color 5 with depth 5, in both readers
+    wide = 30_000_000
+    with RealSenseBagSource(late_bag, max_difference=wide) as ref:
+        assert len(list(ref)) == 12
+    with pcdcodec.sources.realsense_live(playback=late_bag, max_difference=wide) as live:
+        assert len(list(live)) == 12
+        assert live.dropped == {"color": 0, "depth": 0}
+
+
+def test_max_difference_is_checked(rs: Any) -> None:
+    if not TEMPLATE_BAG.is_file():
+        pytest.skip(f"{TEMPLATE_BAG} is not present")
+    from pcdcodec.errors import InputTypeError
+
+    with pytest.raises(InputTypeError, match="max_difference"):
+        pcdcodec.sources.realsense_live(playback=TEMPLATE_BAG, max_difference=0.02)
+    with pytest.raises(InputError, match="max_difference"):
+        pcdcodec.sources.realsense_live(playback=TEMPLATE_BAG, max_difference=-1)
 
 
 @pytest.mark.shared_data
@@ -309,6 +391,35 @@ def test_record_one_camera_from_playback(
         for frame in rec:
             assert np.array_equal(frame.depth, reference[frame.timestamp_ns].depth)
         assert rec.verify().ok
+
+
+@pytest.mark.shared_data
+def test_record_pairs_within_max_difference_and_says_what_it_dropped(
+    late_bag: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run.pcdc"
+    assert main(["record", "-o", str(out), "--playback", str(late_bag), "-q"]) == 0
+    printed = capsys.readouterr().out
+    assert "wrote 11 frames of 1 camera(s)" in printed
+    assert "dropped 1 color and 1 depth images without a partner within 20 ms" in printed
+    wide = tmp_path / "wide.pcdc"
+    args = ["record", "-o", str(wide), "--playback", str(late_bag), "--max-difference", "30ms"]
+    assert main([*args, "-q"]) == 0
+    printed = capsys.readouterr().out
+    assert "wrote 12 frames of 1 camera(s)" in printed
+    assert "without a partner" not in printed
+    with pcdcodec.open(wide) as rec:
+        assert len(rec) == 12
+    bad = tmp_path / "bad.pcdc"
+    for value in ("30", "-1ms"):
+        args = ["record", "-o", str(bad), "--playback", str(late_bag), f"--max-difference={value}"]
+        assert main(args) != 0
+        err = capsys.readouterr().err
+        assert f"--max-difference {value!r} is not a duration with its unit" in err
+    args = ["record", "-o", str(bad), "--playback", str(late_bag), "--depth-only"]
+    assert main([*args, "--max-difference", "30ms"]) != 0
+    assert "--depth-only has no color" in capsys.readouterr().err
+    assert not bad.exists()
 
 
 @pytest.mark.shared_data

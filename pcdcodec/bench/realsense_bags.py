@@ -62,6 +62,7 @@ def write_realsense_bag(
     intrinsics: CameraIntrinsics | None = None,
     frame_numbers: Sequence[int] | None = None,
     template: str | Path = TEMPLATE_BAG,
+    color_delays_ns: Sequence[int] | None = None,
 ) -> Path:
     """Write a librealsense ``.bag`` at ``path`` holding ``depths`` (H×W uint16, millimetres)
     and ``colors`` (H×W×3 uint8 RGB), frame ``i`` of both stamped ``start_ns + i / fps``.
@@ -70,7 +71,8 @@ def write_realsense_bag(
     bag); the stream rate, serial number, device name and cameras (``intrinsics`` for both, or
     the template's when ``None``, which then must be of the frames' size) are this bag's own.
     ``frame_numbers`` gives each frame its counter (default ``0, 1, ...``): a gap is a frame
-    the camera dropped. Returns ``path``.
+    the camera dropped. ``color_delays_ns`` stamps color frame ``i`` that many ns after depth
+    frame ``i`` (default 0: the same stamp). Returns ``path``.
     """
     from rosbags.rosbag1 import Reader, Writer
     from rosbags.typesys import Stores, get_typestore
@@ -83,6 +85,9 @@ def write_realsense_bag(
     numbers = list(range(len(depths))) if frame_numbers is None else list(frame_numbers)
     if len(numbers) != len(depths):
         raise InputError(f"{len(numbers)} frame numbers for {len(depths)} frames")
+    delays = [0] * len(depths) if color_delays_ns is None else list(color_delays_ns)
+    if len(delays) != len(depths):
+        raise InputError(f"{len(delays)} color delays for {len(depths)} frames")
     ts = get_typestore(Stores.ROS1_NOETIC)
     types = ts.types
     KeyValue = types["diagnostic_msgs/msg/KeyValue"]  # noqa: N806 - message class
@@ -126,12 +131,12 @@ def write_realsense_bag(
                 data = bytes(ts.serialize_ros1(info, c.msgtype))
             writer.write(conn(c.topic), t, data)
         for i, (depth, color) in enumerate(zip(depths, colors, strict=True)):
-            stamp = start_ns + i * period
+            depth_stamp = start_ns + i * period
             log_time = 1_000 + i * period  # librealsense paces playback by the log time
             number = numbers[i]
-            for prefix, image, encoding in (
-                (depth_prefix, np.asarray(depth, dtype=np.uint16), "mono16"),
-                (color_prefix, np.asarray(color, dtype=np.uint8), "rgb8"),
+            for prefix, image, encoding, stamp in (
+                (depth_prefix, np.asarray(depth, dtype=np.uint16), "mono16", depth_stamp),
+                (color_prefix, np.asarray(color, dtype=np.uint8), "rgb8", depth_stamp + delays[i]),
             ):
                 msg = _image_msg(types, number, stamp, image, encoding)
                 topic = f"{prefix}/data"

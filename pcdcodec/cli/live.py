@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..sync import parse_duration
 from .capture import POINTCLOUD2_BYTES_PER_POINT, Camera, Capture, CaptureStats, file_bytes
 from .options import mib, parse_codec
 from .show import print_left_out
@@ -82,6 +83,10 @@ def _open_sources(args: argparse.Namespace) -> list[Any]:
         "align": args.align,
         "max_frames": args.frames,
     }
+    if args.max_difference is not None:
+        if args.depth_only:
+            raise InputError("--max-difference pairs color with depth; --depth-only has no color")
+        common["max_difference"] = parse_duration(args.max_difference, "--max-difference")
     if args.playback and args.serial:
         raise InputError("give --playback files or --serial cameras, not both")
     targets: list[dict[str, Any]]
@@ -335,6 +340,12 @@ def _summary(
             f"depth / {drops['color']} color, dropped by us: {c['dropped_by_us']} "
             f"(timestamps: {domain})"
         )
+        unpaired = s.dropped
+        if any(unpaired.values()):
+            print(
+                f"  {'':12} dropped {unpaired['color']} color and {unpaired['depth']} depth "
+                f"images without a partner within {s.max_difference / 1e6:g} ms"
+            )
     for s in sources:
         left_out = [item.to_dict() for item in s.left_out]
         if left_out:

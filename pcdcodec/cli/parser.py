@@ -231,6 +231,12 @@ def _record_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument("--depth-only", action="store_true", help="record depth, leave color out")
     g.add_argument(
+        "--max-difference",
+        metavar="DURATION",
+        help="the largest time between a color and a depth image paired into one frame, with "
+        "its unit: 150ms, 0.15s, 500us (default 20ms, as for every input)",
+    )
+    g.add_argument(
         "--global-time",
         action="store_true",
         help="the devices' global timestamps (on by default with several cameras)",

@@ -5,9 +5,14 @@ plays a librealsense ``.bag`` back as if it were one (``playback=``), and yields
 they arrive. Depth comes as the camera gives it, with the depth camera's intrinsics and the
 device's depth units; color comes either unregistered (the color camera's own intrinsics and the
 depth-to-color extrinsic, the default) or aligned to depth by librealsense (``align=True``).
-Each depth frame is paired with the color frame nearest to it in time, as the ``.bag`` reader
-(:mod:`.realsense`) pairs them. Timestamps are the device's, in the domain it reports
-(``metadata["timestamp_domain"]``), in nanoseconds.
+Depth and color are paired by the rule of every reader (:class:`pcdcodec.sync.Synchronizer`):
+each image used at most once, within ``max_difference`` ns (default
+:data:`pcdcodec.sync.MAX_DIFFERENCE`, 20 ms), the images left without a partner counted in
+:attr:`RealSenseLiveSource.dropped`, as the ``.bag`` reader (:mod:`.realsense`) pairs and counts
+them (a played-back ``.bag`` gives the frames that reader gives, of those librealsense hands
+over). With ``align=True`` only the pairs librealsense put in one frameset can be aligned: a
+pair it never did is dropped and counted too. Timestamps are the device's, in the domain it
+reports (``metadata["timestamp_domain"]``), in nanoseconds.
 
 The source counts what the camera dropped: gaps in the frame counters of the depth and color
 streams (:attr:`RealSenseLiveSource.camera_drops`). A frame is copied out of librealsense's
@@ -32,6 +37,8 @@ import numpy.typing as npt
 
 from ..errors import DecodeError, InputError, PcdcodecError
 from ..geometry.camera import CameraIntrinsics
+from ..ros.bagindex import PairStats, pair_in_order
+from ..sync import MAX_DIFFERENCE, as_max_difference
 from .base import InputStream, Source
 
 __all__ = ["RealSenseLiveSource", "connected_serials", "realsense_live"]
@@ -143,7 +150,9 @@ class RealSenseLiveSource(Source):
         global_time: bool | None = None,
         sync: str | None = None,
         timeout: float = 5.0,
+        max_difference: int = MAX_DIFFERENCE,
     ) -> None:
+        self.max_difference = as_max_difference(max_difference)
         rs = _rs()
         self._rs = rs
         for name, value in (("max_frames", max_frames), ("duration", duration)):
@@ -163,6 +172,8 @@ class RealSenseLiveSource(Source):
         self._stop = threading.Event()
         self._depth = _Counter()
         self._color = _Counter()
+        self._stats = PairStats()
+        self._unaligned = 0  # pairs librealsense never put in one frameset (align=True)
         self.frames_read = 0
         self._config = rs.config()
         if playback is not None:
@@ -273,6 +284,16 @@ class RealSenseLiveSource(Source):
         """Frames the camera dropped so far, by stream: gaps in its frame counters."""
         return {"depth": self._depth.dropped, "color": self._color.dropped}
 
+    @property
+    def dropped(self) -> dict[str, int]:
+        """Images taken but left out so far for want of a partner within ``max_difference``,
+        by stream, as every reader counts them (with ``align=True``, also the pairs that
+        librealsense never put in one frameset, which cannot be aligned)."""
+        return {
+            "color": self._stats.dropped_color + self._unaligned,
+            "depth": self._stats.dropped_depth + self._unaligned,
+        }
+
     def stop(self) -> None:
         """Make iterating end after the frame it is waiting for (from any thread)."""
         self._stop.set()
@@ -323,7 +344,11 @@ class RealSenseLiveSource(Source):
             yield frames
 
     def _events(self) -> Iterator[tuple[bool, int, Any]]:
-        """``(is_depth, stamp, pixels)`` of each new frame, in arrival order."""
+        """``(is_depth, stamp, item)`` of each new frame, in arrival order: the pixels, or with
+        ``align=True`` see :meth:`_aligned_events`."""
+        if self.has_color and self.align:
+            yield from self._aligned_events()
+            return
         where = repr(str(self.path))
         for frames in self._framesets():
             got: list[tuple[bool, int, Any]] = []
@@ -341,73 +366,64 @@ class RealSenseLiveSource(Source):
             got.sort(key=lambda e: (e[1], not e[0]))
             yield from got
 
+    def _aligned_events(self) -> Iterator[tuple[bool, int, Any]]:
+        """``(is_depth, stamp, item)`` of each new frame with color aligned to depth by
+        librealsense. A depth item is ``(pixels, aligned)``, where ``aligned`` maps the stamp of
+        each color frame librealsense put in a frameset with it to that color aligned to it
+        (filled while the depth waits for its partner); a color item is its stamp. Each
+        frameset is aligned as it comes and copied out, so none is held."""
+        where = repr(str(self.path))
+        current: tuple[int, dict[int, Any]] | None = None  # the latest depth's stamp, aligned
+        for frames in self._framesets():
+            got: list[tuple[bool, int, Any]] = []
+            d, c = frames.get_depth_frame(), frames.get_color_frame()
+            if d:
+                stamp = self._stamp(d) + self._offset
+                if self._depth.new(int(d.get_frame_number()), stamp):
+                    self._domain(d)
+                    current = (stamp, {})
+                    got.append((True, stamp, (np.array(np.asanyarray(d.get_data())), current[1])))
+                if c and current is not None and current[0] == stamp:
+                    color_stamp = self._stamp(c) + self._offset
+                    if color_stamp not in current[1]:
+                        aligned = self._aligner.process(frames).get_color_frame()
+                        current[1][color_stamp] = _color_pixels(aligned, where)
+            if c:
+                stamp = self._stamp(c) + self._offset
+                if self._color.new(int(c.get_frame_number()), stamp):
+                    got.append((False, stamp, stamp))
+            got.sort(key=lambda e: (e[1], not e[0]))
+            yield from got
+
     def _domain(self, frame: Any) -> None:
         if "timestamp_domain" not in self.metadata:
             domain = str(frame.get_frame_timestamp_domain()).rsplit(".", 1)[-1]
             self.metadata["timestamp_domain"] = domain
 
     def _pairs(self) -> Iterator[tuple[int, Any, Any]]:
-        """``(stamp, depth, color)``: each depth frame with the nearer of the color frames
-        before and after it (depth alone when the source has no color)."""
-        pending: list[tuple[int, Any]] = []
-        before: tuple[int, Any] | None = None
-        for is_depth, stamp, pixels in self._events():
-            if is_depth:
-                if not self.has_color:
-                    yield stamp, pixels, None
-                else:
-                    pending.append((stamp, pixels))
+        """``(stamp, depth, color)``: depth and color paired by the rule of every reader
+        (:func:`~pcdcodec.ros.bagindex.pair_in_order`: each image used once, within
+        ``max_difference``), depth alone when the source has no color."""
+        events = self._events()
+        if not self.has_color:
+            yield from ((stamp, depth, None) for _, stamp, depth in events)
+            return
+        for stamp, depth, color in pair_in_order(events, self.max_difference, self._stats):
+            if not self.align:
+                yield stamp, depth, color
                 continue
-            for t, depth in pending:
-                best = (stamp, pixels)
-                if before is not None and abs(before[0] - t) <= abs(stamp - t):
-                    best = before
-                yield t, depth, best[1]
-            pending.clear()
-            before = (stamp, pixels)
-        for t, depth in pending:
-            if before is not None:
-                yield t, depth, before[1]
-
-    def _aligned(self) -> Iterator[tuple[int, Any, Any]]:
-        """``(stamp, depth, color)`` with color aligned to depth by librealsense: of the
-        framesets holding a depth frame, the one whose color frame is nearest to it."""
-        where = repr(str(self.path))
-        best: tuple[int, int, Any] | None = None  # (stamp, |color - depth|, frameset)
-
-        def emit(item: tuple[int, int, Any]) -> tuple[int, Any, Any]:
-            frames = self._aligner.process(item[2])
-            d, c = frames.get_depth_frame(), frames.get_color_frame()
-            return item[0], np.array(np.asanyarray(d.get_data())), _color_pixels(c, where)
-
-        for frames in self._framesets():
-            d, c = frames.get_depth_frame(), frames.get_color_frame()
-            if not d or not c:
+            pixels, aligned = depth
+            rgb = aligned.get(color)
+            if rgb is None:  # librealsense never put these two in one frameset
+                self._unaligned += 1
                 continue
-            stamp = self._stamp(d) + self._offset
-            gap = abs(self._stamp(c) + self._offset - stamp)
-            if best is not None and stamp == best[0]:
-                if gap < best[1]:
-                    frames.keep()
-                    best = (stamp, gap, frames)
-                continue
-            if not self._depth.new(int(d.get_frame_number()), stamp):
-                continue
-            self._color.new(int(c.get_frame_number()), self._stamp(c) + self._offset)
-            self._domain(d)
-            if best is not None:
-                yield emit(best)
-            frames.keep()
-            best = (stamp, gap, frames)
-        if best is not None:
-            yield emit(best)
+            yield stamp, pixels, rgb
 
     def __iter__(self) -> Iterator[Any]:
         from ..frame import Frame
 
         start = time.monotonic()
-        pairs = self._aligned() if self.has_color and self.align else self._pairs()
-        for stamp, depth, rgb in pairs:
+        for stamp, depth, rgb in self._pairs():
             yield Frame(rgb, depth, stamp, index=self.frames_read)
             self.frames_read += 1
             if self.max_frames is not None and self.frames_read >= self.max_frames:
@@ -453,6 +469,7 @@ class RealSenseLiveSource(Source):
     def describe(self) -> dict[str, Any]:
         out = super().describe()
         out["camera_drops"] = self.camera_drops
+        out["dropped"] = self.dropped
         out["timestamp_domain"] = self.metadata.get("timestamp_domain")
         return out
 
@@ -477,7 +494,10 @@ def realsense_live(serial: str | None = None, **options: Any) -> RealSenseLiveSo
     holds, and a depth size or rate that differs from them is an error. ``color=False``
     records depth only. ``align=True`` gives color aligned to depth by librealsense
     (``rs.align``), at the depth camera's size, instead of the color camera's own images with
-    ``color_intrinsics`` and ``depth_to_color``.
+    ``color_intrinsics`` and ``depth_to_color``. Depth and color are paired as every reader
+    pairs them (:mod:`pcdcodec.sync`): each image used once, within ``max_difference`` ns
+    (default :data:`~pcdcodec.sync.MAX_DIFFERENCE`, 20 ms); the images left without a partner
+    are counted in :attr:`~RealSenseLiveSource.dropped`.
 
     Iterating ends after ``max_frames`` frames, after ``duration`` seconds, at the end of a
     playback file, or after :meth:`~RealSenseLiveSource.stop`. ``global_time`` turns the
