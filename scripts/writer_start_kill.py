@@ -37,6 +37,7 @@ import tarfile
 import tempfile
 import textwrap
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -93,8 +94,10 @@ def readable(path: Path) -> int:
     if not path.exists():
         return 0
     try:
-        with pcdcodec.open(path) as rec:
-            return len(rec)
+        with warnings.catch_warnings():  # a killed writer's file is incomplete: that is the point
+            warnings.simplefilter("ignore", pcdcodec.errors.PcdcodecWarning)
+            with pcdcodec.open(path) as rec:
+                return len(rec)
     except pcdcodec.PcdcodecError:
         return 0  # killed before its first frame's records were written
 
