@@ -23,23 +23,23 @@ DEFAULT = (4, {"color": 0, "depth": 1})
 TIGHT = (3, {"color": 1, "depth": 2})
 
 
-def _rosbag(path: Path) -> Path:
+def _rosbag(path: Path, ros2: bool = False) -> Path:
     from .test_rosbag import _image, _info, _store, write_bag
 
-    store = _store(False)
+    store = _store(ros2)
     rng = np.random.default_rng(1)
     depth = rng.integers(0, 4000, (12, 16)).astype(np.uint16)
     color = rng.integers(0, 256, (12, 16, 3)).astype(np.uint8)
-    msgs = [("/cam/depth/camera_info", 1, _info(store, False, NS, 16, 12))]
+    msgs = [("/cam/depth/camera_info", 1, _info(store, ros2, NS, 16, 12))]
     for k, off in enumerate(OFFSETS):
         ts = NS + k * PERIOD
-        msgs.append(("/cam/depth/image_raw", ts, _image(store, False, ts, depth, "16UC1")))
+        msgs.append(("/cam/depth/image_raw", ts, _image(store, ros2, ts, depth, "16UC1")))
         if off is not None:
             msgs.append(
-                ("/cam/color/image_raw", ts + off, _image(store, False, ts + off, color, "rgb8"))
+                ("/cam/color/image_raw", ts + off, _image(store, ros2, ts + off, color, "rgb8"))
             )
     msgs.sort(key=lambda m: m[1])
-    return write_bag(path / "s.bag", msgs)
+    return write_bag(path / ("s2" if ros2 else "s.bag"), msgs, ros2=ros2, store=store)
 
 
 def _realsense(path: Path) -> Path:
@@ -164,3 +164,77 @@ def test_a_max_difference_of_seconds_is_refused_with_the_unit() -> None:
             parse_duration(bad)
     with pytest.raises(pcdcodec.InputTypeError, match="20 ms is 20_000_000"):
         as_max_difference(0.02)
+
+
+# -- each image keeps its own stamp -------------------------------------------------------
+
+
+def _listed_ns(path: Path) -> list[int]:
+    """The stamps of a TUM list (rgb.txt, depth.txt) as int nanoseconds, read exactly."""
+    from decimal import Decimal
+
+    lines = [line.split()[0] for line in path.read_text().splitlines()]
+    return [int(Decimal(t) * NS) for t in lines if t and not t.startswith("#")]
+
+
+def _own_stamps_survive_encode_and_decode(
+    path: Path, tmp_path: Path, color: list[int], depth: list[int], **options: Any
+) -> None:
+    """The source's frames carry each image's own stamp (the frame's time stays the depth's),
+    and so do the recording and the rgb.txt/depth.txt that decode writes."""
+    from pcdcodec.cli import main
+
+    with pcdcodec.open_source(path, **options) as src:
+        frames = list(src)
+    assert [f.color_timestamp_ns for f in frames] == color
+    assert [f.depth_timestamp_ns for f in frames] == depth
+    assert [f.timestamp_ns for f in frames] == depth
+    out = tmp_path / "own.pcdc"
+    pcdcodec.encode(path, out, color="ffv1", overwrite=True, **options)
+    with pcdcodec.open(out) as rec:
+        assert [f.color_timestamp_ns for f in rec] == color
+        assert [f.depth_timestamp_ns for f in rec] == depth
+    decoded = tmp_path / "decoded"
+    assert main(["decode", str(out), "-o", str(decoded), "-q"]) == 0
+    assert _listed_ns(decoded / "rgb.txt") == color
+    assert _listed_ns(decoded / "depth.txt") == depth
+
+
+def _stamps(offsets: list[int | None]) -> tuple[list[int], list[int]]:
+    """The color and depth stamps of the frames paired at the default tolerance."""
+    kept = [(NS + k * PERIOD + off, NS + k * PERIOD) for k, off in enumerate(offsets) if off]
+    return [c for c, _ in kept], [d for _, d in kept]
+
+
+@pytest.mark.parametrize("kind", ["rosbag", "rosbag2", "realsense", "azure_kinect"])
+def test_each_image_keeps_its_own_stamp_through_pairing(tmp_path: Path, kind: str) -> None:
+    options: dict[str, Any] = {}
+    path = _rosbag(tmp_path, ros2=True) if kind == "rosbag2" else READERS[kind](tmp_path)
+    if kind.startswith("rosbag"):
+        options = {"intrinsics": pcdcodec.CameraIntrinsics(16, 12, 10.0, 10.0, 8.0, 6.0)}
+    color, depth = _stamps(OFFSETS)
+    if kind == "azure_kinect":
+        # The file's stamps start at its own start time: compare the offsets within each pair.
+        with pcdcodec.open_source(path) as src:
+            frames = list(src)
+        start = frames[0].depth_timestamp_ns - depth[0]
+        color, depth = [c + start for c in color], [d + start for d in depth]
+    _own_stamps_survive_encode_and_decode(path, tmp_path, color, depth, **options)
+    if kind != "azure_kinect":
+        # A stretch read through the frame index keeps them too.
+        with pcdcodec.open_source(path, **options) as src:
+            later = list(src.frames(2))
+        assert [f.color_timestamp_ns for f in later] == color[2:]
+        assert [f.depth_timestamp_ns for f in later] == depth[2:]
+
+
+def test_the_real_realsense_bag_keeps_the_color_images_own_stamp(tmp_path: Path) -> None:
+    from .conftest import SHARED_DATA
+
+    bag = SHARED_DATA / "bags" / "realsense" / "single_depth_color_640x480.bag"
+    if not bag.exists():
+        pytest.skip(f"{bag} is not present")
+    # The bag's header stamps (read with rosbags): color 360.713523 s, depth 360.815089 s.
+    _own_stamps_survive_encode_and_decode(
+        bag, tmp_path, [360_713_523_000], [360_815_089_000], max_difference=150_000_000
+    )

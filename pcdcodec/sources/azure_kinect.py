@@ -470,12 +470,12 @@ class AzureKinectSource(Source):
                 for cts, color, dts, depth in ready:
                     pts_of.pop(("color", cts), None)
                     pts_of.pop(("depth", dts), None)
-                    yield RGBDFrame(color, depth, dts)
+                    yield RGBDFrame(color, depth, dts, color_timestamp_ns=cts)
                     emitted += 1
                     if self.max_frames is not None and emitted >= self.max_frames:
                         return
-            for _, color, dts, depth in sync.flush():
-                yield RGBDFrame(color, depth, dts)
+            for cts, color, dts, depth in sync.flush():
+                yield RGBDFrame(color, depth, dts, color_timestamp_ns=cts)
                 emitted += 1
                 if self.max_frames is not None and emitted >= self.max_frames:
                     return

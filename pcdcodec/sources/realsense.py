@@ -390,8 +390,8 @@ class RealSenseBagSource(Source):
                     yield is_depth, *self._decode(conn, raw, is_depth)
 
             self._stats = PairStats()
-            for t, depth, rgb in self._pairs(images(), self._stats):
-                yield RGBDFrame(rgb, depth, t)
+            for t, depth, rgb, color_t in self._pairs(images(), self._stats):
+                yield RGBDFrame(rgb, depth, t, color_timestamp_ns=color_t)
 
     @property
     def dropped(self) -> dict[str, int]:
@@ -445,15 +445,16 @@ class RealSenseBagSource(Source):
 
     def _pairs(
         self, images: Iterator[tuple[bool, int, Any]], stats: PairStats | None = None
-    ) -> Iterator[tuple[int, Any, Any]]:
-        """``(timestamp, depth, color)`` from ``(is_depth, stamp, item)`` in bag order (the items
-        are images when reading, message positions when indexing): depth and color paired by
+    ) -> Iterator[tuple[int, Any, Any, int | None]]:
+        """``(timestamp, depth, color, color stamp)`` from ``(is_depth, stamp, item)`` in bag
+        order (the items are images when reading, message positions when indexing): depth and
+        color paired by
         the rule of every reader (:func:`~pcdcodec.ros.bagindex.pair_in_order`: each image
         used once, within ``max_difference``), the images left without a partner counted in
         ``stats``. Without color, every depth frame."""
         if self.color_topic is None:
-            pairs: Iterator[tuple[int, Any, Any]] = (
-                (stamp, item, None) for is_depth, stamp, item in images if is_depth
+            pairs: Iterator[tuple[int, Any, Any, int | None]] = (
+                (stamp, item, None, None) for is_depth, stamp, item in images if is_depth
             )
         else:
             pairs = pair_in_order(images, self.max_difference, stats)
@@ -489,7 +490,7 @@ class RealSenseBagSource(Source):
             try:
                 rows = [
                     (t, d[0], d[1], *(c if c is not None else (-1, -1)))
-                    for t, d, c in self._pairs(positions())
+                    for t, d, c, _ in self._pairs(positions())
                 ]
             except PcdcodecError:
                 raise
@@ -540,10 +541,10 @@ class RealSenseBagSource(Source):
                 return self._decode(item[0], item[1], is_depth)[1]
 
             where = repr(str(self.path))
-            for t, depth, rgb in _bagindex.read_rows(
+            for t, depth, rgb, color_t in _bagindex.read_rows(
                 rows, index.first, color, messages(), decode, where
             ):
-                yield RGBDFrame(rgb, depth, t)
+                yield RGBDFrame(rgb, depth, t, color_timestamp_ns=color_t)
 
 
 def open_realsense(path: str | Path, **options: Any) -> RealSenseBagSource:

@@ -60,6 +60,9 @@ from .base import FrameIndex, InputStream, Source, read_magic, register_source, 
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
 
+# A frame's images before they become a Frame: (color, depth, depth stamp, color stamp or None).
+_Images = tuple[Any, Any, int, "int | None"]
+
 
 def _is_bag(path: Path) -> bool:
     if path.is_dir():
@@ -506,10 +509,12 @@ class RosbagSource(Source):
             frames = self._paired_frames()
         return self._emit(frames, self.max_frames)
 
-    def _emit(self, frames: Iterator[tuple[Any, Any, int]], limit: int | None) -> Iterator[Any]:
+    def _emit(self, frames: Iterator[_Images], limit: int | None) -> Iterator[Any]:
+        """Frames from ``(color, depth, depth stamp, color stamp)``: the frame at the depth's
+        stamp, each image keeping its own."""
         shape = self._shape
         assert shape is not None  # set when the source opens
-        for color, depth, ts in frames:
+        for color, depth, ts, color_ts in frames:
             if depth.shape != shape:
                 topic = self.depth_topic or self.cloud_topic
                 raise InputError(
@@ -517,7 +522,7 @@ class RosbagSource(Source):
                     f"the first frame {shape[1]}x{shape[0]}"
                 )
             self.stats.frames += 1
-            yield Frame(color, depth, ts, pose=self._pose(ts))
+            yield Frame(color, depth, ts, pose=self._pose(ts), color_timestamp_ns=color_ts)
             if limit is not None and self.stats.frames >= limit:
                 return
 
@@ -554,20 +559,21 @@ class RosbagSource(Source):
             last = ts
             yield msg, ts
 
-    def _depth_frames(self) -> Iterator[tuple[Any, Any, int]]:
+    def _depth_frames(self) -> Iterator[_Images]:
         for msg, ts in self._in_order(self._depth_conn):
-            yield None, self._decode(msg, self._depth_conn, "depth", ts), ts
+            yield None, self._decode(msg, self._depth_conn, "depth", ts), ts, None
 
-    def _paired_frames(self) -> Iterator[tuple[Any, Any, int]]:
+    def _paired_frames(self) -> Iterator[_Images]:
         dtopic = self._depth_conn.topic
         messages = (
             (conn.topic == dtopic, self._stamp(msg, t, conn.topic), msg)
             for conn, t, msg in self._messages([self._depth_conn, self._color_conn])
         )
-        for dts, dmsg, cmsg in bagindex.pair_in_order(messages, self.max_difference, self.stats):
-            yield self._pair(cmsg, dmsg, dts)
+        pairs = bagindex.pair_in_order(messages, self.max_difference, self.stats)
+        for dts, dmsg, cmsg, cts in pairs:
+            yield self._pair(cmsg, dmsg, dts, cts)
 
-    def _pair(self, cmsg: Any, dmsg: Any, dts: int) -> tuple[Any, Any, int]:
+    def _pair(self, cmsg: Any, dmsg: Any, dts: int, cts: int | None) -> _Images:
         cconn, dconn = self._color_conn, self._depth_conn
         assert cconn is not None
         color = self._decode(cmsg, cconn, "color", dts)
@@ -578,13 +584,13 @@ class RosbagSource(Source):
                 f"depth topic {dconn.topic!r} is {depth.shape[1]}x{depth.shape[0]} "
                 f"at {dts} ns"
             )
-        return color, depth, dts
+        return color, depth, dts, cts
 
-    def _cloud_frames(self) -> Iterator[tuple[Any, Any, int]]:
+    def _cloud_frames(self) -> Iterator[_Images]:
         for msg, ts in self._in_order(self._depth_conn):
             yield self._cloud_frame(msg, ts)
 
-    def _cloud_frame(self, msg: Any, ts: int) -> tuple[Any, Any, int]:
+    def _cloud_frame(self, msg: Any, ts: int) -> _Images:
         topic = self._depth_conn.topic
         first = self._layout
         if (int(msg.width), int(msg.height)) != (first.width, first.height):
@@ -611,10 +617,10 @@ class RosbagSource(Source):
                     f"whole 1/{self.depth_scale:g} m steps, unlike the first cloud; open the "
                     "bag with cloud_depth='float32' to keep z as float32 metres"
                 )
-            return rgb, units, ts
+            return rgb, units, ts, None
         with np.errstate(invalid="ignore"):
             z[~np.isfinite(z)] = np.nan
-        return rgb, z, ts
+        return rgb, z, ts, None
 
     # -- reading a stretch of frames without reading the bag from the top --------------------
 
@@ -703,7 +709,7 @@ class RosbagSource(Source):
         self.stats = _Stats()
         return self._emit(self._indexed(rows, index.first), None)
 
-    def _indexed(self, rows: Any, first: int) -> Iterator[tuple[Any, Any, int]]:
+    def _indexed(self, rows: Any, first: int) -> Iterator[_Images]:
         if rows.shape[0] == 0:
             return
         dconn, cconn = self._depth_conn, self._color_conn
@@ -722,13 +728,13 @@ class RosbagSource(Source):
                 raise bagfile.bag_error(exc, self.path) from exc
 
         where = f"bag {str(self.path)!r}"
-        for ts, dmsg, cmsg in bagindex.read_rows(rows, first, paired, messages, decode, where):
+        for ts, dmsg, cmsg, cts in bagindex.read_rows(rows, first, paired, messages, decode, where):
             if paired:
-                yield self._pair(cmsg, dmsg, ts)
+                yield self._pair(cmsg, dmsg, ts, cts)
             elif self.mode == "cloud":
                 yield self._cloud_frame(dmsg, ts)
             else:
-                yield None, self._decode(dmsg, dconn, "depth", ts), ts
+                yield None, self._decode(dmsg, dconn, "depth", ts), ts, None
 
     # -- pass-through of encoded video -------------------------------------------------------
 
