@@ -238,3 +238,93 @@ def test_the_real_realsense_bag_keeps_the_color_images_own_stamp(tmp_path: Path)
     _own_stamps_survive_encode_and_decode(
         bag, tmp_path, [360_713_523_000], [360_815_089_000], max_difference=150_000_000
     )
+
+
+# -- depth only, and a source whose every image was dropped -------------------------------
+
+
+@pytest.mark.parametrize("kind", ["rosbag", "realsense", "azure_kinect"])
+def test_every_paired_input_records_depth_only_as_the_no_pairs_error_says(
+    tmp_path: Path, kind: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Pairing within 0 ns drops every image; the error's advice, --depth-only (and its Python
+    option), then records each depth image without color."""
+    from pcdcodec.cli import main
+
+    path = READERS[kind](tmp_path)
+    flags = ["--color", "ffv1", "--fx", "10", "--fy", "10", "--cx", "8", "--cy", "6"]
+    out = tmp_path / "d.pcdc"
+    assert main(["encode", str(path), "-o", str(out), *flags, "--max-difference", "0ms"]) == 1
+    err = capsys.readouterr().err
+    assert "every image was dropped" in err
+    assert "record depth only (--depth-only on the command line" in err
+    assert main(["encode", str(path), "-o", str(out), *flags, "--depth-only"]) == 0
+    with pcdcodec.open(out) as rec:
+        assert len(rec) == len(OFFSETS)
+        assert rec[0].color is None
+    option: dict[str, Any] = {"color": False} if kind == "azure_kinect" else {"color_topic": ""}
+    camera = {"intrinsics": pcdcodec.CameraIntrinsics(16, 12, 10.0, 10.0, 8.0, 6.0)}
+    if kind != "rosbag":
+        camera = {}
+    with pytest.raises(InputError, match=f"{next(iter(option))}=.* in Python"):
+        pcdcodec.encode(path, out, max_difference=0, overwrite=True, **camera)
+    with pcdcodec.open_source(path, **option) as src:
+        frames = list(src)
+        assert not src.has_color
+        assert src.color_intrinsics is None
+        assert src.dropped == {"color": 0, "depth": 0}
+        assert any("color" in s.name.lower() for s in src.left_out)  # the color stream, listed
+    assert len(frames) == len(OFFSETS)
+    assert all(f.color is None for f in frames)
+
+
+def test_topic_flags_name_what_each_input_takes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from pcdcodec.cli import main
+
+    rs, ak = _realsense(tmp_path), _azure(tmp_path)
+    out = str(tmp_path / "x.pcdc")
+    assert main(["encode", str(ak), "-o", out, "--color-topic", ""]) == 1
+    err = capsys.readouterr().err
+    assert "--color-topic applies to bags" in err
+    assert "its depth alone: --depth-only" in err
+    assert main(["encode", str(rs), "-o", out, "--depth-topic", "/d"]) == 1
+    assert "--depth-topic applies to ROS bags" in capsys.readouterr().err
+    assert main(["encode", str(rs), "-o", out, "--color", "ffv1", "--color-topic", ""]) == 0
+    with pcdcodec.open(out) as rec:
+        assert rec[0].color is None
+    with pytest.raises(InputError, match="has no color topic '/nope'; its color topics: /dev"):
+        pcdcodec.open_source(rs, color_topic="/nope")
+    # An option a reader does not take is a public InputError naming the file.
+    with pytest.raises(InputError) as caught:
+        pcdcodec.open_source(rs, color=False)
+    assert type(caught.value) is InputError
+    assert str(caught.value).startswith(f"{str(rs)!r}: the realsense reader takes no option")
+
+
+@pytest.mark.parametrize("call", ["write_frames", "write_source"])
+def test_writing_a_source_whose_every_image_was_dropped_says_so(tmp_path: Path, call: str) -> None:
+    """The README's recipe (open_source, then rec.write_frames(src)) on a bag whose streams lie
+    farther apart than the tolerance wrote an empty recording without a word."""
+    path = _realsense(tmp_path)
+    out = tmp_path / "w.pcdc"
+    for tolerance in (0, None):
+        options = {} if tolerance is None else {"max_difference": tolerance}
+        with pcdcodec.open_source(path, **options) as src:
+            rec = pcdcodec.open(
+                out,
+                "w",
+                intrinsics=src.intrinsics,
+                depth_scale=src.depth_scale,
+                color_intrinsics=src.color_intrinsics,
+                depth_to_color=src.depth_to_color,
+                color="ffv1",
+                overwrite=True,
+            )
+            with rec:
+                if tolerance is None:  # a source that pairs its images is written as before
+                    assert getattr(rec, call)(src) == DEFAULT[0]
+                    continue
+                with pytest.raises(InputError, match=r"gave no frames: every image was dropped"):
+                    getattr(rec, call)(src)

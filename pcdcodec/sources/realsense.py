@@ -166,8 +166,10 @@ class RealSenseBagSource(Source):
     rule of every reader (:mod:`pcdcodec.sync`): each image used once, within
     ``max_difference`` ns (default :data:`~pcdcodec.sync.MAX_DIFFERENCE`, 20 ms; ``max_dt``
     in seconds is its former name). ``max_frames`` stops early; ``intrinsics`` replaces the
-    recorded depth camera. ``metadata`` holds the device name, serial number and firmware,
-    and the topics read. :attr:`dropped` counts the images left out for want of a partner.
+    recorded depth camera; ``color_topic`` picks the color stream by its image topic (default
+    the first; ``''`` or ``'none'`` reads the depth alone, leaving the color topics out).
+    ``metadata`` holds the device name, serial number and firmware, and the topics read.
+    :attr:`dropped` counts the images left out for want of a partner.
 
     Color is read from rgb8, bgr8, rgba8, bgra8 and mjpeg Images (a JPEG is checked whole and of
     the color camera's size before it is decoded). Every Image is checked against its camera
@@ -188,6 +190,7 @@ class RealSenseBagSource(Source):
         max_dt: float | None = None,
         max_frames: int | None = None,
         intrinsics: CameraIntrinsics | None = None,
+        color_topic: str | None = None,
     ) -> None:
         from rosbags.rosbag1 import Reader
         from rosbags.typesys import Stores, get_typestore
@@ -208,7 +211,7 @@ class RealSenseBagSource(Source):
             raise InputError(f"{name!r} is not a readable ROS 1 bag: {exc}") from exc
         try:
             check_ros1_index(reader, repr(name))
-            self._read_header(reader, name, depth_scale)
+            self._read_header(reader, name, depth_scale, color_topic)
         finally:
             reader.close()
         if intrinsics is not None:
@@ -232,12 +235,26 @@ class RealSenseBagSource(Source):
 
     # -- header ------------------------------------------------------------------------
 
-    def _read_header(self, reader: Any, name: str, depth_scale: float | None) -> None:
+    def _read_header(
+        self, reader: Any, name: str, depth_scale: float | None, color_topic: str | None
+    ) -> None:
         streams: dict[str, tuple[str, str]] = {}  # kind -> (prefix, sensor)
+        colors: dict[str, tuple[str, str]] = {}  # every color image topic -> (prefix, sensor)
         for c in reader.connections:
             m = _IMAGE.match(c.topic)
+            if m and m.group(3) == "Color":
+                colors[c.topic] = (c.topic[: -len("/image/data")], m.group(2))
             if m and m.group(3) not in streams:
                 streams[m.group(3)] = (c.topic[: -len("/image/data")], m.group(2))
+        if color_topic is not None and color_topic.strip().lower() in ("", "none"):
+            streams.pop("Color", None)  # depth only, as in a ROS bag: the color topics left out
+        elif color_topic is not None:
+            if color_topic not in colors:
+                raise InputError(
+                    f"{name!r} has no color topic {color_topic!r}; its color topics: "
+                    f"{', '.join(sorted(colors)) or 'none'} ('' for depth only)"
+                )
+            streams["Color"] = colors[color_topic]
         if "Depth" not in streams:
             raise InputError(
                 f"{name!r} is a ROS 1 bag without a librealsense depth stream "
