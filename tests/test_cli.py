@@ -353,7 +353,8 @@ def test_folder_flags_on_a_bag_are_named_as_given(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """--depth-only on a bag was refused as "--color apply to RGB-D folders", a flag not
-    given (and another flag's name)."""
+    given (and another flag's name); it reads the bag's depth alone. A folder's own flags are
+    refused under their own names."""
     from pcdcodec.cli import main
 
     from .test_rosbag import _image, _small, _store, write_bag
@@ -365,11 +366,11 @@ def test_folder_flags_on_a_bag_are_named_as_given(
         [("/cam/depth/image_raw", 10**9, _image(store, False, 10**9, depth, "16UC1"))],
         store=store,
     )
-    assert main(["info", str(bag), "--depth-only"]) == 1
-    err = capsys.readouterr().err
-    assert "--depth-only applies to RGB-D folders" in err
-    assert "--color-topic ''" in err
-    assert "--color " not in err
+    assert main(["info", str(bag), "--depth-only"]) == 0  # a bag's depth alone
+    captured = capsys.readouterr()
+    assert "--color " not in captured.out + captured.err
+    assert main(["info", str(bag), "--depth-pattern", "d*.png"]) == 1
+    assert "--depth-pattern applies to RGB-D folders" in capsys.readouterr().err
 
 
 def test_info_on_a_recording_refuses_input_flags(
@@ -382,6 +383,8 @@ def test_info_on_a_recording_refuses_input_flags(
     assert main(["info", str(encoded), "--camera", "tum-ros", "--depth-scale", "5000"]) == 1
     err = capsys.readouterr().err
     assert "--camera --depth-scale describe how to read an input" in err
+    assert main(["info", str(encoded), "--camera", "tum-ros"]) == 1
+    assert "--camera describes how to read an input" in capsys.readouterr().err
     assert main(["info", str(encoded)]) == 0
 
 

@@ -6,6 +6,7 @@ import json
 import re
 import shutil
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -110,8 +111,84 @@ def test_load_plain_folders(tmp_path: Path) -> None:
     assert [f.timestamp_ns for f in seq] == [0, 100_000_000, 200_000_000]
     np.testing.assert_array_equal(seq[2].depth, sample[2].depth)
     (root / "depth" / "0002.png").unlink()
-    with pytest.raises(pcdcodec.InputError, match="3 color and 2 depth"):
-        load_folder(root)
+    assert len(load_folder(root, depth_scale=5000.0)) == 2  # paired by frame number
+
+
+def _subfolders(root: Path, colors: list[str], depths: list[str]) -> list[Any]:
+    """``rgb/`` and ``depth/`` holding the sample's frames under the given names (the k-th
+    name of each list holds frame k); returns the sample's frames."""
+    (root / "rgb").mkdir(parents=True)
+    (root / "depth").mkdir()
+    sample = load_sample(max_frames=max(len(colors), len(depths)))
+    for k, name in enumerate(colors):
+        shutil.copy(sample.paths[k][0], root / "rgb" / name)
+    for k, name in enumerate(depths):
+        shutil.copy(sample.paths[k][1], root / "depth" / name)
+    return list(sample)
+
+
+def test_subfolders_pair_by_frame_number_and_count_the_images_left_alone(tmp_path: Path) -> None:
+    """rgb 2, 3, 4 and depth 2, 4, 5: rgb2 goes with depth2 and rgb4 with depth4, at their
+    frame numbers' times; rgb3 and depth5 have no partner and are counted, not paired by
+    order with the next image."""
+    root = tmp_path / "gaps"
+    frames = _subfolders(
+        root,
+        ["rgb00002.png", "rgb00004.png", "rgb00003.png"],
+        ["depth00002.png", "depth00004.png", "depth00005.png"],
+    )
+    with pcdcodec.open_source(root, depth_scale=5000.0, fps=10.0) as src:
+        got = list(src)
+        assert src.dropped == {"color": 1, "depth": 1}
+    assert [f.timestamp_ns for f in got] == [0, 200_000_000]  # the gap of frame 3 is kept
+    for f, want in zip(got, frames[:2], strict=True):
+        np.testing.assert_array_equal(f.color, want.color)
+        np.testing.assert_array_equal(f.depth, want.depth)
+    summary = pcdcodec.encode(
+        root,
+        tmp_path / "gaps.pcdc",
+        depth_scale=5000.0,
+        intrinsics=pcdcodec.CameraIntrinsics(640, 480, 525.0, 525.0, 319.5, 239.5),
+        color="ffv1",
+    )
+    assert (summary.frames, summary.dropped) == (2, {"color": 1, "depth": 1})
+    # No common frame number at all is refused, naming the files.
+    other = tmp_path / "apart"
+    _subfolders(other, ["c1.png", "c2.png"], ["d7.png", "d8.png"])
+    with pytest.raises(pcdcodec.InputError, match=r"no color image has the frame num.*'c1\.png'"):
+        pcdcodec.open_source(other, depth_scale=5000.0)
+
+
+def test_subfolders_without_numbers_pair_in_order_only_one_to_one(tmp_path: Path) -> None:
+    root = tmp_path / "plain"
+    frames = _subfolders(root, ["a.png", "b.png"], ["x.png", "y.png"])
+    with pcdcodec.open_source(root, depth_scale=5000.0) as src:
+        got = list(src)
+    np.testing.assert_array_equal(got[1].color, frames[1].color)
+    (root / "depth" / "y.png").unlink()
+    with pytest.raises(
+        pcdcodec.InputError,
+        match=r"2 color and 1 depth images whose names carry "
+        r"no frame numbers.*name each pair's files with its frame number",
+    ):
+        pcdcodec.open_source(root, depth_scale=5000.0)
+
+
+def test_subfolders_with_times_in_their_names_pair_by_time(tmp_path: Path) -> None:
+    """Color stamped 3 ms after depth, one color image missing: paired within max_difference,
+    each frame at its depth name's time."""
+    root = tmp_path / "stamped"
+    frames = _subfolders(
+        root,
+        ["1305031102.003000.png", "1305031102.203000.png"],
+        ["1305031102.000000.png", "1305031102.100000.png", "1305031102.200000.png"],
+    )
+    with pcdcodec.open_source(root, depth_scale=5000.0) as src:
+        got = list(src)
+        assert src.dropped == {"color": 0, "depth": 1}
+    assert [f.timestamp_ns for f in got] == [1305031102_000000000, 1305031102_200000000]
+    np.testing.assert_array_equal(got[1].color, frames[1].color)
+    np.testing.assert_array_equal(got[1].depth, frames[2].depth)
 
 
 def test_load_folder_errors(tmp_path: Path) -> None:

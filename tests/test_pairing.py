@@ -23,23 +23,23 @@ DEFAULT = (4, {"color": 0, "depth": 1})
 TIGHT = (3, {"color": 1, "depth": 2})
 
 
-def _rosbag(path: Path) -> Path:
+def _rosbag(path: Path, ros2: bool = False) -> Path:
     from .test_rosbag import _image, _info, _store, write_bag
 
-    store = _store(False)
+    store = _store(ros2)
     rng = np.random.default_rng(1)
     depth = rng.integers(0, 4000, (12, 16)).astype(np.uint16)
     color = rng.integers(0, 256, (12, 16, 3)).astype(np.uint8)
-    msgs = [("/cam/depth/camera_info", 1, _info(store, False, NS, 16, 12))]
+    msgs = [("/cam/depth/camera_info", 1, _info(store, ros2, NS, 16, 12))]
     for k, off in enumerate(OFFSETS):
         ts = NS + k * PERIOD
-        msgs.append(("/cam/depth/image_raw", ts, _image(store, False, ts, depth, "16UC1")))
+        msgs.append(("/cam/depth/image_raw", ts, _image(store, ros2, ts, depth, "16UC1")))
         if off is not None:
             msgs.append(
-                ("/cam/color/image_raw", ts + off, _image(store, False, ts + off, color, "rgb8"))
+                ("/cam/color/image_raw", ts + off, _image(store, ros2, ts + off, color, "rgb8"))
             )
     msgs.sort(key=lambda m: m[1])
-    return write_bag(path / "s.bag", msgs)
+    return write_bag(path / ("s2" if ros2 else "s.bag"), msgs, ros2=ros2, store=store)
 
 
 def _realsense(path: Path) -> Path:
@@ -164,3 +164,167 @@ def test_a_max_difference_of_seconds_is_refused_with_the_unit() -> None:
             parse_duration(bad)
     with pytest.raises(pcdcodec.InputTypeError, match="20 ms is 20_000_000"):
         as_max_difference(0.02)
+
+
+# -- each image keeps its own stamp -------------------------------------------------------
+
+
+def _listed_ns(path: Path) -> list[int]:
+    """The stamps of a TUM list (rgb.txt, depth.txt) as int nanoseconds, read exactly."""
+    from decimal import Decimal
+
+    lines = [line.split()[0] for line in path.read_text().splitlines()]
+    return [int(Decimal(t) * NS) for t in lines if t and not t.startswith("#")]
+
+
+def _own_stamps_survive_encode_and_decode(
+    path: Path, tmp_path: Path, color: list[int], depth: list[int], **options: Any
+) -> None:
+    """The source's frames carry each image's own stamp (the frame's time stays the depth's),
+    and so do the recording and the rgb.txt/depth.txt that decode writes."""
+    from pcdcodec.cli import main
+
+    with pcdcodec.open_source(path, **options) as src:
+        frames = list(src)
+    assert [f.color_timestamp_ns for f in frames] == color
+    assert [f.depth_timestamp_ns for f in frames] == depth
+    assert [f.timestamp_ns for f in frames] == depth
+    out = tmp_path / "own.pcdc"
+    pcdcodec.encode(path, out, color="ffv1", overwrite=True, **options)
+    with pcdcodec.open(out) as rec:
+        assert [f.color_timestamp_ns for f in rec] == color
+        assert [f.depth_timestamp_ns for f in rec] == depth
+    decoded = tmp_path / "decoded"
+    assert main(["decode", str(out), "-o", str(decoded), "-q"]) == 0
+    assert _listed_ns(decoded / "rgb.txt") == color
+    assert _listed_ns(decoded / "depth.txt") == depth
+
+
+def _stamps(offsets: list[int | None]) -> tuple[list[int], list[int]]:
+    """The color and depth stamps of the frames paired at the default tolerance."""
+    kept = [(NS + k * PERIOD + off, NS + k * PERIOD) for k, off in enumerate(offsets) if off]
+    return [c for c, _ in kept], [d for _, d in kept]
+
+
+@pytest.mark.parametrize("kind", ["rosbag", "rosbag2", "realsense", "azure_kinect"])
+def test_each_image_keeps_its_own_stamp_through_pairing(tmp_path: Path, kind: str) -> None:
+    options: dict[str, Any] = {}
+    path = _rosbag(tmp_path, ros2=True) if kind == "rosbag2" else READERS[kind](tmp_path)
+    if kind.startswith("rosbag"):
+        options = {"intrinsics": pcdcodec.CameraIntrinsics(16, 12, 10.0, 10.0, 8.0, 6.0)}
+    color, depth = _stamps(OFFSETS)
+    if kind == "azure_kinect":
+        # The file's stamps start at its own start time: compare the offsets within each pair.
+        with pcdcodec.open_source(path) as src:
+            frames = list(src)
+        start = frames[0].depth_timestamp_ns - depth[0]
+        color, depth = [c + start for c in color], [d + start for d in depth]
+    _own_stamps_survive_encode_and_decode(path, tmp_path, color, depth, **options)
+    if kind != "azure_kinect":
+        # A stretch read through the frame index keeps them too.
+        with pcdcodec.open_source(path, **options) as src:
+            later = list(src.frames(2))
+        assert [f.color_timestamp_ns for f in later] == color[2:]
+        assert [f.depth_timestamp_ns for f in later] == depth[2:]
+
+
+def test_the_real_realsense_bag_keeps_the_color_images_own_stamp(tmp_path: Path) -> None:
+    from .conftest import SHARED_DATA
+
+    bag = SHARED_DATA / "bags" / "realsense" / "single_depth_color_640x480.bag"
+    if not bag.exists():
+        pytest.skip(f"{bag} is not present")
+    # The bag's header stamps (read with rosbags): color 360.713523 s, depth 360.815089 s.
+    _own_stamps_survive_encode_and_decode(
+        bag, tmp_path, [360_713_523_000], [360_815_089_000], max_difference=150_000_000
+    )
+
+
+# -- depth only, and a source whose every image was dropped -------------------------------
+
+
+@pytest.mark.parametrize("kind", ["rosbag", "realsense", "azure_kinect"])
+def test_every_paired_input_records_depth_only_as_the_no_pairs_error_says(
+    tmp_path: Path, kind: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Pairing within 0 ns drops every image; the error's advice, --depth-only (and its Python
+    option), then records each depth image without color."""
+    from pcdcodec.cli import main
+
+    path = READERS[kind](tmp_path)
+    flags = ["--color", "ffv1", "--fx", "10", "--fy", "10", "--cx", "8", "--cy", "6"]
+    out = tmp_path / "d.pcdc"
+    assert main(["encode", str(path), "-o", str(out), *flags, "--max-difference", "0ms"]) == 1
+    err = capsys.readouterr().err
+    assert "every image was dropped" in err
+    assert "record depth only (--depth-only on the command line" in err
+    assert main(["encode", str(path), "-o", str(out), *flags, "--depth-only"]) == 0
+    with pcdcodec.open(out) as rec:
+        assert len(rec) == len(OFFSETS)
+        assert rec[0].color is None
+    option: dict[str, Any] = {"color": False} if kind == "azure_kinect" else {"color_topic": ""}
+    camera = {"intrinsics": pcdcodec.CameraIntrinsics(16, 12, 10.0, 10.0, 8.0, 6.0)}
+    if kind != "rosbag":
+        camera = {}
+    with pytest.raises(InputError, match=f"{next(iter(option))}=.* in Python"):
+        pcdcodec.encode(path, out, max_difference=0, overwrite=True, **camera)
+    with pcdcodec.open_source(path, **option) as src:
+        frames = list(src)
+        assert not src.has_color
+        assert src.color_intrinsics is None
+        assert src.dropped == {"color": 0, "depth": 0}
+        assert any("color" in s.name.lower() for s in src.left_out)  # the color stream, listed
+    assert len(frames) == len(OFFSETS)
+    assert all(f.color is None for f in frames)
+
+
+def test_topic_flags_name_what_each_input_takes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from pcdcodec.cli import main
+
+    rs, ak = _realsense(tmp_path), _azure(tmp_path)
+    out = str(tmp_path / "x.pcdc")
+    assert main(["encode", str(ak), "-o", out, "--color-topic", ""]) == 1
+    err = capsys.readouterr().err
+    assert "--color-topic applies to bags" in err
+    assert "its depth alone: --depth-only" in err
+    assert main(["encode", str(rs), "-o", out, "--depth-topic", "/d"]) == 1
+    assert "--depth-topic applies to ROS bags" in capsys.readouterr().err
+    assert main(["encode", str(rs), "-o", out, "--color", "ffv1", "--color-topic", ""]) == 0
+    with pcdcodec.open(out) as rec:
+        assert rec[0].color is None
+    with pytest.raises(InputError, match="has no color topic '/nope'; its color topics: /dev"):
+        pcdcodec.open_source(rs, color_topic="/nope")
+    # An option a reader does not take is a public InputError naming the file.
+    with pytest.raises(InputError) as caught:
+        pcdcodec.open_source(rs, color=False)
+    assert type(caught.value) is InputError
+    assert str(caught.value).startswith(f"{str(rs)!r}: the realsense reader takes no option")
+
+
+@pytest.mark.parametrize("call", ["write_frames", "write_source"])
+def test_writing_a_source_whose_every_image_was_dropped_says_so(tmp_path: Path, call: str) -> None:
+    """The README's recipe (open_source, then rec.write_frames(src)) on a bag whose streams lie
+    farther apart than the tolerance wrote an empty recording without a word."""
+    path = _realsense(tmp_path)
+    out = tmp_path / "w.pcdc"
+    for tolerance in (0, None):
+        options = {} if tolerance is None else {"max_difference": tolerance}
+        with pcdcodec.open_source(path, **options) as src:
+            rec = pcdcodec.open(
+                out,
+                "w",
+                intrinsics=src.intrinsics,
+                depth_scale=src.depth_scale,
+                color_intrinsics=src.color_intrinsics,
+                depth_to_color=src.depth_to_color,
+                color="ffv1",
+                overwrite=True,
+            )
+            with rec:
+                if tolerance is None:  # a source that pairs its images is written as before
+                    assert getattr(rec, call)(src) == DEFAULT[0]
+                    continue
+                with pytest.raises(InputError, match=r"gave no frames: every image was dropped"):
+                    getattr(rec, call)(src)

@@ -218,7 +218,7 @@ def test_cli_recodes_a_recording(tmp_path: Path) -> None:
         check=False,
     )
     assert wrong.returncode == 1
-    assert "apply to bags" in wrong.stderr
+    assert "--depth-topic applies to bags" in wrong.stderr
     assert "recording" in wrong.stderr
 
 

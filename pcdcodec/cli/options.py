@@ -132,6 +132,20 @@ def folder_options(args: argparse.Namespace) -> dict[str, Any]:
 #: The readers that pair color and depth by time, and take ``max_difference``.
 PAIRING_KINDS = ("rosbag", "realsense", "azure_kinect", "folder")
 
+#: ``--depth-only`` as each reader's option.
+DEPTH_ONLY: dict[str, dict[str, Any]] = {
+    "rosbag": {"color_topic": ""},
+    "realsense": {"color_topic": ""},
+    "azure_kinect": {"color": False},
+    "folder": {"color": False},
+}
+
+#: The topic flags each kind of input takes.
+TOPIC_FLAGS = {
+    "rosbag": ("depth_topic", "color_topic", "info_topic", "cloud_topic"),
+    "realsense": ("color_topic",),
+}
+
 
 def source_options(args: argparse.Namespace) -> dict[str, Any]:
     """The reader options of ``args.src`` from the flags (``--max-frames``, the folder and the
@@ -157,19 +171,6 @@ def source_options(args: argparse.Namespace) -> dict[str, Any]:
         opts["max_difference"] = parse_duration(args.max_difference, "--max-difference")
     if kind == "rosbag" and "depth_to_color" in folder and "color_intrinsics" not in folder:
         opts["depth_to_color"] = folder.pop("depth_to_color")  # a color camera apart in a bag
-    if kind == "folder":
-        if getattr(args, "fps", None) is not None:
-            opts["fps"] = args.fps
-        opts.update(folder)
-    elif folder and kind is not None:
-        names = ["--depth-only" if k == "color" else "--" + k.replace("_", "-") for k in folder]
-        hint = ""
-        if "color" in folder and kind == "rosbag":  # topic flags are for ROS bags only
-            hint = " (a bag's depth alone: --color-topic '')"
-        raise InputError(
-            f"{' '.join(names)} {'applies' if len(names) == 1 else 'apply'} to RGB-D folders; "
-            f"{args.src!r} is a {kind}{hint}"
-        )
     topics = {
         "depth_topic": args.depth_topic,
         "color_topic": args.color_topic,
@@ -177,9 +178,29 @@ def source_options(args: argparse.Namespace) -> dict[str, Any]:
         "cloud_topic": args.cloud_topic,
     }
     given = {k: v for k, v in topics.items() if v is not None}
-    if given and kind != "rosbag" and kind is not None:
-        flags = " ".join("--" + k.replace("_", "-") for k in given)
-        raise InputError(f"{flags} apply to bags; {args.src!r} is a {kind}")
+    if kind in DEPTH_ONLY and folder.pop("color", True) is False:
+        if (given.get("color_topic") or "none").strip().lower() not in ("", "none"):
+            raise InputError("--depth-only and --color-topic contradict each other; give one")
+        opts.update(DEPTH_ONLY[kind])  # --depth-only, in the reader's own words
+    if kind == "folder":
+        if getattr(args, "fps", None) is not None:
+            opts["fps"] = args.fps
+        opts.update(folder)
+    elif folder and kind is not None:
+        names = ["--depth-only" if k == "color" else "--" + k.replace("_", "-") for k in folder]
+        raise InputError(
+            f"{' '.join(names)} {'applies' if len(names) == 1 else 'apply'} to RGB-D folders; "
+            f"{args.src!r} is a {kind}"
+        )
+    allowed = TOPIC_FLAGS.get(kind or "rosbag", ())
+    refused = [k for k in given if k not in allowed]
+    if refused:
+        flags = " ".join("--" + k.replace("_", "-") for k in refused)
+        where = "ROS bags" if kind == "realsense" else "bags"
+        raise InputError(
+            f"{flags} {'applies' if len(refused) == 1 else 'apply'} to {where}; {args.src!r} is "
+            f"a {kind}" + (" (its depth alone: --depth-only)" if kind in DEPTH_ONLY else "")
+        )
     opts.update(given)
     return opts
 

@@ -354,7 +354,8 @@ def cmd_info(args: argparse.Namespace) -> int:
     ]
     if given and path.is_file():
         raise InputError(
-            f"{' '.join(given)} describe how to read an input; {args.input!r} is not one "
+            f"{' '.join(given)} {'describes' if len(given) == 1 else 'describe'} how to read "
+            f"an input; {args.input!r} is not one "
             "(a recording keeps its own camera and depth scale)"
         )
     with open_recording(args.input) as rec:

@@ -115,7 +115,9 @@ class FrameInputs:
         ``rgbd_depth_scale`` is the depth scale the RGBDImages were made with (see
         :meth:`write_rgbd`). ``progress`` is called with the number of frames written so far.
         To record a whole source with its camera, use :meth:`write_source` (or
-        :func:`pcdcodec.encode`).
+        :func:`pcdcodec.encode`). A source (a reader that pairs color and depth) that gave no
+        frame because every image was dropped for lack of a partner raises
+        :class:`~pcdcodec.InputError` saying so, as :func:`pcdcodec.encode` does.
         """
         from ..frame import open3d_rgbd_kind
 
@@ -147,6 +149,7 @@ class FrameInputs:
             count += 1
             if progress is not None:
                 progress(count)
+        _check_not_all_dropped(frames, count)
         return count
 
     def write_source(self, source: Source, *, progress: Callable[[int], None] | None = None) -> int:
@@ -192,7 +195,9 @@ class FrameInputs:
             raise InputError(
                 f"source {str(source.path)!r} has no color; open the recording with color=None"
             )
-        return self._write_source(source, progress)
+        count = self._write_source(source, progress)
+        _check_not_all_dropped(source, count)
+        return count
 
     def _write_source(self, source: Source, progress: Callable[[int], None] | None) -> int:
         """The frames of ``source``, whose camera, depth scale and color are this recording's
@@ -266,3 +271,29 @@ class FrameInputs:
         if self._sync is None:
             return {"color": [], "depth": []}
         return {"color": list(self._sync.dropped_color), "depth": list(self._sync.dropped_depth)}
+
+
+def no_frames_error(source: Source) -> InputError:
+    """The error of a source that gave no frame: where pairing dropped every image, it says so,
+    and what to do (record depth only, or pair within a larger tolerance)."""
+    why = ""
+    dropped = source.describe().get("dropped")
+    if isinstance(dropped, dict) and any(dropped.values()):
+        option = "color_topic=''" if hasattr(source, "color_topic") else "color=False"
+        why = (
+            f": every image was dropped for lack of a partner ({dropped.get('color', 0)} color, "
+            f"{dropped.get('depth', 0)} depth); the streams' stamps differ by more than the "
+            f"pairing tolerance: record depth only (--depth-only on the command line, {option} "
+            "in Python) or pass a larger pairing tolerance (--max-difference 150ms on the "
+            "command line, max_difference= in nanoseconds in Python)"
+        )
+    return InputError(f"{str(source.path)!r} gave no frames{why}")
+
+
+def _check_not_all_dropped(frames: Any, count: int) -> None:
+    """Raise :func:`no_frames_error` when a source gave no frame because pairing dropped every
+    image (a source that holds no frame at all is no error here)."""
+    if count == 0 and isinstance(frames, Source):
+        dropped = frames.describe().get("dropped")
+        if isinstance(dropped, dict) and any(dropped.values()):
+            raise no_frames_error(frames)

@@ -12,6 +12,7 @@ from typing import Any
 from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import InputError
 from ._header import writer_camera
+from ._inputs import no_frames_error
 
 __all__ = ["EncodeSummary", "encode"]
 
@@ -181,9 +182,7 @@ def encode(
                     # Opened from the source: its camera is the recording's, checked once.
                     count = writer._write_source(source, progress)
             if count == 0:
-                raise InputError(
-                    f"{str(source.path)!r} gave no frames" + _why_empty(source.describe())
-                )
+                raise no_frames_error(source)
         seconds = time.perf_counter() - start
         return EncodeSummary(
             target,
@@ -241,18 +240,5 @@ def _passthrough(
         if writer is not None:
             writer.close()
     if writer is None:
-        raise InputError(f"{str(source.path)!r} gave no frames" + _why_empty(source.describe()))
+        raise no_frames_error(source)
     return count, writer
-
-
-def _why_empty(info: dict[str, Any]) -> str:
-    dropped = info.get("dropped")
-    if isinstance(dropped, dict) and any(dropped.values()):
-        return (
-            f": every image was dropped for lack of a partner ({dropped.get('color', 0)} color, "
-            f"{dropped.get('depth', 0)} depth); the streams' stamps differ by more than the "
-            "pairing tolerance: record depth only (--color-topic '' on the command line, "
-            "color_topic='' in Python) or pass a larger pairing tolerance (--max-difference "
-            "150ms on the command line, max_difference= in nanoseconds in Python)"
-        )
-    return ""

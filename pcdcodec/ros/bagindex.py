@@ -218,11 +218,11 @@ def pair_in_order(
     messages: Iterable[tuple[bool, int, T]],
     max_difference: int,
     stats: PairStats | None = None,
-) -> Iterator[tuple[int, T, T]]:
-    """``(depth stamp, depth item, color item)`` for each pair of a bag's depth and color
-    messages, from ``(is_depth, stamp, item)`` of each message in bag order: the one pairing
-    rule of a bag source's iteration and of its frame index (:func:`index_rows`), so both
-    list the same frames in the same order.
+) -> Iterator[tuple[int, T, T, int]]:
+    """``(depth stamp, depth item, color item, color stamp)`` for each pair of a bag's depth
+    and color messages, from ``(is_depth, stamp, item)`` of each message in bag order: the one
+    pairing rule of a bag source's iteration and of its frame index (:func:`index_rows`), so
+    both list the same frames in the same order.
 
     A message whose stamp does not increase on its stream is skipped (counted in ``stats``);
     color and depth are paired by :class:`~pcdcodec.sync.Synchronizer` (``max_difference``
@@ -244,12 +244,12 @@ def pair_in_order(
         latest[is_depth] = ts
         ready = sync.add_depth(ts, item) if is_depth else sync.add_color(ts, item)
         count()
-        for _, citem, dts, ditem in ready:
-            yield dts, ditem, citem
+        for cts, citem, dts, ditem in ready:
+            yield dts, ditem, citem, cts
     ready = sync.flush()
     count()
-    for _, citem, dts, ditem in ready:
-        yield dts, ditem, citem
+    for cts, citem, dts, ditem in ready:
+        yield dts, ditem, citem, cts
 
 
 def index_rows(
@@ -267,7 +267,7 @@ def index_rows(
     rows: Iterable[_Row]
     if color:
         pairs = pair_in_order(((d, ts, (t, ts)) for d, t, ts in stamps), max_difference)
-        rows = ((dts, d[0], d[1], c[0], c[1]) for dts, d, c in pairs)
+        rows = ((dts, d[0], d[1], c[0], c[1]) for dts, d, c, _ in pairs)
     else:
         rows = _depth_rows(stamps)
     table = list(itertools.islice(rows, limit))
@@ -296,14 +296,16 @@ def read_rows(
     messages: Iterable[tuple[bool, int, int, Any]],
     decode: Callable[[bool, Any], Any],
     where: str,
-) -> Iterator[tuple[int, Any, Any]]:
-    """``(timestamp, depth, color)`` for each row, in row order, from ``messages``.
+) -> Iterator[tuple[int, Any, Any, int | None]]:
+    """``(timestamp, depth, color, color stamp)`` for each row, in row order, from
+    ``messages``.
 
     ``messages`` yields ``(is_depth, log time, stamp, item)`` for the messages logged in the
     rows' :func:`window`, in bag order; only the items the rows name are passed to ``decode``
-    (with ``is_depth``), each once. ``color`` is ``None`` in what is yielded when ``color`` is
-    false. Raises :class:`~pcdcodec.DecodeError` naming the first frame whose message is
-    missing (the index is another bag's, or the bag changed since it was indexed).
+    (with ``is_depth``), each once. ``color`` and its stamp are ``None`` in what is yielded
+    when ``color`` is false. Raises :class:`~pcdcodec.DecodeError` naming the first frame
+    whose message is missing (the index is another bag's, or the bag changed since it was
+    indexed).
     """
     todo = rows.tolist()
     # How many rows use each message: a color frame can go with two depth frames.
@@ -333,7 +335,11 @@ def read_rows(
             dkey, ckey = (True, dlog, dts), (False, clog, cts)
             if dkey not in got or (color and ckey not in got):
                 break
-            yield ts, take(dkey), take(ckey) if color else None
+            depth = take(dkey)
+            if color:
+                yield ts, depth, take(ckey), cts
+            else:
+                yield ts, depth, None, None
             i += 1
     if i < len(todo):
         raise DecodeError(

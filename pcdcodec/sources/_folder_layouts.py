@@ -123,18 +123,66 @@ def _color_dir(root: Path) -> Path | None:
     return next((root / n for n in ("rgb", "color") if (root / n).is_dir()), None)
 
 
-def _subfolder_files(root: Path) -> tuple[list[Path] | None, list[Path]]:
+def _subfolder_pairs(
+    root: Path, fps: float, max_difference: int, dropped: dict[str, int]
+) -> tuple[list[Pair], str]:
+    """The pairs of ``rgb/`` (or ``color/``) and ``depth/``, paired by what the names carry:
+    timestamps in both names, paired by the rule of every reader (:mod:`pcdcodec.sync`, within
+    ``max_difference`` ns); else the frame number in each name (its last number: rgb00012.png
+    pairs with depth00012.png); else, when neither says more, the file order, which needs as
+    many color as depth images. Images left without a partner are counted in ``dropped``."""
     color_dir = _color_dir(root)
     depths = _files(root / "depth", DEPTH_SUFFIXES)
     if color_dir is None:
-        return None, depths  # depth only
+        return _named_pairs(None, depths, fps)  # depth only
     colors = _files(color_dir, IMAGE_SUFFIXES)
-    if len(colors) != len(depths):
+    color_times, depth_times = _name_times(colors), _name_times(depths)
+    if color_times is not None and depth_times is not None:
+        from ..sync import associate
+
+        found = associate(color_times[0], depth_times[0], max_difference=max_difference)
+        dropped["color"] = len(found.unmatched_color)
+        dropped["depth"] = len(found.unmatched_depth)
+        kept = [(colors[i], depths[j]) for i, j in found]
+    else:
+        by_color, by_depth = _numbered(colors), _numbered(depths)
+        if by_color is None or by_depth is None:
+            if len(colors) != len(depths):
+                raise InputError(
+                    f"{str(root)!r} holds {len(colors)} color and {len(depths)} depth images "
+                    "whose names carry no frame numbers to pair them by, such as "
+                    f"{(colors if by_color is None else depths)[0].name!r}; name each pair's "
+                    "files with its frame number (rgb/000012.png and depth/000012.png), or "
+                    "remove the images without a partner"
+                )
+            return _named_pairs(colors, depths, fps)
+        common = sorted(by_color.keys() & by_depth.keys())
+        if not common:
+            raise InputError(
+                f"{str(root)!r}: no color image has the frame number of a depth image (color "
+                f"{colors[0].name!r}, depth {depths[0].name!r}); images pair by the last "
+                "number in their names"
+            )
+        dropped["color"] = len(by_color) - len(common)
+        dropped["depth"] = len(by_depth) - len(common)
+        kept = [(by_color[n], by_depth[n]) for n in common]
+    if not kept:
         raise InputError(
-            f"{str(root)!r} holds {len(colors)} color and {len(depths)} depth images; "
-            "plain folders must pair up one to one"
+            f"{str(root)!r}: no color image is within max_difference {max_difference} ns of a "
+            "depth image by the times in their names; pass a larger --max-difference"
         )
-    return colors, depths
+    return _named_pairs([c for c, _ in kept], [d for _, d in kept], fps)
+
+
+def _numbered(paths: list[Path]) -> dict[int, Path] | None:
+    """Files by the last number in their names; None when a name has none or two share one."""
+    out: dict[int, Path] = {}
+    for p in paths:
+        found = re.findall(r"\d+", p.stem)
+        if not found or int(found[-1]) in out:
+            return None
+        out[int(found[-1])] = p
+    return out
 
 
 # The word that says what a file holds, and the rest of the name that pairs it up.
@@ -320,8 +368,9 @@ def folder_pairs(
 ) -> tuple[list[Pair], str, list[int] | None]:
     """The folder's pairs, how their times were made, and for TUM lists each depth image's own
     listed time (``None`` for the other layouts, whose pairs have one time); the images of TUM
-    lists left without a partner within ``max_difference`` ns are counted in ``dropped``
-    (other layouts pair by name)."""
+    lists, and of ``rgb/`` and ``depth/`` subfolders, left without a partner are counted in
+    ``dropped`` (see :func:`_subfolder_pairs`; the flat layout and name patterns pair by name
+    and refuse a file without its partner)."""
     if layout not in ("auto", "tum", "folders", "flat"):
         raise InputError(f"layout must be 'auto', 'tum', 'folders' or 'flat', got {layout!r}")
     if depth_pattern is not None:
@@ -333,7 +382,7 @@ def folder_pairs(
         pairs, depth_times = _tum_pairs(root, max_difference, dropped)
         return pairs, "recorded (TUM lists)", depth_times
     if layout in ("auto", "folders") and (root / "depth").is_dir():
-        return (*_named_pairs(*_subfolder_files(root), fps), None)
+        return (*_subfolder_pairs(root, fps, max_difference, dropped), None)
     flat = _flat_files(root) if layout in ("auto", "flat") else None
     if flat is None:
         raise InputError(f"{str(root)!r} is not an RGB-D folder: expected {LOOKED_FOR}")

@@ -87,7 +87,8 @@ class AzureKinectSource(Source):
     """Frames of an Azure Kinect ``.mkv``: depth in millimetres (depth scale 1000) with the
     depth camera's intrinsics, color with the color camera's, and ``depth_to_color``.
 
-    ``max_frames`` stops early; ``intrinsics`` replaces the calibrated depth camera.
+    ``max_frames`` stops early; ``intrinsics`` replaces the calibrated depth camera;
+    ``color=False`` reads the depth track alone (the COLOR track is then left out).
     ``metadata`` holds the serial number, the depth and color modes and the firmware versions.
 
     A capture is a frame only when its color and depth images are both there and whole (each
@@ -113,6 +114,7 @@ class AzureKinectSource(Source):
         intrinsics: CameraIntrinsics | None = None,
         strict: bool = False,
         max_difference: int = MAX_DIFFERENCE,
+        color: bool = True,
     ) -> None:
         import av
 
@@ -141,7 +143,7 @@ class AzureKinectSource(Source):
                 ) from exc
             raise InputError(f"{name!r} is not a readable Matroska file: {exc}") from exc
         try:
-            self._read_header(container, name)
+            self._read_header(container, name, color)
         except UnicodeDecodeError as exc:
             raise InputError(f"{name!r}: a tag or track name is not UTF-8 text: {exc}") from None
         finally:
@@ -151,7 +153,7 @@ class AzureKinectSource(Source):
             size = (own.width, own.height) if own is not None else (None, None)
             self.intrinsics = as_intrinsics(intrinsics, "intrinsics", *size)
 
-    def _read_header(self, container: Any, name: str) -> None:
+    def _read_header(self, container: Any, name: str, with_color: bool) -> None:
         where = repr(name)
         tags = dict(container.metadata)
         depth = color = None
@@ -188,6 +190,8 @@ class AzureKinectSource(Source):
                 f"{name!r} declares a color mode (tag K4A_COLOR_MODE) but its COLOR track does "
                 "not read: its CodecID or CodecPrivate is damaged"
             )
+        if not with_color:
+            color = None  # depth only: the COLOR track is left out, and listed as such
         if attachment is None:
             raise InputError(
                 f"{name!r} has no calibration.json attachment: the cameras' intrinsics and "
@@ -470,12 +474,12 @@ class AzureKinectSource(Source):
                 for cts, color, dts, depth in ready:
                     pts_of.pop(("color", cts), None)
                     pts_of.pop(("depth", dts), None)
-                    yield RGBDFrame(color, depth, dts)
+                    yield RGBDFrame(color, depth, dts, color_timestamp_ns=cts)
                     emitted += 1
                     if self.max_frames is not None and emitted >= self.max_frames:
                         return
-            for _, color, dts, depth in sync.flush():
-                yield RGBDFrame(color, depth, dts)
+            for cts, color, dts, depth in sync.flush():
+                yield RGBDFrame(color, depth, dts, color_timestamp_ns=cts)
                 emitted += 1
                 if self.max_frames is not None and emitted >= self.max_frames:
                     return

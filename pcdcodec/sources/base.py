@@ -543,9 +543,12 @@ def open_source(
         if found is None and options.get("depth_pattern") is not None and p.is_dir():
             found = _KINDS.get("folder")  # files named as the caller says, not as probed
     if found is not None:
-        if defaults is not None:
-            return _with_defaults(found, p, options, defaults)
-        return _open(found, p, options)
+        try:
+            if defaults is not None:
+                return _with_defaults(found, p, options, defaults)
+            return _open(found, p, options)
+        except _NoSuchOptionError as exc:  # the reader's own words, as a public error
+            raise InputError(f"{str(p)!r}: {exc}") from None
     for k in _KINDS.values():
         lacks = k.missing(p) if k.missing is not None else None
         if lacks:

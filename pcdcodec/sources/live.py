@@ -400,31 +400,33 @@ class RealSenseLiveSource(Source):
             domain = str(frame.get_frame_timestamp_domain()).rsplit(".", 1)[-1]
             self.metadata["timestamp_domain"] = domain
 
-    def _pairs(self) -> Iterator[tuple[int, Any, Any]]:
-        """``(stamp, depth, color)``: depth and color paired by the rule of every reader
-        (:func:`~pcdcodec.ros.bagindex.pair_in_order`: each image used once, within
+    def _pairs(self) -> Iterator[tuple[int, Any, Any, int | None]]:
+        """``(stamp, depth, color, color stamp)``: depth and color paired by the rule of every
+        reader (:func:`~pcdcodec.ros.bagindex.pair_in_order`: each image used once, within
         ``max_difference``), depth alone when the source has no color."""
         events = self._events()
         if not self.has_color:
-            yield from ((stamp, depth, None) for _, stamp, depth in events)
+            yield from ((stamp, depth, None, None) for _, stamp, depth in events)
             return
-        for stamp, depth, color in pair_in_order(events, self.max_difference, self._stats):
+        pairs = pair_in_order(events, self.max_difference, self._stats)
+        for stamp, depth, color, color_stamp in pairs:
             if not self.align:
-                yield stamp, depth, color
+                yield stamp, depth, color, color_stamp
                 continue
             pixels, aligned = depth
             rgb = aligned.get(color)
             if rgb is None:  # librealsense never put these two in one frameset
                 self._unaligned += 1
                 continue
-            yield stamp, pixels, rgb
+            yield stamp, pixels, rgb, color_stamp
 
     def __iter__(self) -> Iterator[Any]:
         from ..frame import Frame
 
         start = time.monotonic()
-        for stamp, depth, rgb in self._pairs():
-            yield Frame(rgb, depth, stamp, index=self.frames_read)
+        for stamp, depth, rgb, color_stamp in self._pairs():
+            # The frame is at the depth's time; the color keeps its own.
+            yield Frame(rgb, depth, stamp, index=self.frames_read, color_timestamp_ns=color_stamp)
             self.frames_read += 1
             if self.max_frames is not None and self.frames_read >= self.max_frames:
                 return

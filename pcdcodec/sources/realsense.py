@@ -166,8 +166,10 @@ class RealSenseBagSource(Source):
     rule of every reader (:mod:`pcdcodec.sync`): each image used once, within
     ``max_difference`` ns (default :data:`~pcdcodec.sync.MAX_DIFFERENCE`, 20 ms; ``max_dt``
     in seconds is its former name). ``max_frames`` stops early; ``intrinsics`` replaces the
-    recorded depth camera. ``metadata`` holds the device name, serial number and firmware,
-    and the topics read. :attr:`dropped` counts the images left out for want of a partner.
+    recorded depth camera; ``color_topic`` picks the color stream by its image topic (default
+    the first; ``''`` or ``'none'`` reads the depth alone, leaving the color topics out).
+    ``metadata`` holds the device name, serial number and firmware, and the topics read.
+    :attr:`dropped` counts the images left out for want of a partner.
 
     Color is read from rgb8, bgr8, rgba8, bgra8 and mjpeg Images (a JPEG is checked whole and of
     the color camera's size before it is decoded). Every Image is checked against its camera
@@ -188,6 +190,7 @@ class RealSenseBagSource(Source):
         max_dt: float | None = None,
         max_frames: int | None = None,
         intrinsics: CameraIntrinsics | None = None,
+        color_topic: str | None = None,
     ) -> None:
         from rosbags.rosbag1 import Reader
         from rosbags.typesys import Stores, get_typestore
@@ -208,7 +211,7 @@ class RealSenseBagSource(Source):
             raise InputError(f"{name!r} is not a readable ROS 1 bag: {exc}") from exc
         try:
             check_ros1_index(reader, repr(name))
-            self._read_header(reader, name, depth_scale)
+            self._read_header(reader, name, depth_scale, color_topic)
         finally:
             reader.close()
         if intrinsics is not None:
@@ -232,12 +235,26 @@ class RealSenseBagSource(Source):
 
     # -- header ------------------------------------------------------------------------
 
-    def _read_header(self, reader: Any, name: str, depth_scale: float | None) -> None:
+    def _read_header(
+        self, reader: Any, name: str, depth_scale: float | None, color_topic: str | None
+    ) -> None:
         streams: dict[str, tuple[str, str]] = {}  # kind -> (prefix, sensor)
+        colors: dict[str, tuple[str, str]] = {}  # every color image topic -> (prefix, sensor)
         for c in reader.connections:
             m = _IMAGE.match(c.topic)
+            if m and m.group(3) == "Color":
+                colors[c.topic] = (c.topic[: -len("/image/data")], m.group(2))
             if m and m.group(3) not in streams:
                 streams[m.group(3)] = (c.topic[: -len("/image/data")], m.group(2))
+        if color_topic is not None and color_topic.strip().lower() in ("", "none"):
+            streams.pop("Color", None)  # depth only, as in a ROS bag: the color topics left out
+        elif color_topic is not None:
+            if color_topic not in colors:
+                raise InputError(
+                    f"{name!r} has no color topic {color_topic!r}; its color topics: "
+                    f"{', '.join(sorted(colors)) or 'none'} ('' for depth only)"
+                )
+            streams["Color"] = colors[color_topic]
         if "Depth" not in streams:
             raise InputError(
                 f"{name!r} is a ROS 1 bag without a librealsense depth stream "
@@ -390,8 +407,8 @@ class RealSenseBagSource(Source):
                     yield is_depth, *self._decode(conn, raw, is_depth)
 
             self._stats = PairStats()
-            for t, depth, rgb in self._pairs(images(), self._stats):
-                yield RGBDFrame(rgb, depth, t)
+            for t, depth, rgb, color_t in self._pairs(images(), self._stats):
+                yield RGBDFrame(rgb, depth, t, color_timestamp_ns=color_t)
 
     @property
     def dropped(self) -> dict[str, int]:
@@ -445,15 +462,16 @@ class RealSenseBagSource(Source):
 
     def _pairs(
         self, images: Iterator[tuple[bool, int, Any]], stats: PairStats | None = None
-    ) -> Iterator[tuple[int, Any, Any]]:
-        """``(timestamp, depth, color)`` from ``(is_depth, stamp, item)`` in bag order (the items
-        are images when reading, message positions when indexing): depth and color paired by
+    ) -> Iterator[tuple[int, Any, Any, int | None]]:
+        """``(timestamp, depth, color, color stamp)`` from ``(is_depth, stamp, item)`` in bag
+        order (the items are images when reading, message positions when indexing): depth and
+        color paired by
         the rule of every reader (:func:`~pcdcodec.ros.bagindex.pair_in_order`: each image
         used once, within ``max_difference``), the images left without a partner counted in
         ``stats``. Without color, every depth frame."""
         if self.color_topic is None:
-            pairs: Iterator[tuple[int, Any, Any]] = (
-                (stamp, item, None) for is_depth, stamp, item in images if is_depth
+            pairs: Iterator[tuple[int, Any, Any, int | None]] = (
+                (stamp, item, None, None) for is_depth, stamp, item in images if is_depth
             )
         else:
             pairs = pair_in_order(images, self.max_difference, stats)
@@ -489,7 +507,7 @@ class RealSenseBagSource(Source):
             try:
                 rows = [
                     (t, d[0], d[1], *(c if c is not None else (-1, -1)))
-                    for t, d, c in self._pairs(positions())
+                    for t, d, c, _ in self._pairs(positions())
                 ]
             except PcdcodecError:
                 raise
@@ -540,10 +558,10 @@ class RealSenseBagSource(Source):
                 return self._decode(item[0], item[1], is_depth)[1]
 
             where = repr(str(self.path))
-            for t, depth, rgb in _bagindex.read_rows(
+            for t, depth, rgb, color_t in _bagindex.read_rows(
                 rows, index.first, color, messages(), decode, where
             ):
-                yield RGBDFrame(rgb, depth, t)
+                yield RGBDFrame(rgb, depth, t, color_timestamp_ns=color_t)
 
 
 def open_realsense(path: str | Path, **options: Any) -> RealSenseBagSource:

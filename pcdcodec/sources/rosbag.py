@@ -514,6 +514,8 @@ class RosbagSource(Source):
         return self._emit(frames, self.max_frames)
 
     def _emit(self, frames: Iterator[_Images], limit: int | None) -> Iterator[Any]:
+        """Frames from ``(color, depth, depth stamp, color stamp)``: the frame at the depth's
+        stamp, each image keeping its own."""
         shape = self._shape
         assert shape is not None  # set when the source opens
         for color, depth, ts, color_ts in frames:
@@ -571,10 +573,11 @@ class RosbagSource(Source):
             (conn.topic == dtopic, self._stamp(msg, t, conn.topic), msg)
             for conn, t, msg in self._messages([self._depth_conn, self._color_conn])
         )
-        for dts, dmsg, cmsg in bagindex.pair_in_order(messages, self.max_difference, self.stats):
-            yield self._pair(cmsg, dmsg, dts)
+        pairs = bagindex.pair_in_order(messages, self.max_difference, self.stats)
+        for dts, dmsg, cmsg, cts in pairs:
+            yield self._pair(cmsg, dmsg, dts, cts)
 
-    def _pair(self, cmsg: Any, dmsg: Any, dts: int) -> _Images:
+    def _pair(self, cmsg: Any, dmsg: Any, dts: int, cts: int | None) -> _Images:
         cconn, dconn = self._color_conn, self._depth_conn
         assert cconn is not None
         color = self._decode(cmsg, cconn, "color", dts)
@@ -585,10 +588,7 @@ class RosbagSource(Source):
                 f"depth topic {dconn.topic!r} is {depth.shape[1]}x{depth.shape[0]} "
                 f"at {dts} ns"
             )
-        # The frame is at the depth's time; the color keeps its own header stamp (an unset
-        # one, 0, is the frame's).
-        color_ts = rm.stamp_ns(cmsg, cconn.topic, ros1=not self._reader.is2)
-        return color, depth, dts, (color_ts if color_ts > 0 else None)
+        return color, depth, dts, cts
 
     def _cloud_frames(self) -> Iterator[_Images]:
         for msg, ts in self._in_order(self._depth_conn):
@@ -732,9 +732,9 @@ class RosbagSource(Source):
                 raise bagfile.bag_error(exc, self.path) from exc
 
         where = f"bag {str(self.path)!r}"
-        for ts, dmsg, cmsg in bagindex.read_rows(rows, first, paired, messages, decode, where):
+        for ts, dmsg, cmsg, cts in bagindex.read_rows(rows, first, paired, messages, decode, where):
             if paired:
-                yield self._pair(cmsg, dmsg, ts)
+                yield self._pair(cmsg, dmsg, ts, cts)
             elif self.mode == "cloud":
                 yield self._cloud_frame(dmsg, ts)
             else:
