@@ -184,7 +184,8 @@ def _mux_color(
         last = -1
         for t in shown:
             last = pts_of[t] = max(round(Fraction(t - origin, NS_PER_S) / time_base), last + 1)
-    width, height = codec.padded_size(rec.intrinsics.width, rec.intrinsics.height)
+    color_height, color_width = rec.color_shape  # the color camera's, where it is apart
+    width, height = codec.padded_size(color_width, color_height)
 
     container: Any = av.open(str(path), "w", format=container_format)
     count = 0

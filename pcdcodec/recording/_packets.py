@@ -43,7 +43,7 @@ class PacketAccess:
     _packet_group: npt.NDArray[np.int64]
     #: The color packets that can be read: all but, in a file the writer did not close, the
     #: last ones, written before their frame's digest.
-    _readable_packets: int
+    _readable_packets: int = 0
     _packet_cache: dict[int, Any]
     _groups_checked: set[int]
     _records: dict[int, tuple[int, bytes, bytes, bytes]]
@@ -255,6 +255,13 @@ class PacketAccess:
                 "removed"
             )
         return ""
+
+    def image_timestamps(self) -> list[tuple[int, int]]:
+        """``(color, depth)``: each frame's images' own times (ns), as
+        ``frame.color_timestamp_ns`` and ``frame.depth_timestamp_ns`` give them (the frame's
+        time where they were not stamped apart), read without decoding an image."""
+        own = self._own_stamps()
+        return [own.get(int(t), (int(t), int(t))) for t in self._times]
 
     def _own_stamps(self) -> dict[int, tuple[int, int]]:
         """The color and depth images' own times (ns) by frame time, for the frames whose

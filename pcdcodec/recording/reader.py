@@ -222,7 +222,6 @@ class Recording(PacketAccess, OneCamera):
         self._extradata: bytes | None = None
         self._keyframes: list[int] = []
         self._keyframe_set: set[int] = set()
-        self._readable_packets = 0
         # Frame digests: the digest messages' offsets in file order, and each color packet's
         # group (the index of the first digest message after it; len(offsets) for the tail).
         self._digest_times, self._digest_offsets = index.arrays(fmt.TOPIC_FRAME_DIGEST)
@@ -259,13 +258,9 @@ class Recording(PacketAccess, OneCamera):
             # Packets after the last digest of a file without a seal have no digest yet: the
             # writer stopped before their frame was complete.
             unchecked = len(self._digest_offsets) if self.integrity and self._seal is None else -1
-            # Those packets are not readable either (packet_timestamps, packets()): the groups
-            # only grow in file order, so they are the last ones.
-            self._readable_packets = (
-                int(np.searchsorted(self._packet_group, unchecked, side="left"))
-                if unchecked >= 0
-                else len(c_pts)
-            )
+            # Nor can those packets be read (groups grow in file order: they are the last).
+            last = len(c_pts) if unchecked < 0 else np.searchsorted(self._packet_group, unchecked)
+            self._readable_packets = int(last)
             # A frame exists when both its depth and a decodable color packet were written.
             first_key = self._packet_pts[self._keyframes[0]] if self._keyframes else None
             good = [
