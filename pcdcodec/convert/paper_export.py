@@ -67,6 +67,23 @@ def export_paper(
         raise InputError(
             f"folder {str(out)!r} is not empty; pass overwrite=True to replace the files in it"
         )
+    # A folder made here goes again when the export fails: nothing is left behind.
+    made = not out.exists()
+    try:
+        return _export(recording_path, out, progress)
+    except BaseException:
+        if made and out.is_dir():
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only when empty: the partial files are gone by now
+        raise
+
+
+def _export(
+    recording_path: str | os.PathLike[str],
+    out: Path,
+    progress: Callable[[int], None] | None,
+) -> dict[str, Any]:
+    """:func:`export_paper` past its checks of ``out``."""
     # An error writing the output names the folder, not a partial file in it.
     with named_output_errors(out), Recording(recording_path) as rec:
         n = len(rec)
