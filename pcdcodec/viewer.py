@@ -39,6 +39,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import os
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -346,7 +347,7 @@ def view(
         stream = rr.RecordingStream("pcdcodec", recording_id=str(recording.path.resolve()))
         # Written beside the target and moved onto it when complete; removed if logging fails.
         output = atomic_output(target) if target is not None else contextlib.nullcontext()
-        with output as partial:
+        with output as partial, _file_errors(partial):
             if partial is not None:
                 stream.save(str(partial))
             else:
@@ -361,6 +362,21 @@ def view(
             finally:
                 stream.disconnect()
     return target
+
+
+@contextlib.contextmanager
+def _file_errors(partial: Path | None) -> Iterator[None]:
+    """Rerun's errors writing the file ``partial`` (a ``RuntimeError`` whose text ends in the
+    system's ``(os error N)``) raised as the ``OSError`` they are, so that the output's
+    handler names the user's path and says what to do (a folder not writable, a full disk)."""
+    try:
+        yield
+    except RuntimeError as exc:
+        found = re.search(r"\(os error (\d+)\)", str(exc))
+        if partial is None or found is None:
+            raise
+        code = int(found.group(1))
+        raise OSError(code, os.strerror(code), str(partial)) from exc
 
 
 def _log_recording(

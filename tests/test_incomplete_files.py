@@ -193,3 +193,42 @@ def test_another_mcap_file_is_still_not_a_recording(tmp_path: Path) -> None:
         w.finish()
     with pytest.raises(DecodeError, match="is an MCAP file but not a pcdcodec recording"):
         pcdcodec.recording.Recording(path)
+
+
+def test_paper_export_and_view_read_the_frames_of_a_cut_file(
+    tmp_path: Path, whole: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Cut at every chunk: where the writer had written a color packet before its frame's
+    digest, that packet is left out with its frame, as ``decode`` leaves it out, rather than
+    stopping ``export --layout paper`` and ``view --save`` with an error."""
+    pytest.importorskip("rerun")
+    from pcdcodec.convert.paper import import_paper
+
+    data = whole.read_bytes()
+    tried = 0
+    for k, offset in enumerate(o for o, op in records(data) if op == 0x06):
+        path = cut(whole, tmp_path / f"cut{k}.pcdc", offset)
+        n = frames_of(path)
+        if n == 0:
+            continue
+        tried += 1
+        layout, rrd = tmp_path / f"paper{k}", tmp_path / f"view{k}.rrd"
+        assert main(["export", str(path), "-o", str(layout), "--layout", "paper", "-q"]) == 0
+        assert main(["view", str(path), "--save", str(rrd)]) == 0
+        err = capsys.readouterr().err
+        assert "error" not in err, err
+        assert rrd.stat().st_size > 0
+        back = import_paper(layout, tmp_path / f"back{k}.pcdc")
+        assert back == n
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IncompleteRecordingWarning)
+            with pcdcodec.open(path) as rec, pcdcodec.open(tmp_path / f"back{k}.pcdc") as again:
+                assert len(rec.packet_timestamps) == n  # h264 without B-frames: one per frame
+                assert len(again) == n
+                for a, b in zip(rec, again, strict=True):
+                    assert b.timestamp_ns == a.timestamp_ns
+                    assert np.array_equal(b.depth, a.depth)
+                    assert b.color is not None
+                    assert a.color is not None
+                    assert np.array_equal(b.color, a.color)  # the packets, unchanged
+    assert tried >= 5

@@ -138,6 +138,7 @@ def test_a_folder_not_writable_is_said_of_the_output(
     err = capsys.readouterr().err
     _says_the_output(err, target, "cannot write", "not writable", "folder you can write to")
     assert not [p for p in tmp_path.rglob("*") if is_partial(p.name)]
+    assert not target.exists()  # the paper layout's folder, made by the export, is gone too
 
 
 @pytest.mark.parametrize("command", ["encode", "decode", "paper"])
@@ -153,7 +154,60 @@ def test_a_full_disk_is_said_of_the_output(
     assert main([*argv, "-q"]) == 1
     err = capsys.readouterr().err
     _says_the_output(err, target, "no space left to write", "free space")
-    assert not target.exists() or not any(target.iterdir())  # the paper layout's empty folder
+    assert not target.exists()  # the paper layout's folder, made by the export, is gone too
+
+
+def test_a_paper_layout_into_a_folder_there_before_keeps_the_folder(
+    recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    target = tmp_path / "paper"
+    target.mkdir()
+    _disk_full(monkeypatch)
+    assert main(["export", str(recording), str(target), "-q"]) == 1
+    assert target.is_dir()
+    assert list(target.iterdir()) == []
+
+
+#: What Rerun (0.41) raises when it cannot create its file, or when the disk fills.
+_RERUN_ERRORS = {
+    "read-only": "Failed to create file: Permission denied (os error 13), path: {path}",
+    "full": "Failed to encode LogMsg: Failed to write: No space left on device (os error 28)",
+}
+
+
+@pytest.mark.parametrize("case", ["read-only", "full"])
+def test_view_save_says_the_output_not_rerun_s_partial_file(
+    case: str,
+    recording: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    rr = pytest.importorskip("rerun")
+    real_save, real_flush = rr.RecordingStream.save, rr.RecordingStream.flush
+
+    def save(self: Any, path: Any, *args: Any, **kwargs: Any) -> Any:
+        if case == "read-only":
+            raise RuntimeError(_RERUN_ERRORS[case].format(path=path))
+        return real_save(self, path, *args, **kwargs)
+
+    def flush(self: Any, *args: Any, **kwargs: Any) -> Any:
+        if case == "full":
+            raise RuntimeError(_RERUN_ERRORS[case])
+        return real_flush(self, *args, **kwargs)
+
+    monkeypatch.setattr(rr.RecordingStream, "save", save)
+    monkeypatch.setattr(rr.RecordingStream, "flush", flush)
+    target = tmp_path / "v.rrd"
+    assert main(["view", str(recording), "--save", str(target)]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1, err
+    if case == "read-only":
+        _says_the_output(err, target, "cannot write", "not writable", "folder you can write to")
+    else:
+        _says_the_output(err, target, "no space left to write", "free space")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_errors_of_the_input_are_left_as_they_are(tmp_path: Path) -> None:

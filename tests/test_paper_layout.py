@@ -386,6 +386,15 @@ def test_import_reports_broken_json(h264_layout: Path, tmp_path: Path) -> None:
         (lambda d: d["frames"][5].update(index=7), "frames[5].index"),
         (lambda d: d["frames"][6].update(pts=d["frames"][5]["pts"]), "frames[6].pts"),
         (lambda d: d["video"].update(time_base=[1]), "video.time_base"),
+        (lambda d: d["frames"][1].update(pose=[[2, 0, 0, 0]] * 4), "frames[1].pose"),
+        (lambda d: d["frames"][1].update(depth_timestamp_ns=-1), "frames[1].depth_timestamp_ns"),
+        (lambda d: d.update(metadata={"site": 3}), "metadata"),
+        (lambda d: d.update(frame_id=""), "frame_id"),
+        (lambda d: d.update(color_intrinsics={"width": 0}), "color_intrinsics"),
+        (
+            lambda d: d.update(color_intrinsics=d["intrinsics"], depth_to_color=None),
+            "depth_to_color",
+        ),
     ],
 )
 def test_import_names_the_malformed_field(
@@ -428,3 +437,67 @@ def test_import_reports_a_video_that_is_not_one(h264_layout: Path, tmp_path: Pat
     (h264_layout / "color.mkv").write_bytes(b"not a video at all" * 10)
     with pytest.raises(DecodeError, match=r"color\.mkv"):
         import_paper(h264_layout, tmp_path / "b.pcdc")
+
+
+@pytest.mark.parametrize("color", ["h264", None])
+def test_poses_own_stamps_metadata_and_a_color_camera_apart_round_trip(
+    tmp_path: Path, color: Any
+) -> None:
+    """What the video and the LZ4 depth cannot hold goes into frames.json and comes back: each
+    frame's pose, the color and depth images' own times, the user's metadata, the frame id,
+    and a color camera apart (of another size) with its depth_to_color."""
+    seq = pcdcodec.load_sample(max_frames=4)
+    cam = seq.intrinsics
+    color_cam = pcdcodec.CameraIntrinsics(
+        320, 240, 300.0, 301.0, 160.5, 119.5, "plumb_bob", (0.1, -0.02, 0.0, 0.001, 0.0)
+    )
+    d2c = np.eye(4)
+    d2c[:3, 3] = [-0.025, 0.001, 0.0]
+    path = tmp_path / "kept.pcdc"
+    options: dict[str, Any] = {"color_intrinsics": color_cam, "depth_to_color": d2c}
+    if color is None:
+        options = {}
+    with pcdcodec.open(
+        path, "w", intrinsics=cam, depth_scale=seq.depth_scale, color=color, depth="zstd",
+        metadata={"site": "lab", "run": "3"}, frame_id="head_depth", **options,
+    ) as rec:  # fmt: skip
+        for k, f in enumerate(seq):
+            pose = None
+            if k != 2:  # one frame without a pose
+                pose = np.eye(4)
+                pose[:3, 3] = [0.1 * k, -0.05 * k, 1.0]
+            image = None if color is None else np.ascontiguousarray(f.color[::2, ::2])
+            rec.write(
+                image, f.depth, f.timestamp_ns, pose=pose,
+                color_timestamp=None if color is None else f.timestamp_ns - 1000 * k,
+                depth_timestamp=f.timestamp_ns + 36_000 + k,
+            )  # fmt: skip
+    export_paper(path, tmp_path / "layout")
+    assert import_paper(tmp_path / "layout", tmp_path / "back.pcdc") == 4
+    with pcdcodec.open(path) as a, pcdcodec.open(tmp_path / "back.pcdc") as b:
+        assert b.metadata == a.metadata == {"site": "lab", "run": "3"}
+        assert b.frame_id == "head_depth"
+        assert b.color_intrinsics == a.color_intrinsics
+        if color is None:
+            assert b.depth_to_color is None
+        else:
+            assert b.color_intrinsics == color_cam
+            assert b.depth_to_color is not None
+            assert np.array_equal(b.depth_to_color, a.depth_to_color)
+        for fa, fb in zip(a, b, strict=True):
+            assert fb.timestamp_ns == fa.timestamp_ns
+            assert fb.color_timestamp_ns == fa.color_timestamp_ns
+            assert fb.depth_timestamp_ns == fa.depth_timestamp_ns
+            assert fb.depth_timestamp_ns != fb.timestamp_ns
+            assert np.array_equal(fb.depth, fa.depth)
+            if fa.pose is None:
+                assert fb.pose is None
+            else:
+                assert fb.pose is not None
+                assert np.array_equal(fb.pose, fa.pose)
+            if color is not None:
+                assert fb.color is not None
+                assert fa.color is not None
+                assert fb.color.shape == (240, 320, 3)
+                assert np.array_equal(fb.color, fa.color)
+        assert sum(f.pose is not None for f in b) == 3

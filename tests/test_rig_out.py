@@ -218,7 +218,7 @@ def _read_tf_static(
                     m[:3, :3] = quaternion_to_matrix((r.x, r.y, r.z, r.w))
                     m[:3, 3] = [t.x, t.y, t.z]
                     edges[(tf.header.frame_id, tf.child_frame_id)] = m
-            else:
+            elif conn.topic != "/tf":
                 frame_ids.setdefault(conn.topic, set()).add(msg.header.frame_id)
     return edges, frame_ids, latched
 

@@ -1210,3 +1210,100 @@ def test_any_source_error_names_its_input_keeping_its_class(tmp_path: Path) -> N
     with pytest.raises(DecodeError) as err:
         Broken(path).frame_index()
     assert str(err.value).count("camera.mkv") == 1  # already named: left as it is
+
+
+# -- a color camera apart from the depth camera, out and back -----------------------------------
+
+
+def _rotation_about_y(degrees: float) -> np.ndarray[Any, Any]:
+    a = np.deg2rad(degrees)
+    m = np.eye(4)
+    m[0, 0], m[0, 2], m[2, 0], m[2, 2] = np.cos(a), np.sin(a), -np.sin(a), np.cos(a)
+    return m
+
+
+def _recording_with_color_apart(path: Path) -> Path:
+    """Three frames of the bundled sample as millimetres, with a color camera of its own
+    (other intrinsics, a distortion, 1.5 cm and 2 degrees from the depth camera) and poses."""
+    seq = pcdcodec.load_sample(max_frames=3)
+    cam = seq.intrinsics
+    color_cam = pcdcodec.CameraIntrinsics(
+        cam.width, cam.height, 601.5, 600.25, cam.cx + 4.0, cam.cy - 3.0,
+        "plumb_bob", (0.11, -0.05, 0.001, 0.002, 0.0),
+    )  # fmt: skip
+    d2c = _rotation_about_y(2.0)
+    d2c[:3, 3] = [-0.015, 0.001, 0.0005]
+    with pcdcodec.open(
+        path, "w", intrinsics=cam, depth_scale=1000.0, color="ffv1",
+        color_intrinsics=color_cam, depth_to_color=d2c,
+    ) as rec:  # fmt: skip
+        for k, f in enumerate(seq):
+            pose = _rotation_about_y(5.0 * k)
+            pose[:3, 3] = [0.1 * k, 0.0, 0.02]
+            rec.write(f.color, f.depth, f.timestamp_ns, pose=pose)
+    return path
+
+
+def _color_apart_comes_back(rec_path: Path, tmp_path: Path, to: str) -> None:
+    """Export ``rec_path`` to ``to``, read it back as pcdcodec does, and check the color camera,
+    depth_to_color, poses and stamps come back, with depth bit-exact."""
+    from .test_rig_out import _read_tf_static
+
+    out = tmp_path / ("apart.bag" if to == "rosbag1" else "apart")
+    summary = pcdcodec.export_bag(rec_path, out, to=to)
+    assert summary["topics"][0] == "/tf_static"
+    edges, frame_ids, latched = _read_tf_static(out, to)
+    # Depth and color in their own frames, the color camera placed in the depth camera's.
+    assert frame_ids["/camera/depth/image_raw"] == {"camera_depth_optical_frame"}
+    assert frame_ids["/camera/depth/camera_info"] == {"camera_depth_optical_frame"}
+    assert frame_ids["/camera/color/image_raw"] == {"camera_color_optical_frame"}
+    assert frame_ids["/camera/color/camera_info"] == {"camera_color_optical_frame"}
+    assert list(edges) == [("camera_depth_optical_frame", "camera_color_optical_frame")]
+    assert latched
+    back_path = tmp_path / f"back_{to}.pcdc"
+    again = pcdcodec.encode(out, back_path)
+    # /tf_static gave the color camera's extrinsics: it is recorded, not left out.
+    assert [s["name"] for s in again.left_out] == []
+    with pcdcodec.open(rec_path) as rec, pcdcodec.open(back_path) as back:
+        assert rec.color_intrinsics is not None
+        assert back.intrinsics == rec.intrinsics
+        assert back.color_intrinsics == rec.color_intrinsics  # its distortion too
+        assert back.depth_to_color is not None
+        assert np.allclose(back.depth_to_color, rec.depth_to_color, atol=1e-9)
+        assert np.allclose(
+            np.linalg.inv(edges[("camera_depth_optical_frame", "camera_color_optical_frame")]),
+            rec.depth_to_color,
+            atol=1e-9,
+        )
+        assert back.depth_scale == rec.depth_scale
+        assert len(back) == len(rec)
+        for a, b in zip(rec, back, strict=True):
+            assert b.timestamp_ns == a.timestamp_ns
+            assert b.depth.dtype == a.depth.dtype
+            assert np.array_equal(b.depth, a.depth)
+            assert b.color is not None
+            assert a.color is not None
+            assert b.color.shape == a.color.shape
+            if a.pose is None:
+                assert b.pose is None
+            else:
+                assert b.pose is not None
+                assert np.allclose(b.pose, a.pose, atol=1e-9)
+
+
+@pytest.mark.parametrize("to", ["rosbag1", "rosbag2"])
+def test_a_color_camera_apart_is_exported_in_its_own_frame_and_comes_back(
+    tmp_path: Path, to: str
+) -> None:
+    rec_path = _recording_with_color_apart(tmp_path / "apart.pcdc")
+    _color_apart_comes_back(rec_path, tmp_path, to)
+
+
+@pytest.mark.skipif(not RS_BAG.is_file(), reason=f"{RS_BAG} is not present")
+@pytest.mark.parametrize("to", ["rosbag1", "rosbag2"])
+def test_the_realsense_bag_exported_comes_back_with_its_color_camera(
+    tmp_path: Path, to: str
+) -> None:
+    rec_path = tmp_path / "rs.pcdc"
+    pcdcodec.encode(RS_BAG, rec_path, max_difference=300_000_000)
+    _color_apart_comes_back(rec_path, tmp_path, to)

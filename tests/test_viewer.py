@@ -212,16 +212,25 @@ def test_view_rejects_bad_options(recording: Path, tmp_path: Path) -> None:
 
 
 def test_view_leaves_no_partial_file_when_the_recording_fails(
-    recording: Path, tmp_path: Path
+    recording: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from pcdcodec.viewer import view
+    """A frame that fails to decode midway (here: its second frame) leaves nothing behind. (A
+    file cut short is no such failure: its readable frames are shown.)"""
+    from pcdcodec import viewer
 
-    data = recording.read_bytes()
-    cut = tmp_path / "cut.pcdc"
-    cut.write_bytes(data[: len(data) * 2 // 3])
-    with pytest.raises(pcdcodec.DecodeError):
-        view(cut, save=tmp_path / "cut.rrd")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.pcdc"]
+    log_frame = viewer._log_frame
+    calls: list[int] = []
+
+    def failing(*args: Any, **kwargs: Any) -> Any:
+        calls.append(1)
+        if len(calls) == 2:
+            raise pcdcodec.DecodeError("frame 1: damaged")
+        return log_frame(*args, **kwargs)
+
+    monkeypatch.setattr(viewer, "_log_frame", failing)
+    with pytest.raises(pcdcodec.DecodeError, match="frame 1: damaged"):
+        viewer.view(recording, save=tmp_path / "v.rrd")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_view_open3d_checks_its_options_before_opening_a_window(

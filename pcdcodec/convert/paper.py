@@ -12,7 +12,10 @@ with the paper's tools. The folder holds::
                  little-endian uint16 (or float32) pixels row by row with its size stored:
                  ``lz4 -d depth.lz4`` gives the images one after another
     frames.json  the camera, the depth scale, the codecs and, per frame, its timestamp, where
-                 its LZ4 frame lies in depth.lz4 and the pts of its color frame in the video
+                 its LZ4 frame lies in depth.lz4 and the pts of its color frame in the video;
+                 and what else the recording holds, which import gives back: the user's
+                 metadata, the frame id, a color camera apart with its depth_to_color, and
+                 per frame its pose and the images' own times where they were stamped apart
 
 Color is never re-encoded, either way: a lossless recording stays lossless, a lossy one loses
 nothing more. Depth is exact both ways.

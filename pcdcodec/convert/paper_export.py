@@ -67,6 +67,23 @@ def export_paper(
         raise InputError(
             f"folder {str(out)!r} is not empty; pass overwrite=True to replace the files in it"
         )
+    # A folder made here goes again when the export fails: nothing is left behind.
+    made = not out.exists()
+    try:
+        return _export(recording_path, out, progress)
+    except BaseException:
+        if made and out.is_dir():
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only when empty: the partial files are gone by now
+        raise
+
+
+def _export(
+    recording_path: str | os.PathLike[str],
+    out: Path,
+    progress: Callable[[int], None] | None,
+) -> dict[str, Any]:
+    """:func:`export_paper` past its checks of ``out``."""
     # An error writing the output names the folder, not a partial file in it.
     with named_output_errors(out), Recording(recording_path) as rec:
         n = len(rec)
@@ -184,7 +201,8 @@ def _mux_color(
         last = -1
         for t in shown:
             last = pts_of[t] = max(round(Fraction(t - origin, NS_PER_S) / time_base), last + 1)
-    width, height = codec.padded_size(rec.intrinsics.width, rec.intrinsics.height)
+    color_height, color_width = rec.color_shape  # the color camera's, where it is apart
+    width, height = codec.padded_size(color_width, color_height)
 
     container: Any = av.open(str(path), "w", format=container_format)
     count = 0

@@ -293,6 +293,10 @@ def import_paper(
                 color=color,
                 depth=depth,
                 fps=layout.fps,
+                metadata=layout.metadata,
+                frame_id=layout.frame_id,
+                color_intrinsics=layout.color_intrinsics,
+                depth_to_color=layout.depth_to_color,
             )
             try:
                 with open(depth_path, "rb") as fh:
@@ -319,10 +323,17 @@ def _write_frames(
     groups = _frame_groups(source, n) if source is not None else None
     for f in layout.frames:
         image = _read_depth(fh, f, layout, depth_path)
+        kept: dict[str, Any] = {
+            "pose": f.pose,
+            "color_timestamp": f.color_timestamp_ns,
+            "depth_timestamp": f.depth_timestamp_ns,
+        }
         if groups is not None and source is not None:
-            writer.write_encoded(next(groups), image, f.timestamp_ns, extradata=source.extradata)
+            writer.write_encoded(
+                next(groups), image, f.timestamp_ns, extradata=source.extradata, **kept
+            )
         else:
-            writer.write(None, image, f.timestamp_ns)
+            writer.write(None, image, f.timestamp_ns, **kept)
         if progress is not None:
             progress(f.index + 1)
 

@@ -9,16 +9,18 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..color.pyav import PyAVCodec
 from ..errors import CodecUnavailableError, DecodeError, InputError
 from ..geometry.camera import CameraIntrinsics
+from ..geometry.transform import as_rigid
 
 if TYPE_CHECKING:
     from ..recording.reader import Recording
@@ -99,7 +101,31 @@ def frames_document(
 ) -> dict[str, Any]:
     """frames.json for ``rec``: ``spans`` holds each frame's (offset, length) in depth.lz4,
     ``video`` the video's description (``None`` for a depth-only recording) and ``pts_of`` the
-    video pts of each frame's timestamp."""
+    video pts of each frame's timestamp.
+
+    Beside the paper's fields it keeps what the recording holds that the video and the LZ4
+    depth do not: the user's ``metadata``, ``frame_id``, a color camera apart
+    (``color_intrinsics`` and ``depth_to_color``, 4 × 4 row-major, metres) and, per frame, its
+    ``pose`` (4 × 4 row-major, camera-to-world; absent without one) and the images' own times
+    ``color_timestamp_ns`` and ``depth_timestamp_ns`` where they were stamped apart."""
+    poses = rec.poses() if rec.has_poses else [None] * len(rec)
+    stamps = rec.image_timestamps()
+    frames = []
+    for i, t in enumerate(int(t) for t in rec.timestamps):
+        entry: dict[str, Any] = {
+            "index": i,
+            "timestamp_ns": t,
+            "depth_offset": spans[i][0],
+            "depth_length": spans[i][1],
+            "pts": pts_of[t] if video else None,
+        }
+        if stamps[i] != (t, t):
+            entry["color_timestamp_ns"], entry["depth_timestamp_ns"] = stamps[i]
+        pose = poses[i]
+        if pose is not None:
+            entry["pose"] = np.asarray(pose, np.float64).tolist()
+        frames.append(entry)
+    color_cam = rec.color_intrinsics
     return {
         "format": FORMAT_NAME,
         "version": LAYOUT_VERSION,
@@ -115,16 +141,13 @@ def frames_document(
         "video_file": video["file"] if video else None,
         "color_codec": rec.codecs["color"],
         "video": video,
-        "frames": [
-            {
-                "index": i,
-                "timestamp_ns": t,
-                "depth_offset": spans[i][0],
-                "depth_length": spans[i][1],
-                "pts": pts_of[t] if video else None,
-            }
-            for i, t in enumerate(int(t) for t in rec.timestamps)
-        ],
+        "frame_id": rec.frame_id,
+        "color_intrinsics": None if color_cam is None else color_cam.to_dict(),
+        "depth_to_color": (
+            None if color_cam is None else np.asarray(rec.depth_to_color, np.float64).tolist()
+        ),
+        "metadata": dict(rec.metadata),
+        "frames": frames,
     }
 
 
@@ -141,6 +164,10 @@ class LayoutFrame:
     depth_offset: int
     depth_length: int
     pts: int | None
+    #: The camera-to-world pose, and the images' own times where they were stamped apart.
+    pose: npt.NDArray[np.float64] | None = None
+    color_timestamp_ns: int | None = None
+    depth_timestamp_ns: int | None = None
 
 
 @dataclass(frozen=True)
@@ -163,6 +190,11 @@ class Layout:
     time_origin_ns: int
     color_only_pts: list[int]
     frames: list[LayoutFrame]
+    #: What the recording held beside the paper's fields (absent in older layouts).
+    frame_id: str = "camera"
+    color_intrinsics: CameraIntrinsics | None = None
+    depth_to_color: npt.NDArray[np.float64] | None = None
+    metadata: dict[str, str] = field(default_factory=dict)
 
 
 def field_error(path: Path, field: str, problem: str) -> DecodeError:
@@ -288,7 +320,13 @@ def read_layout(folder: Path) -> Layout:
         pts = entry.get("pts")
         if video_file is not None:
             pts = _int(_get(entry, "pts", path, where), path, where + "pts", -(2**62))
-        frames.append(LayoutFrame(i, ts, offset, length, pts))
+        own = [
+            None if entry.get(key) is None else _int(entry[key], path, where + key)
+            for key in ("color_timestamp_ns", "depth_timestamp_ns")
+        ]
+        pose = entry.get("pose")
+        pose = None if pose is None else _transform(pose, path, where + "pose")
+        frames.append(LayoutFrame(i, ts, offset, length, pts, pose, *own))
     return Layout(
         path=path,
         width=width,
@@ -304,4 +342,36 @@ def read_layout(folder: Path) -> Layout:
         time_origin_ns=origin,
         color_only_pts=color_only,
         frames=frames,
+        **_kept(doc, path),
     )
+
+
+def _transform(value: Any, path: Path, name: str) -> npt.NDArray[np.float64]:
+    try:
+        return as_rigid(value, name)
+    except (InputError, ValueError, TypeError) as exc:
+        raise field_error(path, name, f"is not a rigid 4x4 transform: {exc}") from None
+
+
+def _kept(doc: Mapping[str, Any], path: Path) -> dict[str, Any]:
+    """The fields beyond the paper's that frames.json may hold (see :func:`frames_document`),
+    checked, as :class:`Layout`'s keyword arguments."""
+    out: dict[str, Any] = {}
+    frame_id = doc.get("frame_id", "camera")
+    if not isinstance(frame_id, str) or not frame_id:
+        raise field_error(path, "frame_id", f"must be a non-empty string, got {frame_id!r}")
+    out["frame_id"] = frame_id
+    metadata = doc.get("metadata") or {}
+    if not isinstance(metadata, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in metadata.items()
+    ):
+        raise field_error(path, "metadata", f"must map strings to strings, got {metadata!r}")
+    out["metadata"] = dict(metadata)
+    color_cam = doc.get("color_intrinsics")
+    if color_cam is not None:
+        try:
+            out["color_intrinsics"] = CameraIntrinsics.from_dict(color_cam)
+        except (InputError, TypeError, AttributeError) as exc:
+            raise field_error(path, "color_intrinsics", f"is not valid: {exc}") from None
+        out["depth_to_color"] = _transform(doc.get("depth_to_color"), path, "depth_to_color")
+    return out

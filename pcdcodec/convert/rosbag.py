@@ -14,9 +14,17 @@ give, keeps its header stamp and is logged at the time of the one before):
 * ``<ns>/depth/image_raw``: ``sensor_msgs/Image``, 16UC1 millimetres when the depth scale is 1000
   per metre, else 32FC1 metres; or, with ``compressed_depth``, image_transport's
   ``<ns>/depth/image_raw/compressedDepth`` (``"16UC1; compressedDepth png"``);
-* ``<ns>/color/image_raw``: ``sensor_msgs/Image`` rgb8 (registered to the depth);
+* ``<ns>/color/image_raw``: ``sensor_msgs/Image`` rgb8;
 * ``<ns>/depth/camera_info`` and ``<ns>/color/camera_info``: ``sensor_msgs/CameraInfo`` with the
   recording's camera (and the distortion its source had, when it was kept);
+* where the color camera is apart from the depth camera (the recording has
+  ``color_intrinsics`` and ``depth_to_color``), the color images and their CameraInfo (the
+  color camera's own, with its distortion) are in the color camera's frame, and one latched
+  ``/tf_static`` message at the first frame's stamp places that frame in the depth camera's
+  frame (the inverse of ``depth_to_color``); the frames are ``<frame_id>_color`` in
+  ``<frame_id>``, or realsense-ros's ``camera_color_optical_frame`` in
+  ``camera_depth_optical_frame`` without a ``frame_id``. Otherwise color is registered to the
+  depth and every message is in the one frame (``camera_color_optical_frame`` unless given);
 * with ``cloud``, ``<ns>/depth_registered/points``: the organized ``sensor_msgs/PointCloud2``
   XYZRGB (x, y, z float32 at bytes 0, 4, 8, packed rgb at 16, 32 bytes per point, NaN for
   pixels without depth), as the paper's broadcast node published it;
@@ -238,9 +246,6 @@ class _Options:
     compressed_depth: bool
     namespace: str
     frame_id: str | None
-    #: Whether a color camera apart from the depth camera gets its own frame
-    #: (``<frame_id>_color``) for its images and camera info.
-    color_frame: bool = False
 
 
 class _Export:
@@ -262,9 +267,10 @@ class _Export:
             self.dist = []
         if not self.dist and self.model == "plumb_bob":
             self.dist = [0.0] * 5
-        fid = opts.frame_id or inp.metadata.get("frame_id") or "camera_color_optical_frame"
-        self.msgs = MessageBuilder(opts.to == "rosbag2", fid)
         color_cam = inp.color_intrinsics
+        apart = color_cam is not None and inp.depth_to_color is not None
+        fid, color_fid = frame_ids(opts.frame_id or inp.metadata.get("frame_id"), apart=apart)
+        self.msgs = MessageBuilder(opts.to == "rosbag2", fid)
         self.projector = (
             Projector(
                 intr,
@@ -283,12 +289,14 @@ class _Export:
             self.color_dist = list(color_info["D"])
         else:
             self.color_cam, self.color_model, self.color_dist = intr, self.model, self.dist
-        #: The frame of the color images and their camera info.
-        self.color_frame = f"{fid}_color" if opts.color_frame and color_cam is not None else fid
+        #: The frame of the color images and their camera info, and of a color camera apart,
+        #: its place in the depth camera's frame (an edge of ``/tf_static``).
+        self.color_frame = color_fid
         self.color_msgs = (
-            MessageBuilder(opts.to == "rosbag2", self.color_frame)
-            if self.color_frame != fid
-            else self.msgs
+            MessageBuilder(opts.to == "rosbag2", color_fid) if color_fid != fid else self.msgs
+        )
+        self.color_edge = (
+            color_transform(fid, color_fid, inp.depth_to_color) if color_fid != fid else None
         )
         ns = opts.namespace
         self.t_depth = f"{ns}/depth/image_raw"
@@ -415,12 +423,48 @@ def _write(
 ) -> dict[str, Any]:
     export = _Export(inp, opts)
     frames = (("", frame) for frame in inp.frames)
-    summary, _ = _to_bag(frames, {"": export}, target, opts, max_frames, progress)
+    edges = [] if export.color_edge is None else [export.color_edge]
+    start = _tf_static(opts, edges) if edges else None
+    summary, _ = _to_bag(frames, {"": export}, target, opts, max_frames, progress, start)
     return summary
 
 
 #: What :func:`_to_bag` starts a bag with, at the first frame's earliest stamp (``/tf_static``).
 _Start = Callable[[BagWriter, _Emit, int], None]
+
+#: A camera's frames, by the names realsense-ros gives them, where none is given.
+DEPTH_FRAME, COLOR_FRAME = "camera_depth_optical_frame", "camera_color_optical_frame"
+
+
+def frame_ids(frame_id: str | None, *, apart: bool) -> tuple[str, str]:
+    """The ``frame_id`` of a camera's depth and color messages: both ``frame_id`` where color is
+    registered to depth; else the depth's ``frame_id`` and the color's ``<frame_id>_color``,
+    and without ``frame_id`` realsense-ros's names (:data:`DEPTH_FRAME`,
+    :data:`COLOR_FRAME`; the one frame of registered color is :data:`COLOR_FRAME`)."""
+    if not apart:
+        fid = frame_id or COLOR_FRAME
+        return fid, fid
+    if frame_id:
+        return frame_id, f"{frame_id}_color"
+    return DEPTH_FRAME, COLOR_FRAME
+
+
+def color_transform(frame_id: str, color_frame: str, depth_to_color: Any) -> tuple[str, str, Any]:
+    """The ``/tf_static`` edge ``(parent, child, child-to-parent pose)`` placing the frame of a
+    color camera apart from its depth camera in the depth camera's frame: the inverse of
+    ``depth_to_color``."""
+    return frame_id, color_frame, np.linalg.inv(np.asarray(depth_to_color, np.float64))
+
+
+def _tf_static(opts: _Options, edges: list[tuple[str, str, Any]]) -> _Start:
+    """Starting a bag with one latched ``/tf_static`` message of ``edges``."""
+    msgs = MessageBuilder(opts.to == "rosbag2", edges[0][0])
+
+    def start(bag: BagWriter, emit: _Emit, ts: int) -> None:
+        bag.add("/tf_static", "tf2_msgs/msg/TFMessage", latched=True)
+        emit("/tf_static", ts, msgs.transforms(ts, edges))
+
+    return start
 
 
 def _to_bag(
@@ -507,9 +551,7 @@ def _camera_export(rig: RigRecording, name: str, opts: _Options) -> _Export:
         cam.color_intrinsics,
         cam.depth_to_color,
     )
-    own = dataclasses.replace(
-        opts, namespace=f"{opts.namespace}/{name}", frame_id=cam.frame_id, color_frame=True
-    )
+    own = dataclasses.replace(opts, namespace=f"{opts.namespace}/{name}", frame_id=cam.frame_id)
     try:
         export = _Export(inp, own)
     except InputError as exc:
@@ -526,8 +568,8 @@ def rig_transforms(rig: RigRecording) -> list[tuple[str, str, Any]]:
     for cam in rig.cameras.values():
         edges.append((rig.rig_frame_id, cam.frame_id, cam.rig_pose))
         if cam.color_intrinsics is not None and cam.depth_to_color is not None:
-            color_in_depth = np.linalg.inv(np.asarray(cam.depth_to_color, np.float64))
-            edges.append((cam.frame_id, f"{cam.frame_id}_color", color_in_depth))
+            fid, color_fid = frame_ids(cam.frame_id, apart=True)
+            edges.append(color_transform(fid, color_fid, cam.depth_to_color))
     return edges
 
 
@@ -539,12 +581,7 @@ def _write_rig(
     progress: Callable[[int], None] | None,
 ) -> dict[str, Any]:
     exports = {name: _camera_export(rig, name, opts) for name in rig.camera_names}
-    tf_msgs = MessageBuilder(opts.to == "rosbag2", rig.rig_frame_id)
-
-    def start(bag: BagWriter, emit: _Emit, ts: int) -> None:
-        bag.add("/tf_static", "tf2_msgs/msg/TFMessage", latched=True)
-        emit("/tf_static", ts, tf_msgs.transforms(ts, rig_transforms(rig)))
-
+    start = _tf_static(opts, rig_transforms(rig))
     frames = ((name, frame) for _, name, frame in _in_time_order(rig))
     summary, counts = _to_bag(frames, exports, target, opts, max_frames, progress, start)
     return {**summary, "cameras": counts}

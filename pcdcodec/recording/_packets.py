@@ -41,6 +41,9 @@ class PacketAccess:
     _packet_of_pts: dict[int, int]
     _packet_offsets: npt.NDArray[np.int64]
     _packet_group: npt.NDArray[np.int64]
+    #: The color packets that can be read: all but, in a file the writer did not close, the
+    #: last ones, written before their frame's digest.
+    _readable_packets: int = 0
     _packet_cache: dict[int, Any]
     _groups_checked: set[int]
     _records: dict[int, tuple[int, bytes, bytes, bytes]]
@@ -105,16 +108,21 @@ class PacketAccess:
 
     @property
     def packet_timestamps(self) -> npt.NDArray[np.int64]:
-        """The pts (ns) of every color packet, in decode (file) order; empty without color."""
+        """The pts (ns) of every color packet, in decode (file) order; empty without color.
+
+        Of a file cut short (or whose writer was stopped), the last packets the writer wrote
+        before their frames' digest are left out, as those frames are: every packet listed
+        can be read."""
         if self.color_codec is None:
             return np.zeros(0, np.int64)
-        out: npt.NDArray[np.int64] = np.asarray(self._packet_pts, np.int64).copy()
+        readable = self._packet_pts[: self._readable_packets]
+        out: npt.NDArray[np.int64] = np.asarray(readable, np.int64).copy()
         return out
 
     @property
     def keyframes(self) -> list[int]:
         """Indices (into :attr:`packet_timestamps`) of the color packets decoding can start at."""
-        return list(self._keyframes)
+        return [j for j in self._keyframes if j < self._readable_packets]
 
     def packet(self, j: int) -> Packet:
         """Color packet ``j`` in decode order, as written (``checksum`` is ``None``)."""
@@ -247,6 +255,13 @@ class PacketAccess:
                 "removed"
             )
         return ""
+
+    def image_timestamps(self) -> list[tuple[int, int]]:
+        """``(color, depth)``: each frame's images' own times (ns), as
+        ``frame.color_timestamp_ns`` and ``frame.depth_timestamp_ns`` give them (the frame's
+        time where they were not stamped apart), read without decoding an image."""
+        own = self._own_stamps()
+        return [own.get(int(t), (int(t), int(t))) for t in self._times]
 
     def _own_stamps(self) -> dict[int, tuple[int, int]]:
         """The color and depth images' own times (ns) by frame time, for the frames whose

@@ -258,6 +258,9 @@ class Recording(PacketAccess, OneCamera):
             # Packets after the last digest of a file without a seal have no digest yet: the
             # writer stopped before their frame was complete.
             unchecked = len(self._digest_offsets) if self.integrity and self._seal is None else -1
+            # Nor can those packets be read (groups grow in file order: they are the last).
+            last = len(c_pts) if unchecked < 0 else np.searchsorted(self._packet_group, unchecked)
+            self._readable_packets = int(last)
             # A frame exists when both its depth and a decodable color packet were written.
             first_key = self._packet_pts[self._keyframes[0]] if self._keyframes else None
             good = [

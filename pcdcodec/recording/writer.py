@@ -465,16 +465,22 @@ class RecordingWriter(FrameInputs):
             if rgb is not None
             else None
         )
-        if rigid is not None:
-            self._poses[timestamp] = rigid
         if color is None:
             own[0] = None  # no color image, no color time
+        self._keep_pose_and_stamps(timestamp, rigid, own)
+        self._enqueue(timestamp, fut_color, d)
+
+    def _keep_pose_and_stamps(
+        self, timestamp: int, rigid: npt.NDArray[np.float64] | None, own: list[int | None]
+    ) -> None:
+        """Keep a frame's pose and the (color, depth) images' own times that differ from it."""
+        if rigid is not None:
+            self._poses[timestamp] = rigid
         if any(t is not None and t != timestamp for t in own):
             self._stamps[timestamp] = (
                 timestamp if own[0] is None else own[0],
                 timestamp if own[1] is None else own[1],
             )
-        self._enqueue(timestamp, fut_color, d)
 
     def write_encoded(
         self,
@@ -483,20 +489,23 @@ class RecordingWriter(FrameInputs):
         timestamp: int,
         *,
         extradata: bytes | None = None,
+        pose: Any = None,
+        color_timestamp: int | None = None,
+        depth_timestamp: int | None = None,
     ) -> None:
         """Add a frame whose color is already encoded: the muxing half of the writer.
 
         ``packets`` are the color packets to store with this frame, in decode order, as this
         recording's color codec (whose config is recorded) would have written them: usually
         the frame's own packet, none for a frame whose packet came earlier, or several when a
-        B-frame arrives with a later frame. ``depth`` and ``timestamp`` are as for
-        :meth:`write`; ``extradata`` (the decoder's set-up bytes) is taken with the first
-        frame. The codec's encoder is never opened, so packets from hardware encoders, other
-        files or ROS bags go in unchanged. A recording takes either :meth:`write` frames or
-        encoded ones, not both. Raises :class:`~pcdcodec.InputError` for a recording without
-        color, items that are not :class:`~pcdcodec.color.base.Packet`, or the errors of
-        :meth:`write`; like it, writes in the background and blocks while ``in_flight`` frames
-        wait.
+        B-frame arrives with a later frame. ``depth``, ``timestamp``, ``pose``,
+        ``color_timestamp`` and ``depth_timestamp`` are as for :meth:`write`; ``extradata``
+        (the decoder's set-up bytes) is taken with the first frame. The codec's encoder is
+        never opened, so packets from hardware encoders, other files or ROS bags go in
+        unchanged. A recording takes either :meth:`write` frames or encoded ones, not both.
+        Raises :class:`~pcdcodec.InputError` for a recording without color, items that are not
+        :class:`~pcdcodec.color.base.Packet`, or the errors of :meth:`write`; like it, writes
+        in the background and blocks while ``in_flight`` frames wait.
         """
         self._check_open()
         self._raise_background_error()
@@ -506,12 +515,18 @@ class RecordingWriter(FrameInputs):
         if self._mode == "frames":
             raise InputError("this recording encodes images (write); it cannot take packets too")
         group = [_checked_packet(k, p) for k, p in enumerate(packets)]
+        rigid = None if pose is None else as_rigid(pose, "pose")
+        own = [
+            _own_stamp(t, name)
+            for t, name in zip((color_timestamp, depth_timestamp), _STAMP_NAMES, strict=True)
+        ]
         timestamp = self._next_timestamp(timestamp)
         d = check_depth(depth, allowed=self.depth_codec.dtypes, name="depth")
         self._check_float_scale(d)
         self._check_shape(d, timestamp, encoded=True, extradata=extradata)
         self._mode = "encoded"
         self._last_ts = timestamp
+        self._keep_pose_and_stamps(timestamp, rigid, own)
         done: Future[list[Packet]] = Future()
         done.set_result(group)
         self._enqueue(timestamp, done, d)

@@ -89,7 +89,6 @@ def color_camera(
     )
     problem = None
     if d2c is not None:
-        # (the note says "from /tf_static ..." or "from /tf ...": the bag's tf is recorded)
         note = f"{apart}: recorded apart, depth_to_color {where}"
         if mine is not None and not np.allclose(mine, d2c, atol=1e-6):
             note += "; the depth_to_color given differs from it, and the bag's is used"

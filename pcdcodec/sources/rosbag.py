@@ -157,6 +157,7 @@ class RosbagSource(Source):
         self._depth_dtype: np.dtype[Any] = np.dtype(np.uint16)
         self._index: FrameIndex | None = None
         self._tf: Any = None  # the camera's poses from /tf (False: none); read on first use
+        self._tf_extrinsics = False  # whether tf gave the color camera's extrinsics
         self._reader, self._tmp = bagfile.open_reader(self.path)
         try:
             self._setup(depth_topic, color_topic, info_topic, cloud_topic, intrinsics, depth_scale)
@@ -381,19 +382,24 @@ class RosbagSource(Source):
             cands, (self._depth_conn, self._color_conn), self.info_topic,
             self._info_camera or self.intrinsics, given,
             lambda topic: self._first(self._conn(topic, "camera info")),
-            partial(tf.frame_to_frame, self._messages, self._reader.connections),
+            self._extrinsics,
         )  # fmt: skip
         if found is not None:
             self.color_intrinsics, self.depth_to_color, note, self._color_problem = found
             self.notes.append(note)
-            # depth_to_color read from the bag's tf: /tf and /tf_static are recorded in it.
-            self._tf_for_extrinsics = self._color_problem is None and "as given" not in note
             # The color camera's own CameraInfo is read, and so recorded, not left out.
             info = topics.choose_color_info(
                 cands, self._color_conn.topic, self._depth_conn.topic, self.info_topic
             )
             if info:
                 self.metadata["ros_color_info_topic"] = info
+
+    def _extrinsics(self, source: str, target: str) -> tuple[Any, str]:
+        """:func:`pcdcodec.ros.tf.frame_to_frame` over this bag; ``/tf`` and ``/tf_static``
+        count as recorded once they gave the color camera's extrinsics."""
+        found = tf.frame_to_frame(self._messages, self._reader.connections, source, target)
+        self._tf_extrinsics = found[0] is not None
+        return found
 
     def _check_color_camera(self) -> None:
         if getattr(self, "_color_problem", None):
@@ -431,12 +437,13 @@ class RosbagSource(Source):
     def recorded_streams(self) -> set[str]:
         """The topics read (depth or cloud, color or video, camera info, and any other topic
         the recording's metadata names as read), and ``/tf`` and ``/tf_static``, read for the
-        camera's poses: once read, they count as left out when they gave the camera none."""
+        camera's poses and a color camera's extrinsics: once read, they count as left out when
+        they gave neither."""
         topics = {self.depth_topic, self.color_topic, self.info_topic, self.cloud_topic}
         topics |= {
             v for k, v in self.metadata.items() if k.startswith("ros_") and k.endswith("_topic")
         }
-        if self._tf is not False or getattr(self, "_tf_for_extrinsics", False):
+        if self._tf is not False or self._tf_extrinsics:
             topics |= {s.name for s in self._streams if "/" + s.name.lstrip("/") in tf.TF_TOPICS}
         return {t for t in topics if t}
 
