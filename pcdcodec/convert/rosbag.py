@@ -65,7 +65,7 @@ from ..geometry.projector import Projector
 from ..recording.reader import Recording
 from ..recording.rig_reader import RigRecording
 from ..ros.bagfile import MCAP_MAGIC
-from ..ros.bagwriter import BagWriter, MessageBuilder
+from ..ros.bagwriter import BagWriter, InTimeOrder, MessageBuilder
 from ..ros.clouds import CLOUD_DTYPE, cloud_array
 from ..ros.messages import compressed_depth_encode
 from ..sources.base import Source, open_source
@@ -384,30 +384,6 @@ class _Export:
 _Emit = Callable[[str, int, bytes], None]
 
 
-class _InTimeOrder:
-    """The messages of a bag, written in time order: those of a frame wait until a frame
-    stamped no earlier arrives (a frame's depth may be stamped after its color, or after the
-    next frame's color). A message stamped before one already written is logged at that
-    one's time (its header keeps its own stamp), so the bag's log times never go back."""
-
-    def __init__(self, bag: BagWriter) -> None:
-        self.bag = bag
-        self.waiting: list[tuple[int, int, str, bytes]] = []
-        self.count = 0
-        self.last = -1
-
-    def emit(self, topic: str, ns: int, data: bytes) -> None:
-        heapq.heappush(self.waiting, (ns, self.count, topic, data))
-        self.count += 1
-
-    def flush(self, until: int | None = None) -> None:
-        """Write the waiting messages stamped at or before ``until`` (all with ``None``)."""
-        while self.waiting and (until is None or self.waiting[0][0] <= until):
-            ns, _, topic, data = heapq.heappop(self.waiting)
-            self.last = max(self.last, ns)
-            self.bag.write(topic, self.last, data)
-
-
 def _earliest(frame: Frame) -> int:
     """The earliest of a frame's stamps: no message of it is stamped before."""
     stamps = (frame.timestamp_ns, frame.depth_timestamp_ns, frame.color_timestamp_ns)
@@ -484,7 +460,7 @@ def _to_bag(
         staging.mkdir(parents=True)
         first = next(iter(exports.values()))
         bag = BagWriter(staging / target.name, opts.to, opts.storage, first.msgs)
-        order = _InTimeOrder(bag)
+        order = InTimeOrder(bag)
         try:
             for camera, frame in frames:
                 earliest = _earliest(frame)

@@ -12,7 +12,6 @@ from typing import Any
 from ..depth import DEFAULT_DEPTH_CODEC
 from ..errors import InputError
 from ._header import writer_camera
-from ._inputs import no_frames_error
 
 __all__ = ["EncodeSummary", "encode"]
 
@@ -182,6 +181,8 @@ def encode(
                     # Opened from the source: its camera is the recording's, checked once.
                     count = writer._write_source(source, progress)
             if count == 0:
+                from ._inputs import no_frames_error  # (loaded when needed: import stays light)
+
                 raise no_frames_error(source)
         seconds = time.perf_counter() - start
         return EncodeSummary(
@@ -240,5 +241,7 @@ def _passthrough(
         if writer is not None:
             writer.close()
     if writer is None:
+        from ._inputs import no_frames_error
+
         raise no_frames_error(source)
     return count, writer

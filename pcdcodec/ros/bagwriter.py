@@ -8,6 +8,7 @@ the rosbags typestores of ROS 1 Noetic and ROS 2 Humble.
 
 from __future__ import annotations
 
+import heapq
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +17,7 @@ import numpy.typing as npt
 
 from ..geometry.transform import matrix_to_quaternion
 
-__all__ = ["BagWriter", "MessageBuilder"]
+__all__ = ["BagWriter", "InTimeOrder", "MessageBuilder"]
 
 _NS = 1_000_000_000
 
@@ -217,3 +218,27 @@ def _latched_qos() -> Any:
         never,
         False,
     )
+
+
+class InTimeOrder:
+    """The messages of a bag, written in time order: those of a frame wait until a frame
+    stamped no earlier arrives (a frame's depth may be stamped after its color, or after the
+    next frame's color). A message stamped before one already written is logged at that
+    one's time (its header keeps its own stamp), so the bag's log times never go back."""
+
+    def __init__(self, bag: BagWriter) -> None:
+        self.bag = bag
+        self.waiting: list[tuple[int, int, str, bytes]] = []
+        self.count = 0
+        self.last = -1
+
+    def emit(self, topic: str, ns: int, data: bytes) -> None:
+        heapq.heappush(self.waiting, (ns, self.count, topic, data))
+        self.count += 1
+
+    def flush(self, until: int | None = None) -> None:
+        """Write the waiting messages stamped at or before ``until`` (all with ``None``)."""
+        while self.waiting and (until is None or self.waiting[0][0] <= until):
+            ns, _, topic, data = heapq.heappop(self.waiting)
+            self.last = max(self.last, ns)
+            self.bag.write(topic, self.last, data)
