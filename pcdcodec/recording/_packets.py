@@ -65,6 +65,21 @@ class PacketAccess:
     #: The images' own times by frame time, once read (:meth:`_own_stamps`).
     _stamps_read: dict[int, tuple[int, int]] | None = None
 
+    def _message_at(self, offset: int, topic: str, ts: int, what: str) -> bytes | None:
+        """The data of the ``topic`` message at time ``ts`` in the chunk at ``offset`` (``None``
+        where the chunk holds none); ``what`` names it in the errors of reading the chunk."""
+        with self._lock:
+            messages = fmt.read_chunk_messages(
+                self._file, offset, what=what, size=self.index.size or None
+            )
+        channel = self.index.channel(topic)
+        if channel is None:
+            return None
+        return next(
+            (bytes(m.data) for m in messages if m.channel_id == channel.id and m.log_time == ts),
+            None,
+        )
+
     def _pose_messages(self, i: int, ts: int) -> dict[str, bytes]:
         """The frame's pose messages by topic, each read once, checked against its digest."""
         what = f"{str(self.path)!r}: frame {i} (t={ts} ns) pose"
@@ -76,19 +91,7 @@ class PacketAccess:
             offset = at.get(ts)
             if offset is None:
                 continue
-            with self._lock:
-                messages = fmt.read_chunk_messages(
-                    self._file, offset, what=what, size=self.index.size or None
-                )
-            channel = self.index.channel(topic)
-            data = next(
-                (
-                    bytes(m.data)
-                    for m in messages
-                    if channel is not None and m.channel_id == channel.id and m.log_time == ts
-                ),
-                None,
-            )
+            data = self._message_at(offset, topic, ts, what)
             if data is None:
                 raise DecodeError(f"{what}: no {topic} message at byte offset {offset}")
             found[topic] = data
@@ -193,19 +196,7 @@ class PacketAccess:
             return self._records[g]
         offset, ts = int(self._digest_offsets[g]), int(self._digest_times[g])
         where = f"{str(self.path)!r}: the frame digest at byte offset {offset}"
-        with self._lock:
-            messages = fmt.read_chunk_messages(
-                self._file, offset, what=where, size=self.index.size or None
-            )
-        channel = self.index.channel(fmt.TOPIC_FRAME_DIGEST)
-        data = next(
-            (
-                bytes(m.data)
-                for m in messages
-                if channel is not None and m.channel_id == channel.id and m.log_time == ts
-            ),
-            None,
-        )
+        data = self._message_at(offset, fmt.TOPIC_FRAME_DIGEST, ts, where)
         if data is None or len(data) != fmt.DIGEST_RECORD.size:
             raise DecodeError(f"{where}: no frame digest message of {fmt.DIGEST_RECORD.size} bytes")
         record: tuple[int, bytes, bytes, bytes] = fmt.DIGEST_RECORD.unpack(data)
@@ -270,7 +261,6 @@ class PacketAccess:
         if self._stamps_read is not None:
             return self._stamps_read
         name = repr(str(self.path))
-        channel = self.index.channel(fmt.TOPIC_STAMPS)
         entries = zip(
             self.index.times.get(fmt.TOPIC_STAMPS, []),
             self.index.offsets.get(fmt.TOPIC_STAMPS, []),
@@ -280,18 +270,7 @@ class PacketAccess:
         sealer = fmt.Sealer()
         for t, offset in sorted(entries, key=lambda e: e[1]):  # file order
             where = f"{name}: the {fmt.TOPIC_STAMPS} message at byte offset {offset}"
-            with self._lock:
-                messages = fmt.read_chunk_messages(
-                    self._file, offset, what=where, size=self.index.size or None
-                )
-            data = next(
-                (
-                    bytes(m.data)
-                    for m in messages
-                    if channel is not None and m.channel_id == channel.id and m.log_time == t
-                ),
-                None,
-            )
+            data = self._message_at(offset, fmt.TOPIC_STAMPS, int(t), where)
             if data is None or len(data) != fmt.STAMPS_RECORD.size:
                 raise DecodeError(
                     f"{where}: no message of {fmt.STAMPS_RECORD.size} bytes at {t} ns there"
