@@ -154,10 +154,10 @@ def test_a_damaged_rig_keeps_each_cameras_frames(tmp_path: Path) -> None:
                 assert f.color is None
 
 
-def test_frames_without_color_are_said_and_not_written_again_as_colored(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    path = tmp_path / "one.pcdc"
+def recovered_without_color(root: Path) -> Path:
+    """A 6-frame recording whose color from frame 3 on was lost to a flipped byte, recovered
+    into ``root / "back.pcdc"``: frames 3, 4 and 5 read with ``color`` None."""
+    path = root / "one.pcdc"
     with pcdcodec.open(path, "w", intrinsics=CAMERA, depth_scale=5000.0) as w:
         for color, depth, ts in small_frames(6):
             w.write(color, depth, ts)
@@ -165,12 +165,19 @@ def test_frames_without_color_are_said_and_not_written_again_as_colored(
         color_at = sorted(rec.index.offsets[fmt.TOPIC_COLOR])
     data = bytearray(path.read_bytes())
     data[color_at[3] + 200] ^= 0x20
-    damaged = tmp_path / "damaged.pcdc"
+    damaged = root / "damaged.pcdc"
     damaged.write_bytes(bytes(data))
-    back = tmp_path / "back.pcdc"
+    back = root / "back.pcdc"
     got = pcdcodec.recover(damaged, back)
     assert got == 6
     assert got.color_missing == 3
+    return back
+
+
+def test_frames_without_color_are_said_and_not_written_again_as_colored(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    back = recovered_without_color(tmp_path)
     assert main(["info", str(back)]) == 0
     assert "3 frame(s) kept by `pcdcodec recover` without their color" in capsys.readouterr().out
     with pytest.raises(pcdcodec.DecodeError, match=r"frames 3, 4, 5\): they cannot be written"):

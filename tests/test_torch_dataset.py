@@ -403,25 +403,9 @@ def test_a_dataset_without_any_item_is_refused(tmp_path: Path) -> None:
 def recovered(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A recording whose color from frame 3 on was lost to a flipped byte, recovered: frames
     3, 4 and 5 read with ``color`` None."""
-    from pcdcodec.recording import _index as fmt
+    from .test_recover_damage import recovered_without_color
 
-    from .test_integrity import CAMERA, small_frames
-
-    root = tmp_path_factory.mktemp("recovered")
-    path = root / "one.pcdc"
-    with pcdcodec.open(path, "w", intrinsics=CAMERA, depth_scale=5000.0) as w:
-        for color, depth, ts in small_frames(6):
-            w.write(color, depth, ts)
-    with pcdcodec.open(path) as rec:
-        color_at = sorted(rec.index.offsets[fmt.TOPIC_COLOR])
-    data = bytearray(path.read_bytes())
-    data[color_at[3] + 200] ^= 0x20
-    damaged = root / "damaged.pcdc"
-    damaged.write_bytes(bytes(data))
-    back = root / "back.pcdc"
-    got = pcdcodec.recover(damaged, back)
-    assert got == 6
-    assert got.color_missing == 3
+    back = recovered_without_color(tmp_path_factory.mktemp("recovered"))
     with pcdcodec.open(back) as rec:
         assert rec.color_missing == [3, 4, 5]
     return back
