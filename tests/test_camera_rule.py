@@ -300,3 +300,17 @@ def test_a_bag_without_camera_info_takes_a_bare_matrix_at_its_images_size(tmp_pa
         assert rec.depth_scale == 1000.0
     assert summary.source["intrinsics_from"] == "intrinsics="
     assert summary.source["camera_notes"] == []
+
+
+def test_a_bag_without_a_camera_is_not_told_to_put_a_file_in_a_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bag = SHARED_DATA / "bags" / "spot" / "raw.bag"
+    if not bag.is_file():
+        pytest.skip(f"{bag} is not present")
+    assert main(["encode", str(bag), "-o", str(tmp_path / "x.pcdc"), "--color-topic", ""]) == 1
+    err = capsys.readouterr().err
+    assert "no intrinsics for" in err
+    assert "--intrinsics FILE" in err
+    assert "in the folder" not in err  # a bag file holds no camera.json beside it
+    assert not (tmp_path / "x.pcdc").exists()

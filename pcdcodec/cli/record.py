@@ -23,6 +23,7 @@ def cmd_encode(args: argparse.Namespace) -> int:
     Several inputs, a rig file or a bag of several cameras make a recording of a rig."""
     from ..recording import encode
     from ..sources import open_source
+    from ..sources.base import detect_kind
 
     sources = list(args.src)
     if args.rig is not None or len(sources) > 1 or _several_cameras(args):
@@ -34,9 +35,15 @@ def cmd_encode(args: argparse.Namespace) -> int:
     options = source_options(args)
     with open_source(args.src, defaults=given, **options) as source:
         if source.intrinsics is None:
+            # (a folder can carry its camera in a file; a bag or camera file cannot)
+            beside = (
+                ", or put a camera.json or intrinsics.K.txt in the folder"
+                if detect_kind(args.src) == "folder"
+                else " (the input has no CameraInfo or calibration of its own)"
+            )
             raise InputError(
                 f"no intrinsics for {args.src!r}: pass --intrinsics FILE, --camera NAME or --fx "
-                "--fy --cx --cy, or put a camera.json or intrinsics.K.txt in the folder"
+                f"--fy --cx --cy{beside}"
             )
         total = operator.length_hint(source) or None
         with Progress(total, "encoding", enabled=None if not args.quiet else False) as bar:
