@@ -134,6 +134,10 @@ def test_real_bags_list_every_topic_they_do_not_read(bag: str, tmp_path: Path) -
         # Its color camera is apart from the depth, and the bag has no tf: the transform given.
         options["depth_to_color"] = np.eye(4)
     with open_source(path, **options) as src:
+        kept = {t.topic for t in src.kept_topics()}
+        assert src.left_out == ()  # by default every other topic is kept
+    options["keep_topics"] = False
+    with open_source(path, **options) as src:
         read = {getattr(src, k) for k in _KEPT} - {None, ""}
         read |= {src.metadata.get("ros_color_info_topic")} - {None}
         got = {s.name: s.count for s in src.left_out}
@@ -141,6 +145,7 @@ def test_real_bags_list_every_topic_they_do_not_read(bag: str, tmp_path: Path) -
         camera = None if src.intrinsics else pcdcodec.CameraIntrinsics(w, h, 300, 300, w / 2, h / 2)
     want = {t: n for t, n in topics.items() if t not in read}
     assert got == want
+    assert set(want) <= kept
     summary = pcdcodec.encode(path, tmp_path / "x.pcdc", intrinsics=camera, **options)
     assert {s["name"]: s["messages"] for s in summary.left_out} == want
     if bag == "ros2-converted/rs_ros2_mcap":
@@ -149,7 +154,7 @@ def test_real_bags_list_every_topic_they_do_not_read(bag: str, tmp_path: Path) -
         assert "left out" not in _cli("info", str(path))
     else:
         assert want, "each of these bags holds topics that are not recorded"
-        _listed(_cli("info", str(path)), want)
+        _listed(_cli("info", str(path), "--exclude-topic", "*"), want)
 
 
 _T0 = 1_700_000_000 * 1_000_000_000
@@ -217,16 +222,20 @@ def test_synthetic_bag_names_infrared_and_imu(ros2: bool, tmp_path: Path) -> Non
     path = _rs_ros_bag(tmp_path / ("bag" if ros2 else "x.bag"), ros2)
     want = {"/camera/imu": 12, "/camera/infra1/image_rect_raw": 3}
     with open_source(path) as src:
+        assert src.left_out == ()
+        assert set(want) <= {t.topic for t in src.kept_topics()}
+    with open_source(path, keep_topics=False) as src:
         assert src.color_topic == "/camera/color/image_raw"
         got = src.left_out
     assert {s.name: s.count for s in got} == want
     assert {s.name: s.type for s in got}["/camera/imu"] == "sensor_msgs/msg/Imu"
-    summary = pcdcodec.encode(path, tmp_path / "x.pcdc")
+    summary = pcdcodec.encode(path, tmp_path / "x.pcdc", keep_topics=False)
     assert summary.frames == 3
     assert {s["name"]: s["messages"] for s in summary.left_out} == want
-    _listed(_cli("encode", str(path), "-o", str(tmp_path / "cli.pcdc")), want)
-    _listed(_cli("info", str(path)), want)
-    info = _cli("info", str(path), "--json")
+    none = ("--exclude-topic", "*")
+    _listed(_cli("encode", str(path), "-o", str(tmp_path / "cli.pcdc"), *none), want)
+    _listed(_cli("info", str(path), *none), want)
+    info = _cli("info", str(path), "--json", *none)
     import json
 
     assert {s["name"] for s in json.loads(info)["left_out"]} == set(want)
@@ -235,12 +244,12 @@ def test_synthetic_bag_names_infrared_and_imu(ros2: bool, tmp_path: Path) -> Non
 def test_tf_that_gives_the_camera_no_pose_is_left_out(tmp_path: Path) -> None:
     """A /tf_static that only mounts the camera gives no poses: once read, it is named."""
     path = _rs_ros_bag(tmp_path / "tf.bag", False, tf_static=True)
-    with open_source(path) as src:
+    with open_source(path, keep_topics=False) as src:
         assert "/tf_static" not in {s.name for s in src.left_out}  # read for poses
         frames = list(src)
         assert all(f.pose is None for f in frames)
         assert "/tf_static" in {s.name for s in src.left_out}
-    summary = pcdcodec.encode(path, tmp_path / "x.pcdc")
+    summary = pcdcodec.encode(path, tmp_path / "x.pcdc", keep_topics=False)
     assert "/tf_static" in {s["name"] for s in summary.left_out}
 
 
@@ -344,7 +353,7 @@ def test_a_camera_of_a_rig_recording_leaves_the_others_out(tmp_path: Path) -> No
 
 def test_inputs_that_hold_nothing_else_leave_nothing_out(tmp_path: Path) -> None:
     rec = tmp_path / "one.pcdc"
-    summary = pcdcodec.encode(_rs_ros_bag(tmp_path / "b.bag", False), rec)
+    summary = pcdcodec.encode(_rs_ros_bag(tmp_path / "b.bag", False), rec, keep_topics=False)
     assert summary.left_out
     with open_source(rec) as src:
         assert src.left_out == ()

@@ -202,7 +202,25 @@ def source_options(args: argparse.Namespace) -> dict[str, Any]:
             f"a {kind}" + (" (its depth alone: --depth-only)" if kind in DEPTH_ONLY else "")
         )
     opts.update(given)
+    patterns = {
+        k: v
+        for k, v in (
+            ("include_topics", getattr(args, "include_topic", None)),
+            ("exclude_topics", getattr(args, "exclude_topic", None)),
+        )
+        if v
+    }
+    if patterns and kind not in KEEPING_KINDS:
+        raise InputError(
+            f"--include-topic and --exclude-topic choose the other topics of a bag kept beside "
+            f"the camera; {args.src!r} is a {kind}"
+        )
+    opts.update(patterns)
     return opts
+
+
+#: The readers that keep their input's other topics (``include_topics``, ``exclude_topics``).
+KEEPING_KINDS = (None, "rosbag")
 
 
 def mib(n: float) -> str:

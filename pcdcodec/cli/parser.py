@@ -128,6 +128,19 @@ def _add_topic_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--info-topic", help="CameraInfo topic")
     g.add_argument("--cloud-topic", help="organized PointCloud2 topic (read instead of images)")
     g.add_argument(
+        "--include-topic",
+        action="append",
+        metavar="PATTERN",
+        help="keep only the other topics matching PATTERN (shell-style, e.g. '/imu*'; "
+        "repeatable). By default every topic of a bag not made into frames is kept as it came",
+    )
+    g.add_argument(
+        "--exclude-topic",
+        action="append",
+        metavar="PATTERN",
+        help="leave out the other topics matching PATTERN (repeatable; '*' keeps the camera only)",
+    )
+    g.add_argument(
         "--max-difference",
         metavar="DURATION",
         help="the largest time between a color and a depth image paired into one frame, with "

@@ -15,7 +15,7 @@ from typing import Any
 from .._progress import Progress
 from ..errors import InputError
 from .options import camera_defaults, cli_message, mib, parse_codec, source_options
-from .show import print_left_out
+from .show import print_kept, print_left_out
 
 
 def cmd_encode(args: argparse.Namespace) -> int:
@@ -86,6 +86,7 @@ def cmd_encode(args: argparse.Namespace) -> int:
         print(f"  skipped      {info['out_of_order']} messages whose stamp did not increase")
     for note in [*info.get("camera_notes", []), *info.get("notes", [])]:
         print(f"  note         {cli_message(note)}")
+    print_kept(summary.kept)
     print_left_out(summary.left_out)
     return 0
 

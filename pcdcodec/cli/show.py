@@ -32,6 +32,22 @@ def print_left_out(items: list[dict[str, Any]], indent: str = "  ") -> None:
         print(f"{indent}  {item['name']!s:{width}}  [{item['type']}{msgs}]")
 
 
+def print_kept(items: list[dict[str, Any]], indent: str = "  ") -> None:
+    """The lines that name the input's other topics a recording keeps as they came, with
+    their message counts (and bytes, once written)."""
+    if not items:
+        return
+    print(f"{indent}{'kept':12} {len(items)} other topics, as they came:")
+    width = max(len(str(item["name"])) for item in items)
+    for item in items:
+        count = item.get("messages")
+        size = item.get("bytes")
+        extra = ("" if count is None else f", {count} msgs") + (
+            "" if size is None else f", {mib(size)}"
+        )
+        print(f"{indent}  {item['name']!s:{width}}  [{item['type']}{extra}]")
+
+
 def _raw_bytes(rec: Any) -> int:
     """Raw RGB-D of the recording's frames, as the benchmarks count it: uint16 depth (2 bytes a
     pixel) plus RGB24 color (3 bytes a pixel of the color camera; none without color)."""
@@ -306,6 +322,7 @@ def _info_of_source(args: argparse.Namespace) -> int:
         print("    override     the camera flags replace the input's own camera and depth scale")
     for note in [*info.get("camera_notes", []), *info.get("notes", [])]:
         print(f"    note         {cli_message(note)}")
+    print_kept(info.get("kept", []))
     print_left_out(info.get("left_out", []))
     return 0
 

@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..color.base import Packet
-from ..errors import PcdcodecError
+from ..errors import InputError, PcdcodecError
 from ..ros.foxglove import (
     CAMERA_CALIBRATION,
     CAMERA_CALIBRATION_SCHEMA,
@@ -27,8 +27,10 @@ from ..ros.foxglove import (
     FRAME_TRANSFORM_SCHEMA,
     CompressedVideo,
 )
+from ..ros.kept import KeptMessage
 from . import _header as header
 from . import _index as fmt
+from ._kept import KeptChannels
 
 
 class SharedFile:
@@ -61,6 +63,7 @@ class Container:
         world_frame_id: str,
         camera: str | None = None,
         shared: SharedFile | None = None,
+        kept: KeptChannels | None = None,
     ) -> None:
         self.file = file
         self.writing = writing
@@ -92,6 +95,8 @@ class Container:
         self.bytes_color = 0
         self.bytes_depth = 0
         self.poses_written = 0
+        #: The kept topics' channels (format version 4), or ``None``.
+        self.kept = kept
 
     @property
     def broken(self) -> BaseException | None:
@@ -107,6 +112,8 @@ class Container:
         self.mcap = header.start_mcap(self.file)
         for name, data in header.records(self.settings, user).items():
             self.mcap.add_metadata(name, data)
+        if self.kept is not None:
+            self.kept.register(self.mcap)
         self.file.flush()
 
     def start_streams(
@@ -290,13 +297,30 @@ class Container:
             self.color_written.discard(self.depth_written.popleft())
             self.frames_complete += 1
 
+    # -- kept topics -----------------------------------------------------------------------
+
+    def add_kept(self, message: KeptMessage) -> None:
+        """Take a message of a kept topic; a chunk's worth is written as one zstd chunk."""
+        kept = self.kept
+        if kept is None:
+            raise InputError(
+                f"this recording keeps no other topics; open it with kept_topics to keep "
+                f"{message.topic.topic!r}"
+            )
+        if kept.add(message):
+            self.to_file(lambda: kept.write(self.mcap))
+
     # -- closing ---------------------------------------------------------------------------
 
     def seal(self) -> None:
-        """Write the seal: what the file holds, and the digest of the packets after the last
-        frame's digest (the encoder's flush)."""
+        """Write the kept messages still waiting, then the seal: what the file holds, and the
+        digest of the packets after the last frame's digest (the encoder's flush)."""
         name = fmt.SEAL_NAME if self.camera is None else fmt.camera_seal(self.camera)
-        self.mcap.add_metadata(name, fmt.seal(name, self.sealer.seal()))
+        record = self.sealer.seal()
+        if self.kept is not None:
+            self.kept.write(self.mcap)
+            record.update(self.kept.digest.seal())
+        self.mcap.add_metadata(name, fmt.seal(name, record))
         self.color_written.update(self.group_pts)
         self.group_pts.clear()
         self._count_complete()

@@ -48,7 +48,7 @@ __all__ = [
 PROFILE = "pcdcodec"
 #: The newest format version this pcdcodec reads and writes. Files that need nothing of a newer
 #: version are written with the oldest one that holds them (see ``docs/format.md``).
-FORMAT_VERSION = 2
+FORMAT_VERSION = 4
 
 TOPIC_COLOR = "/camera/color"
 TOPIC_KEYFRAMES = "/camera/color/keyframes"

@@ -17,6 +17,7 @@ from ..color.base import StreamCodec
 from ..errors import InputError, InputTypeError
 from ..frame import OPEN3D_DEPTH_SCALE, Frame
 from ..geometry.camera import CameraIntrinsics
+from ..ros.kept import KeptMessage, KeptTopic
 from ..sources.base import Source
 
 
@@ -54,6 +55,13 @@ class FrameInputs:
         raise NotImplementedError
 
     def _check_open(self) -> None:
+        raise NotImplementedError
+
+    @property
+    def kept_topics(self) -> list[KeptTopic]:
+        raise NotImplementedError
+
+    def write_message(self, message: KeptMessage) -> None:
         raise NotImplementedError
 
     def _raise_background_error(self) -> None:
@@ -123,6 +131,9 @@ class FrameInputs:
 
         count = 0
         for item in frames:
+            if isinstance(item, KeptMessage):
+                self.write_message(item)
+                continue
             if isinstance(item, Frame):
                 self.write(
                     item.color,
@@ -203,9 +214,19 @@ class FrameInputs:
         """The frames of ``source``, whose camera, depth scale and color are this recording's
         (checked by :meth:`write_source`; :func:`~pcdcodec.encode` opens the writer from the
         source)."""
+        theirs = source.kept_topics()
+        if theirs and not self.kept_topics:
+            names = ", ".join(t.topic for t in theirs[:5]) + (", ..." if len(theirs) > 5 else "")
+            raise InputError(
+                f"source {str(source.path)!r} has {len(theirs)} other topics ({names}) that this "
+                "recording was not opened to keep: open it with kept_topics=source.kept_topics() "
+                "(pcdcodec.encode does), or open the source with keep_topics=False to record the "
+                "camera only"
+            )
+        items: Iterable[Any] = source.items() if theirs else source
         if source.has_color and self.color_codec is None:
             # The color is left out; the pose stays.
-            frames: Iterable[Any] = (
+            items = (
                 Frame(
                     None,
                     f.depth,
@@ -213,11 +234,11 @@ class FrameInputs:
                     pose=f.pose,
                     depth_timestamp_ns=f.depth_timestamp_ns,
                 )
-                for f in source
+                if isinstance(f, Frame)
+                else f
+                for f in items
             )
-        else:
-            frames = source
-        return self.write_frames(frames, progress=progress)
+        return self.write_frames(items, progress=progress)
 
     def _synchronizer(self) -> Any:
         if self._sync is None:

@@ -346,6 +346,12 @@ def _parse_summary(f: IO[bytes], summary: bytes, start: int, size: int) -> FileI
     return index
 
 
+def _kept_channel(index: FileIndex, channel_id: int) -> bool:
+    info = index.channels.get(channel_id)
+    # (the key of pcdcodec.ros.kept.KEPT_KEY, not imported: `import pcdcodec` stays light)
+    return info is not None and info.metadata.get("pcdcodec.kept") == "1"
+
+
 def _single(ci: Any) -> bool:
     """Whether a chunk holds exactly one message, judged by the size of its message index."""
     # One message index record with one entry: opcode, length, channel id, count, 16 bytes.
@@ -437,7 +443,9 @@ def scan(f: IO[bytes], *, skip_damaged_chunks: bool = False, resync: bool = Fals
                         index.channel_schema[record.id] = record.schema_id
                 for message in messages:
                     key = (message.channel_id, message.log_time)
-                    if key in seen:
+                    if _kept_channel(index, message.channel_id):
+                        pass  # a kept topic may log two messages at one time
+                    elif key in seen:
                         info = index.channels.get(message.channel_id)
                         topic = info.topic if info is not None else f"channel {key[0]}"
                         index.duplicates[topic] = index.duplicates.get(topic, 0) + 1

@@ -49,6 +49,13 @@ class EncodeSummary:
         value = self.source.get("left_out")
         return [dict(item) for item in value] if isinstance(value, list) else []
 
+    @property
+    def kept(self) -> list[dict[str, Any]]:
+        """The input's other topics the recording keeps as they came: ``name``, ``type``,
+        ``messages`` and ``bytes`` (as the input held them)."""
+        value = self.source.get("kept")
+        return [dict(item) for item in value] if isinstance(value, list) else []
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "path": str(self.path),
@@ -60,6 +67,7 @@ class EncodeSummary:
             "fps": self.fps,
             "dropped": self.dropped,
             "left_out": self.left_out,
+            "kept": self.kept,
             "source": self.source,
         }
 
@@ -177,6 +185,7 @@ def encode(
                     color_intrinsics=source.color_intrinsics,
                     depth_to_color=source.depth_to_color,
                     frame_id=source.frame_id or "camera",
+                    kept_topics=source.kept_topics(),
                 ) as writer:
                     # Opened from the source: its camera is the recording's, checked once.
                     count = writer._write_source(source, progress)
@@ -185,15 +194,14 @@ def encode(
 
                 raise no_frames_error(source)
         seconds = time.perf_counter() - start
+        info = source.describe()
+        written = writer.kept_written
+        for item in info.get("kept", []):
+            item["messages"], item["bytes"] = written.get(item["name"], (0, 0))
         return EncodeSummary(
-            target,
-            count,
-            target.stat().st_size,
-            writer.bytes_color,
-            writer.bytes_depth,
-            seconds,
-            source.describe(),
-        )
+            target, count, target.stat().st_size, writer.bytes_color, writer.bytes_depth,
+            seconds, info,
+        )  # fmt: skip
     finally:
         if owned:
             source.close()
@@ -232,11 +240,16 @@ def _passthrough(
                     depth=depth,
                     fps=fps,
                     metadata={**metadata, "ros_video_topic": source.color_topic or ""},
+                    kept_topics=source.kept_topics(),
                 )
             writer.write_encoded(packets, image, ts)
             count += 1
             if progress is not None:
                 progress(count)
+        if writer is not None:
+            # The other topics, after the frames (their order among themselves is kept).
+            for message in source.kept_messages():
+                writer.write_message(message)
     finally:
         if writer is not None:
             writer.close()

@@ -22,6 +22,7 @@ from ..geometry.camera import CameraIntrinsics
 from ..geometry.projector import Projector
 from . import _header as header
 from . import _index as fmt
+from ._kept import KeptAccess, kept_problems
 from ._packets import PacketAccess
 from ._readahead import (
     KEEP_PICTURES,
@@ -55,7 +56,7 @@ class SeveralCamerasError(InputError):
         self.index = index
 
 
-class Recording(PacketAccess, OneCamera):
+class Recording(KeptAccess, PacketAccess, OneCamera):
     """A ``.pcdc`` recording opened for reading. Use :func:`pcdcodec.open`.
 
     ``len(rec)``, ``rec[i]``, ``rec[a:b]`` (a list), iteration, ``rec.nearest(t)`` and
@@ -154,16 +155,16 @@ class Recording(PacketAccess, OneCamera):
         #: 1 for files with frame digests and a seal (``docs/format.md``), 0 for earlier ones.
         self.integrity = fmt.integrity_version(index, repr(name))
         seal_record = fmt.SEAL_NAME if self.camera is None else fmt.camera_seal(self.camera)
+        seal = index.metadata.get(fmt.SEAL_NAME)
         problems = fmt.seal_problems(index, repr(name), record=seal_record)
+        problems += kept_problems(index, seal)
         if problems:
             raise DecodeError(
                 f"{name!r} does not hold what its writer sealed when closing it: "
                 + "; ".join(problems)
                 + "; `pcdcodec recover` copies the frames it can read into a new file"
             )
-        self._seal: dict[str, str] | None = (
-            index.metadata.get(fmt.SEAL_NAME) if self.integrity else None
-        )
+        self._seal: dict[str, str] | None = seal if self.integrity else None
         record = fmt.METADATA_NAME if self.camera is None else fmt.camera_record(self.camera)
         where = f"{name!r}: the {record!r} metadata at byte offset " + str(
             index.metadata_offsets.get(fmt.METADATA_NAME)

@@ -27,10 +27,12 @@ from ..errors import InputError, InputTypeError, PcdcodecError
 from ..geometry.projector import check_color_camera
 from ..geometry.transform import as_rigid
 from ..registry import as_codec
+from ..ros.kept import KeptMessage, KeptTopic
 from . import _header as header
 from . import _index as fmt
 from ._container import Container, SharedFile
 from ._inputs import FrameInputs
+from ._kept import KEPT_VERSION, KeptChannels
 from ._pipeline import Pipeline
 
 __all__ = ["MAX_TIMESTAMP_NS", "RecordingWriter"]
@@ -169,6 +171,7 @@ class RecordingWriter(FrameInputs):
         color_intrinsics: Any = None,
         depth_to_color: Any = None,
         world_frame_id: str = "world",
+        kept_topics: Sequence[KeptTopic] = (),
         _shared: SharedFile | None = None,
         _camera: str | None = None,
     ) -> None:
@@ -214,8 +217,13 @@ class RecordingWriter(FrameInputs):
         self.depth_codec._require_available()
         user = header.user_metadata(metadata)
         two_cameras = self.color_intrinsics is not None
+        kept = KeptChannels(kept_topics) if kept_topics else None
+        if kept is not None and _shared is not None:
+            raise InputError("a camera of a rig keeps no topics of its own")
         self._settings = header.Settings(
-            header.Settings.version_for(self.intrinsics, two_cameras),
+            KEPT_VERSION
+            if kept is not None
+            else header.Settings.version_for(self.intrinsics, two_cameras),
             self.intrinsics,
             self.depth_scale,
             self.fps,
@@ -245,7 +253,7 @@ class RecordingWriter(FrameInputs):
                 shared=_shared,
             )
         else:
-            self._open_file(overwrite, video_format, user)
+            self._open_file(overwrite, video_format, user, kept)
         self._encoder: VideoEncoder | None = None
         self._pipeline = Pipeline(in_flight, lambda: self._drain_one())
         # The codecs are made ready now: depthac's compiled loops loaded, the video encoder
@@ -269,7 +277,13 @@ class RecordingWriter(FrameInputs):
         self._mode: str | None = None  # "frames" (write) or "encoded" (write_encoded)
         self._closed = False
 
-    def _open_file(self, overwrite: bool, video_format: str | None, user: dict[str, str]) -> None:
+    def _open_file(
+        self,
+        overwrite: bool,
+        video_format: str | None,
+        user: dict[str, str],
+        kept: KeptChannels | None = None,
+    ) -> None:
         """Create the file (beside an existing one it replaces) and write its records."""
         self._target = self.path
         self._writing, self._file = open_output(self.path, overwrite)
@@ -279,6 +293,7 @@ class RecordingWriter(FrameInputs):
             self._settings,
             video_format=video_format,
             world_frame_id=self.world_frame_id,
+            kept=kept,
         )
         try:
             self._start(user)
@@ -416,6 +431,27 @@ class RecordingWriter(FrameInputs):
         self._check_open()
         self._raise_background_error()
         self._take(color, depth, timestamp, pose, (color_timestamp, depth_timestamp))
+
+    @property
+    def kept_topics(self) -> list[KeptTopic]:
+        """The other topics of the input this recording keeps as they came."""
+        kept = self._container.kept
+        return [] if kept is None else list(kept.topics)
+
+    @property
+    def kept_written(self) -> dict[str, tuple[int, int]]:
+        """Kept messages written so far, per topic: ``(messages, bytes)``."""
+        kept = self._container.kept
+        return {} if kept is None else {t: (n, b) for t, (n, b) in kept.written.items()}
+
+    def write_message(self, message: KeptMessage) -> None:
+        """Keep one message of a kept topic (one of ``kept_topics``, given when opening) as it
+        came: its bytes, log and publish time. Messages are gathered into zstd chunks of about
+        1 MiB (:data:`~pcdcodec.recording._kept.CHUNK_BYTES`), written as each fills and on
+        :meth:`close`. Raises :class:`~pcdcodec.InputError` for a topic not given."""
+        check_not_inherited(self, f"the writer of {str(self.path)!r}")
+        self._check_open()
+        self._container.add_kept(message)
 
     def _check_float_scale(self, depth: npt.NDArray[Any]) -> None:
         if depth.dtype == np.float32 and not self._scale_given:

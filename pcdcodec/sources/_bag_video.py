@@ -4,11 +4,13 @@ they go with (:meth:`pcdcodec.sources.rosbag.RosbagSource.encoded_frames`)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
+from functools import partial
 from typing import Any
 
 from ..color.base import Packet
 from ..errors import InputError
 from ..ros import messages as rm
+from ..ros.topics import VIDEO_TYPES
 from ..sync import Synchronizer
 
 
@@ -76,3 +78,62 @@ def paired_packets(
             return
     yield from groups(sync.flush())
     count_drops()
+
+
+class BagVideo:
+    """The pass-through half of :class:`~pcdcodec.sources.rosbag.RosbagSource`: encoded video
+    topics read as packets, undecoded."""
+
+    _reader: Any
+    path: Any
+    mode: str
+    max_difference: int
+    max_frames: int | None
+    color_topic: str | None
+    _depth_conn: Any
+    stats: Any
+    _conn: Callable[..., Any]
+    _messages: Callable[..., Any]
+    _stamp: Callable[..., Any]
+    _decode: Callable[..., Any]
+    _new_stats: Callable[[], Any]
+
+    def video_topics(self) -> list[str]:
+        """Topics holding encoded video (Foxglove CompressedVideo, ffmpeg_image_transport)."""
+        return [c.topic for c in self._reader.connections if c.msgtype in VIDEO_TYPES]
+
+    def encoded_frames(self, video_topic: str | None = None) -> Iterator[tuple[str, Any, Any, int]]:
+        """Frames whose color is the bag's encoded video, not decoded: ``(video_format,
+        packets, depth, timestamp)`` for :meth:`pcdcodec.RecordingWriter.write_encoded`.
+
+        Each video message is one packet, paired with a depth image by stamp as images are.
+        The paired packet takes the depth's stamp; packets without a depth partner are kept
+        (later packets may need them to decode) and go with the next frame, at their own
+        stamps. Raises :class:`~pcdcodec.InputError` without a video topic or for a format
+        other than h264/h265.
+        """
+        topics = self.video_topics()
+        if video_topic is None:
+            if not topics:
+                raise InputError(
+                    f"bag {str(self.path)!r} has no encoded video topic (foxglove_msgs/"
+                    "CompressedVideo or ffmpeg_image_transport_msgs/FFMPEGPacket)"
+                )
+            video_topic = topics[0]
+        vconn = self._conn(video_topic, "video")
+        if vconn.msgtype not in VIDEO_TYPES:
+            raise InputError(f"video topic {video_topic!r} is a {vconn.msgtype}")
+        if self.mode != "images":
+            raise InputError("pass-through pairs video with depth images, not with clouds")
+        self.color_topic = video_topic
+        self.stats = self._new_stats()
+        yield from paired_packets(
+            self._messages([self._depth_conn, vconn]),
+            self._depth_conn.topic,
+            video_topic,
+            stamp=self._stamp,
+            decode=partial(self._decode, conn=self._depth_conn, role="depth"),
+            stats=self.stats,
+            max_difference=self.max_difference,
+            max_frames=self.max_frames,
+        )

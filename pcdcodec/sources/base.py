@@ -1,14 +1,10 @@
-"""The :class:`Source` protocol: anything that yields timestamped RGB-D frames.
-
-A source knows its camera (the depth camera's intrinsics, and for unregistered sensors the
-color camera and the transform between them), its depth scale, and yields
-:class:`~pcdcodec.RGBDFrame` objects in time order. Folders, ROS bags and camera recordings all
-implement it, and the recording writer consumes it through one path
-(:meth:`pcdcodec.RecordingWriter.write_source`).
-
-:func:`open_source` picks the reader from the content of the path (magic bytes, folder
-layout), never from its name. Readers register themselves with :func:`register_source`; this
-module imports none of them (:mod:`pcdcodec.sources` loads the built-in ones on first use).
+"""The :class:`Source` protocol: what yields timestamped RGB-D frames (and the input's other
+messages a recording keeps as they came, :meth:`Source.items`), knowing its camera (for
+unregistered sensors the color camera and depth-to-color transform too) and depth scale.
+Folders, ROS bags and camera files implement it; the writer takes it through one path
+(:meth:`pcdcodec.RecordingWriter.write_source`). :func:`open_source` picks the reader from the
+path's content (magic bytes, folder layout), never its name. Readers register themselves
+(:func:`register_source`); this module imports none (:mod:`pcdcodec.sources` loads them).
 """
 
 from __future__ import annotations
@@ -26,6 +22,7 @@ from ..errors import InputError, PcdcodecError
 if TYPE_CHECKING:
     from ..frame import Frame
     from ..geometry.camera import CameraIntrinsics
+    from ..ros.kept import KeptMessage, KeptTopic
     from .camera_rule import CameraDefaults, settle_camera
 
 __all__ = [
@@ -217,24 +214,41 @@ class Source(abc.ABC):
 
     @property
     def left_out(self) -> tuple[InputStream, ...]:
-        """The input's topics, tracks or files that a recording of it does not hold: every
-        :meth:`input_streams` item not in :meth:`recorded_streams`, in name order."""
-        kept = self.recorded_streams()
+        """The input's topics, tracks or files a recording of it does not hold: those of
+        :meth:`input_streams` neither recorded nor kept (:meth:`kept_topics`), by name."""
+        kept = self.recorded_streams() | {t.topic for t in self.kept_topics()}
         return tuple(s for s in self.input_streams() if s.name not in kept)
 
+    def kept_topics(self) -> list[KeptTopic]:
+        """The input's topics a recording keeps as they came (:meth:`kept_messages`): for a
+        bag, every topic not made into frames. The default: none."""
+        return []
+
+    def kept_messages(self) -> Iterator[KeptMessage]:
+        """The messages of :meth:`kept_topics`, in the input's order, bytes as stored."""
+        return iter(())
+
+    def items(self) -> Iterator[Frame | KeptMessage]:
+        """Frames and kept messages, streamed in time order (a frame at its timestamp, a
+        message at its log time): what :meth:`pcdcodec.RecordingWriter.write_source` writes."""
+        from ..ros.kept import by_time
+
+        return by_time(iter(self), self.kept_messages())
+
     def describe(self) -> dict[str, Any]:
-        """What an ``encode`` summary prints: the reader, camera and depth scale used, and
-        what of the input is left out (``left_out``: name, type, messages)."""
+        """What an ``encode`` summary prints: the reader, camera, depth scale, and what of the
+        input is kept as it came and left out (``kept``, ``left_out``: name, type, messages)."""
+        from ..ros.kept import kept_listing
+
         return {
             "source": type(self).__name__,
             "path": str(self.path),
             "frames": self.frame_count,
             "intrinsics": self.intrinsics.to_dict() if self.intrinsics is not None else None,
             "depth_scale": self.depth_scale,
-            "color_intrinsics": self.color_intrinsics.to_dict()
-            if self.color_intrinsics is not None
-            else None,
+            "color_intrinsics": self.color_intrinsics and self.color_intrinsics.to_dict(),
             "left_out": [s.to_dict() for s in self.left_out],
+            "kept": kept_listing(self.kept_topics(), self.input_streams()),
             "intrinsics_from": self.intrinsics_origin,
             "depth_scale_from": self.depth_scale_origin,
             "camera_notes": list(self.camera_notes),
@@ -259,6 +273,8 @@ _NAMED_METHODS = (
     "frame_index",
     "encoded_frames",
     "candidates",
+    "items",
+    "kept_messages",
 )
 
 

@@ -204,7 +204,8 @@ def open_bag_cameras(
                 )
             # A bag of one camera is read exactly as on its own.
             chosen = found.topics[ns] if len(found.namespaces) > 1 else {}
-            source = RosbagSource(found.path, **{**chosen, **options})
+            # A camera of a rig keeps no topics: what no camera reads is named as left out.
+            source = RosbagSource(found.path, **{**chosen, "keep_topics": False, **options})
             frame = found.frames[ns] or None
             placed = found.placements.get(frame or "")
             cam = CameraInput(

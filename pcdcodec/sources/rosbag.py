@@ -45,17 +45,18 @@ from ..ros import messages as rm
 from ..ros.bagfile import MCAP_MAGIC as MCAP_MAGIC
 from ..ros.bagfile import ROS1_MAGIC as ROS1_MAGIC
 from ..ros.bagfile import SQLITE_MAGIC as SQLITE_MAGIC
+from ..ros.kept import TopicFilter
 from ..ros.topics import (
     CAMERA_INFO,
     COMPRESSED,
     IMAGE,
     POINT_CLOUD,
-    VIDEO_TYPES,
     TopicCandidate,
 )
 from ..sync import MAX_DIFFERENCE, as_max_difference
 from ._bag_color import color_camera
-from ._bag_video import paired_packets
+from ._bag_kept import BagKeptTopics
+from ._bag_video import BagVideo
 from .base import FrameIndex, InputStream, Source, read_magic, register_source, streams_by_name
 
 __all__ = ["RosbagSource", "TopicCandidate", "open_bag"]
@@ -104,7 +105,7 @@ class _Stats(bagindex.PairStats):
     frames: int = 0
 
 
-class RosbagSource(Source):
+class RosbagSource(BagVideo, BagKeptTopics, Source):
     """A ROS 1 or ROS 2 bag read as RGB-D frames.
 
     Options (all keyword-only):
@@ -118,7 +119,9 @@ class RosbagSource(Source):
     * ``max_frames``: stop after this many frames;
     * ``depth_to_color``: the 4 × 4 depth-to-color transform (metres, or a text file of its 16
       numbers) where the color topic's own CameraInfo shows a camera apart from the depth and
-      the bag's tf does not place one in the other (see :meth:`_setup_color_camera`).
+      the bag's tf does not place one in the other (see :meth:`_setup_color_camera`);
+    * ``keep_topics`` (default true), ``include_topics``, ``exclude_topics``: which of the other
+      topics a recording keeps as they came (:meth:`kept_topics`; shell-style patterns).
 
     After iterating, :attr:`dropped` counts the images that found no partner and
     :attr:`out_of_order` those whose stamp did not increase. Raises
@@ -141,8 +144,12 @@ class RosbagSource(Source):
         max_frames: int | None = None,
         cloud_depth: str = "auto",
         depth_to_color: Any = None,
+        keep_topics: bool = True,
+        include_topics: Sequence[str] | str | None = None,
+        exclude_topics: Sequence[str] | str | None = None,
     ) -> None:
         self.path = Path(path)
+        self.topic_filter = TopicFilter.of(include_topics, exclude_topics, keep_topics)
         if cloud_depth not in ("auto", "float32"):
             raise InputError(f"cloud_depth must be 'auto' or 'float32', got {cloud_depth!r}")
         self.cloud_depth = cloud_depth
@@ -168,6 +175,9 @@ class RosbagSource(Source):
             raise
 
     # -- opening: the topics and the camera --------------------------------------------------
+
+    def _new_stats(self) -> _Stats:
+        return _Stats()
 
     def _first(self, conn: Any) -> Any:
         try:
@@ -455,7 +465,7 @@ class RosbagSource(Source):
     @property
     def out_of_order(self) -> int:
         """Messages skipped because their stamp did not increase."""
-        return self.stats.out_of_order
+        return int(self.stats.out_of_order)
 
     def __length_hint__(self) -> int:
         n = int(self._depth_conn.msgcount)
@@ -746,48 +756,6 @@ class RosbagSource(Source):
                 yield self._cloud_frame(dmsg, ts)
             else:
                 yield None, self._decode(dmsg, dconn, "depth", ts), ts, None
-
-    # -- pass-through of encoded video -------------------------------------------------------
-
-    def video_topics(self) -> list[str]:
-        """Topics holding encoded video (Foxglove CompressedVideo, ffmpeg_image_transport)."""
-        return [c.topic for c in self._reader.connections if c.msgtype in VIDEO_TYPES]
-
-    def encoded_frames(self, video_topic: str | None = None) -> Iterator[tuple[str, Any, Any, int]]:
-        """Frames whose color is the bag's encoded video, not decoded: ``(video_format,
-        packets, depth, timestamp)`` for :meth:`pcdcodec.RecordingWriter.write_encoded`.
-
-        Each video message is one packet, paired with a depth image by stamp as images are.
-        The paired packet takes the depth's stamp; packets without a depth partner are kept
-        (later packets may need them to decode) and go with the next frame, at their own
-        stamps. Raises :class:`~pcdcodec.InputError` without a video topic or for a format
-        other than h264/h265.
-        """
-        topics = self.video_topics()
-        if video_topic is None:
-            if not topics:
-                raise InputError(
-                    f"bag {str(self.path)!r} has no encoded video topic (foxglove_msgs/"
-                    "CompressedVideo or ffmpeg_image_transport_msgs/FFMPEGPacket)"
-                )
-            video_topic = topics[0]
-        vconn = self._conn(video_topic, "video")
-        if vconn.msgtype not in VIDEO_TYPES:
-            raise InputError(f"video topic {video_topic!r} is a {vconn.msgtype}")
-        if self.mode != "images":
-            raise InputError("pass-through pairs video with depth images, not with clouds")
-        self.color_topic = video_topic
-        self.stats = _Stats()
-        yield from paired_packets(
-            self._messages([self._depth_conn, vconn]),
-            self._depth_conn.topic,
-            video_topic,
-            stamp=self._stamp,
-            decode=partial(self._decode, conn=self._depth_conn, role="depth"),
-            stats=self.stats,
-            max_difference=self.max_difference,
-            max_frames=self.max_frames,
-        )
 
     def close(self) -> None:
         reader = getattr(self, "_reader", None)

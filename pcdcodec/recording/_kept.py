@@ -1,0 +1,286 @@
+"""The kept topics of a recording (format version 4, ``docs/format.md``): the channels that
+hold an input's other topics as they came, how they are written (in zstd chunks of their own,
+as MCAP's own compression does) and sealed, and how they are read back and checked.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import struct
+from collections.abc import Iterable, Iterator, Sequence
+from typing import IO, Any
+
+from ..errors import DecodeError, InputError
+from ..ros.kept import KEPT_KEY, KeptMessage, KeptTopic
+from . import _index as fmt
+
+__all__ = [
+    "CHUNK_BYTES",
+    "KEPT_VERSION",
+    "KeptChannels",
+    "kept_problems",
+    "kept_topics_of",
+    "read_kept",
+]
+
+#: The format version of files with kept topics: earlier readers refuse them rather than
+#: read the camera and drop the rest unseen.
+KEPT_VERSION = 4
+#: Kept messages are gathered into zstd chunks of about this many bytes (MCAP's default).
+CHUNK_BYTES = 1 << 20
+#: The seal's keys for kept messages: per topic counts (JSON) and the digest of them all.
+SEAL_KEPT_KEYS = ("kept", "kept_digest")
+_FIELDS = struct.Struct("<QQQQ")  # topic length, log time, publish time, data length
+
+#: pcdcodec's own topic names, which a kept topic may not take.
+OWN_TOPICS = frozenset(
+    (*fmt.SEALED_TOPICS, fmt.TOPIC_STAMPS, fmt.TOPIC_FRAME_DIGEST, fmt.TOPIC_KEYFRAMES)
+)
+
+
+class KeptDigest:
+    """The seal's count and digest of the kept messages, in file order."""
+
+    def __init__(self) -> None:
+        self.counts: dict[str, int] = {}
+        self._digest = hashlib.sha256()
+
+    def note(self, topic: str, log_time: int, publish_time: int, data: bytes) -> None:
+        name = topic.encode()
+        self._digest.update(_FIELDS.pack(len(name), log_time, publish_time, len(data)))
+        self._digest.update(name)
+        self._digest.update(data)
+        self.counts[topic] = self.counts.get(topic, 0) + 1
+
+    def seal(self) -> dict[str, str]:
+        if not self.counts:
+            return {}
+        return {
+            "kept": json.dumps(dict(sorted(self.counts.items())), separators=(",", ":")),
+            "kept_digest": "sha256:" + self._digest.hexdigest(),
+        }
+
+
+class KeptChannels:
+    """A writer's kept channels: registered when the file starts, messages gathered and
+    written a chunk at a time."""
+
+    def __init__(self, topics: Sequence[KeptTopic]) -> None:
+        self.topics: list[KeptTopic] = []
+        for t in topics:
+            if not isinstance(t, KeptTopic):
+                raise InputError(f"kept_topics takes KeptTopic items, got {type(t).__name__}")
+            if t.topic in OWN_TOPICS:
+                raise InputError(
+                    f"topic {t.topic!r} has the name of a channel pcdcodec writes itself; leave "
+                    "it out (exclude_topics) or rename it in the input"
+                )
+            if t not in self.topics:
+                self.topics.append(t)
+        self.ids: dict[KeptTopic, int] = {}
+        self.pending: list[tuple[int, KeptMessage]] = []
+        self.pending_bytes = 0
+        self.digest = KeptDigest()
+        #: Messages and bytes written, per topic.
+        self.written: dict[str, list[int]] = {}
+
+    def register(self, mcap: Any) -> None:
+        schemas: dict[tuple[str, str, str], int] = {}
+        for t in self.topics:
+            key = (t.schema_name, t.schema_encoding, t.definition)
+            if key not in schemas:
+                schemas[key] = (
+                    mcap.register_schema(t.schema_name, t.schema_encoding, t.definition.encode())
+                    if t.schema_encoding
+                    else 0
+                )
+            self.ids[t] = mcap.register_channel(
+                t.topic, t.message_encoding, schemas[key], t.channel_metadata()
+            )
+
+    def add(self, message: KeptMessage) -> bool:
+        """Take ``message``; ``True`` when a chunk's worth is waiting."""
+        cid = self.ids.get(message.topic)
+        if cid is None:
+            raise InputError(
+                f"topic {message.topic.topic!r} ({message.topic.msgtype}) is not one of the "
+                "kept topics this recording was opened with (kept_topics)"
+            )
+        if not isinstance(message.data, (bytes, bytearray, memoryview)):
+            raise InputError(
+                f"a kept message of {message.topic.topic!r} holds a "
+                f"{type(message.data).__name__}, expected bytes"
+            )
+        if message.log_time < 0 or message.published < 0:
+            raise InputError(
+                f"a kept message of {message.topic.topic!r} has a negative time "
+                f"({message.log_time} ns)"
+            )
+        self.pending.append((cid, message))
+        self.pending_bytes += len(message.data) + 40
+        return self.pending_bytes >= CHUNK_BYTES
+
+    def write(self, mcap: Any) -> None:
+        """Write the messages waiting as one zstd chunk (each in the order taken)."""
+        if not self.pending:
+            return
+        pending, self.pending, self.pending_bytes = self.pending, [], 0
+        with _CompressedChunks(mcap):
+            for cid, m in pending:
+                data = bytes(m.data)
+                mcap.add_message(cid, m.log_time, data, m.published, 0)
+                self.digest.note(m.topic.topic, m.log_time, m.published, data)
+                count = self.written.setdefault(m.topic.topic, [0, 0])
+                count[0] += 1
+                count[1] += len(data)
+
+
+class _CompressedChunks:
+    """Within the block, the MCAP writer gathers messages into one zstd chunk, written when
+    the block ends; outside, every message is a chunk of its own, uncompressed (the writer's
+    settings for frames, :func:`pcdcodec.recording._header.start_mcap`)."""
+
+    _SIZE = "_Writer__chunk_size"
+    _COMPRESSION = "_Writer__compression"
+
+    def __init__(self, mcap: Any) -> None:
+        self.mcap = mcap
+        self.usable = hasattr(mcap, self._SIZE) and hasattr(mcap, self._COMPRESSION)
+
+    def __enter__(self) -> None:
+        if self.usable:
+            from mcap.writer import CompressionType
+
+            self.saved = getattr(self.mcap, self._SIZE), getattr(self.mcap, self._COMPRESSION)
+            setattr(self.mcap, self._SIZE, 1 << 62)
+            setattr(self.mcap, self._COMPRESSION, CompressionType.ZSTD)
+
+    def __exit__(self, *exc: object) -> None:
+        if self.usable:
+            try:
+                self.mcap.flush()  # the chunk, compressed
+            finally:
+                setattr(self.mcap, self._SIZE, self.saved[0])
+                setattr(self.mcap, self._COMPRESSION, self.saved[1])
+
+
+# -- reading ------------------------------------------------------------------------------------
+
+
+def kept_channel_ids(index: fmt.FileIndex) -> dict[int, KeptTopic]:
+    """The kept channels of a file, by channel id."""
+    return {
+        cid: KeptTopic.from_channel(
+            ch.topic, ch.encoding, ch.metadata, index.schemas.get(index.channel_schema.get(cid, 0))
+        )
+        for cid, ch in index.channels.items()
+        if ch.metadata.get(KEPT_KEY) == "1"
+    }
+
+
+def kept_topics_of(index: fmt.FileIndex) -> list[KeptTopic]:
+    """The kept topics of a file, in channel order."""
+    out: list[KeptTopic] = []
+    for t in kept_channel_ids(index).values():
+        if t not in out:
+            out.append(t)
+    return out
+
+
+def kept_counts(index: fmt.FileIndex) -> dict[str, int]:
+    """Messages per kept topic, from the index."""
+    names = {ch.topic for ch in index.channels.values() if ch.metadata.get(KEPT_KEY) == "1"}
+    return {t: len(index.times.get(t, [])) for t in sorted(names) if index.times.get(t)}
+
+
+def kept_problems(index: fmt.FileIndex, seal: dict[str, str] | None) -> list[str]:
+    """How the kept messages the index lists differ from the seal's counts (none for a file
+    without a seal: its writer died, and its chunks' CRCs vouch for what it holds)."""
+    if seal is None:
+        return []
+    found = kept_counts(index)
+    sealed_text = seal.get("kept")
+    if sealed_text is None:
+        return [f"kept messages: sealed none, found {found}"] if found else []
+    try:
+        sealed = json.loads(sealed_text)
+    except ValueError:
+        return [f"kept messages: the seal's count {sealed_text!r} is not JSON"]
+    if sealed != found:
+        return [f"kept messages per topic: sealed {sealed}, found {found}"]
+    return []
+
+
+def read_kept(
+    f: IO[bytes],
+    index: fmt.FileIndex,
+    what: str,
+    *,
+    topics: Iterable[str] | None = None,
+    check: bool = True,
+) -> Iterator[KeptMessage]:
+    """The kept messages of the file, in file order, each chunk's CRC checked before its
+    messages are given. With ``check`` (and every topic read) the whole is compared with the
+    seal's digest at the end: a :class:`~pcdcodec.DecodeError` then says the messages given
+    were not those sealed."""
+    channels = kept_channel_ids(index)
+    if not channels:
+        return
+    wanted = None if topics is None else set(topics)
+    offsets = sorted(
+        {
+            off
+            for ch in {c.topic for c in index.channels.values() if c.id in channels}
+            for off in index.offsets.get(ch, [])
+        }
+    )
+    digest = KeptDigest()
+    for off in offsets:
+        for m in fmt.read_chunk_messages(f, off, what=what):
+            topic = channels.get(m.channel_id)
+            if topic is None:
+                continue
+            data = bytes(m.data)
+            digest.note(topic.topic, m.log_time, m.publish_time, data)
+            if wanted is None or topic.topic in wanted:
+                yield KeptMessage(topic, int(m.log_time), data, int(m.publish_time))
+    seal = index.metadata.get(fmt.SEAL_NAME)
+    if (
+        check
+        and seal is not None
+        and digest.seal() != {k: seal[k] for k in SEAL_KEPT_KEYS if k in seal}
+    ):
+        raise DecodeError(
+            f"{what}: the kept messages are not those sealed (changed, added, removed or "
+            "reordered); run `pcdcodec recover` to copy those that check out"
+        )
+
+
+class KeptAccess:
+    """What a :class:`~pcdcodec.Recording` gives of its kept topics."""
+
+    path: Any
+    index: fmt.FileIndex
+    _file: IO[bytes]
+    _lock: Any
+
+    @property
+    def kept_topics(self) -> list[KeptTopic]:
+        """The other topics of the input that the recording keeps as they came (each with its
+        type, message definition, serialization and connection facts); empty for recordings
+        without (format versions 1-3)."""
+        return kept_topics_of(self.index)
+
+    def kept_counts(self) -> dict[str, int]:
+        """Messages per kept topic."""
+        return kept_counts(self.index)
+
+    def kept_messages(self, topics: Iterable[str] | None = None) -> Iterator[KeptMessage]:
+        """The kept topics' messages (of ``topics`` only, when given), in the order they were
+        written, each with its bytes as the input held them and its log and publish times.
+        Each chunk's CRC is checked before its messages are given, and reading them all checks
+        them against the seal at the end (:class:`~pcdcodec.DecodeError` if they differ).
+        Reads its own handle of the file, so frames can be read meanwhile."""
+        with open(self.path, "rb") as f:
+            yield from read_kept(f, self.index, repr(str(self.path)), topics=topics)
