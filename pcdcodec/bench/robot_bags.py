@@ -47,6 +47,15 @@ from ..geometry.projector import Projector
 from .robot_streams import COLOR_FRAME, DEPTH_FRAME, BagMessages, extra_streams, static_tf
 
 __all__ = [
+    "ALIGNED",
+    "ALIGNED_INFO",
+    "CLOUD",
+    "COLOR",
+    "COLOR_FRAME",
+    "COLOR_INFO",
+    "DEPTH",
+    "DEPTH_FRAME",
+    "DEPTH_INFO",
     "KINDS",
     "REALSENSE_CLOUD_DTYPE",
     "TOPICS",
