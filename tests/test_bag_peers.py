@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 
 from pcdcodec.bench import bag_peers
-from pcdcodec.bench.sequences import SEQUENCES
+from pcdcodec.datasets import load_sample
 from pcdcodec.errors import CodecUnavailableError, InputError
 from pcdcodec.geometry.projector import Projector
 from pcdcodec.ros.bagfile import open_reader
 from pcdcodec.ros.bagwriter import BagWriter, MessageBuilder
 from pcdcodec.ros.clouds import cloud_array
 
-from .conftest import SHARED_DATA, load_colors, load_depths
+from .conftest import SHARED_DATA
 
 BAGS = SHARED_DATA / "bags"
 REAL_BAGS = {
@@ -255,21 +255,13 @@ def test_ros1_lz4_converts_a_ros2_bag(tmp_path: Path) -> None:
 def _cloud_bag(path: Path, fmt: str, storage: str) -> list[np.ndarray[Any, Any]]:
     """A bag of two organized XYZRGB clouds from the sample's real frames, and a /tf topic
     beside them; returns the clouds written."""
-    seq = SEQUENCES["sample"]
-    projector = Projector(seq.camera, depth_scale=seq.depth_scale)
-    depths, colors = load_depths("sample", 2), load_colors("sample", 2)
-    bag = BagWriter(path, fmt, storage, MessageBuilder(fmt == "rosbag2", "camera"))
-    bag.add(CLOUD, "sensor_msgs/msg/PointCloud2")
-    bag.add("/tf", "tf2_msgs/msg/TFMessage")
-    clouds = []
-    for i, (depth, color) in enumerate(zip(depths, colors, strict=True)):
-        ns = (i + 1) * NS
-        pts = cloud_array(projector, depth, color)
-        clouds.append(pts)
-        bag.write(CLOUD, ns, bag.messages.cloud(ns, pts))
-        bag.write("/tf", ns + 1, bag.messages.tf(ns, np.eye(4), "world"))
-    bag.close()
-    return clouds
+    sample = load_sample()  # real TUM frames, color paired with depth
+    depths, colors = [sample[i].depth for i in (0, 7)], [sample[i].color for i in (0, 7)]
+    bag_peers.write_cloud_bag(
+        path, depths, colors, sample.intrinsics, sample.depth_scale, fmt=fmt, storage=storage, hz=1
+    )
+    projector = Projector(sample.intrinsics, depth_scale=sample.depth_scale)
+    return [cloud_array(projector, d, c) for d, c in zip(depths, colors, strict=True)]
 
 
 @pytest.mark.parametrize(
@@ -287,6 +279,13 @@ def test_cloudini_gives_clouds_back_within_a_millimetre(
     assert result.peer == "cloudini 1 mm"
     back = list(bag_peers.cloudini_clouds(out))
     assert [(b.topic, b.log_time) for b in back] == [(CLOUD, NS), (CLOUD, 2 * NS)]
+    reader, tmp = open_reader(bag)  # the clouds as the bag holds them: the ones compared
+    held = [
+        reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages() if c.topic == CLOUD
+    ]
+    reader.close()
+    assert tmp is None
+    assert [bytes(m.data) for m in held] == [c.tobytes() for c in clouds]
     for want, got in zip(clouds, back, strict=True):
         pts = got.points
         assert pts.shape == want.shape == (480, 640)

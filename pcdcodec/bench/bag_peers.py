@@ -35,6 +35,7 @@ import numpy.typing as npt
 
 from .._atomic import atomic_output
 from ..errors import CodecUnavailableError, DecodeError, InputError
+from ..geometry.camera import CameraIntrinsics
 from ..ros import bagfile
 from .bag_stream import Channel, McapOut, open_bag, ros1_schema, zstd_level
 
@@ -51,6 +52,7 @@ __all__ = [
     "cloudini_clouds",
     "mcap_zstd",
     "ros1_lz4",
+    "write_cloud_bag",
 ]
 
 #: The zstd level of the MCAP C++ writer's default ("Default" maps to zstd 1), which ROS 2's
@@ -416,6 +418,44 @@ class CloudBack:
     topic: str
     log_time: int
     points: npt.NDArray[Any]
+
+
+def write_cloud_bag(
+    path: str | os.PathLike[str],
+    depths: Sequence[npt.NDArray[Any]],
+    colors: Sequence[npt.NDArray[np.uint8]],
+    camera: CameraIntrinsics,
+    depth_scale: float,
+    *,
+    fmt: str = "rosbag2",
+    storage: str = "mcap",
+    hz: float = 15.0,
+    topic: str = "/camera/depth/color/points",
+) -> Path:
+    """A bag at ``path`` of organized XYZRGB PointCloud2 clouds (PCL's 32-byte points, NaN
+    where there is no depth) made from ``depths`` and ``colors`` at ``hz``, with a ``/tf``
+    message beside each: the cloud topic Cloudini is made for, in a bag of ``fmt``
+    (``rosbag1``, ``rosbag2``) and ``storage`` (``mcap``, ``sqlite3``). Returns ``path``."""
+    from ..geometry.projector import Projector
+    from ..ros.bagwriter import BagWriter, MessageBuilder
+    from ..ros.clouds import cloud_array
+
+    projector = Projector(camera, depth_scale=depth_scale)
+    out = Path(path)
+    bag = BagWriter(out, fmt, storage, MessageBuilder(fmt == "rosbag2", "camera"))
+    try:
+        bag.add(topic, "sensor_msgs/msg/PointCloud2")
+        bag.add("/tf", "tf2_msgs/msg/TFMessage")
+        period = round(1e9 / hz)
+        for i, (depth, color) in enumerate(zip(depths, colors, strict=True)):
+            ns = (i + 1) * period
+            bag.write(topic, ns, bag.messages.cloud(ns, cloud_array(projector, depth, color)))
+            bag.write("/tf", ns + 1, bag.messages.tf(ns, np.eye(4), "world"))
+    except BaseException:
+        bag.abort()
+        raise
+    bag.close()
+    return out
 
 
 _NUMPY = {1: "i1", 2: "u1", 3: "<i2", 4: "<u2", 5: "<i4", 6: "<u4", 7: "<f4", 8: "<f8"}
