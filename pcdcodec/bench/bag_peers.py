@@ -24,7 +24,7 @@ import os
 import resource
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -138,9 +138,11 @@ def mcap_zstd(
     *,
     level: int = ZSTD_DEFAULT_LEVEL,
     chunk_size: int = ROS_CHUNK_BYTES,
+    topics: Collection[str] | None = None,
 ) -> BagPeerResult:
     """Every message of a ROS 1 or ROS 2 bag (sqlite3, mcap, split) rewritten into one MCAP
-    file at ``out_path`` with zstd chunks at ``level``, ``chunk_size`` bytes uncompressed.
+    file at ``out_path`` with zstd chunks at ``level``, ``chunk_size`` bytes uncompressed
+    (only the messages of ``topics`` when given: what those topics alone cost).
 
     Topics keep their schemas (name, encoding, definition), message encoding (``ros1`` or
     ``cdr``) and metadata (ROS 1: ``callerid``, ``latching``, ``md5sum``; ROS 2:
@@ -158,9 +160,11 @@ def mcap_zstd(
             with tmp.open("wb") as f:
                 mcap = McapOut(f, src.profile, chunk_size)
                 for rec in src.records:
-                    mcap.write(*rec)
-                    count += 1
-                src.extras(mcap.writer)
+                    if topics is None or rec[0].topic in topics:
+                        mcap.write(*rec)
+                        count += 1
+                if topics is None:
+                    src.extras(mcap.writer)
                 mcap.writer.finish()
         return count
 
