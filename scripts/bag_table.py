@@ -38,11 +38,13 @@ SPOT_CAMERA = {"width": 424, "height": 240, "fx": 200.0, "fy": 200.0, "cx": 212.
 BAGS = SHARED_DATA / "bags"
 #: The real bags, each with what pcdcodec must be told about it.
 REAL_BAGS: list[tuple[Path, dict[str, Any]]] = [
-    (BAGS / "realsense" / "single_depth_color_640x480.bag", {}),
+    # Its color frame is further from its depth frames than the default pairing tolerance.
+    (BAGS / "realsense" / "single_depth_color_640x480.bag", {"max_difference": 150_000_000}),
     (BAGS / "spot" / "raw.bag", {"intrinsics": SPOT_CAMERA}),
     (BAGS / "spot" / "compressed.bag", {"intrinsics": SPOT_CAMERA}),
     (BAGS / "spot" / "compressedDepth.bag", {"intrinsics": SPOT_CAMERA}),
-    (BAGS / "ros2-converted" / "rs_ros2_mcap", {}),
+    # Its color camera's pose is not in the bag (no tf): depth only, the color topic kept.
+    (BAGS / "ros2-converted" / "rs_ros2_mcap", {"color_topic": ""}),
     (BAGS / "ros2-converted" / "spot_ros2_mcap", {"intrinsics": SPOT_CAMERA}),
     (BAGS / "ros2-converted" / "spot_ros2_sqlite", {"intrinsics": SPOT_CAMERA}),
     (BAGS / "pyk4a_recording.mkv", {}),

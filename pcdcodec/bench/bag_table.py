@@ -320,7 +320,7 @@ def table(rows: Sequence[BagRow]) -> list[str]:
     for r in rows:
         enc, exp = r.encode, r.export
         mb = r.bytes / 1e6
-        fps = f"{r.frames / enc.seconds:.1f}" if enc and enc.seconds else "n/a"
+        fps = f"{r.frames / enc.seconds:.3g}" if enc and enc.seconds else "n/a"
         bag_fps = f"{r.bag_fps:.1f}" if r.bag_fps else "n/a"
         kept = (
             f"{_size(r.kept_pcdc)} / {_size(r.kept_zstd1)} ({len(r.kept_topics)} topics)"
@@ -335,10 +335,10 @@ def table(rows: Sequence[BagRow]) -> list[str]:
             *(_size(r.peers[p]) if p in r.peers else "-" for p in PEERS),
             _ratio(r.peers.get("zstd1"), r.pcdc),
             kept,
-            f"{mb / enc.seconds:.1f}" if enc else "n/a",
+            f"{mb / enc.seconds:.3g}" if enc else "n/a",
             f"{fps} / {bag_fps}",
             f"{enc.peak_rss_bytes / 1e6:.0f} MB" if enc else "n/a",
-            f"{mb / exp.seconds:.1f}" if exp else "n/a",
+            f"{mb / exp.seconds:.3g}" if exp else "n/a",
             f"{exp.peak_rss_bytes / 1e6:.0f} MB" if exp else "n/a",
         ]
         lines.append("| " + " | ".join(cells) + " |")
