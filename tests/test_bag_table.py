@@ -3,8 +3,12 @@ cell counts, and that nothing written is left behind."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mcap.reader import make_reader
 
@@ -90,3 +94,18 @@ def test_measure_bag_row(tmp_path: Path) -> None:
 def test_measure_bag_refuses_an_unknown_peer(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="zstd3"):
         bag_table.measure_bag(_need(SPOT_RAW), tmp_path, peers=("zstd3",))
+
+
+def test_a_child_peak_memory_is_its_own() -> None:
+    """A process started while this one holds 400 MB reports its own peak, not this one's
+    (``ru_maxrss`` of a child counts its parent's memory at the start)."""
+    if not Path("/proc/self/status").exists():
+        pytest.skip("the high-water mark of a process's own memory is read from /proc")
+    held = np.ones(400_000_000 // 8)
+    code = "from pcdcodec.bench.bag_table import peak_rss_bytes; print(peak_rss_bytes())"
+    env = {**os.environ, "PYTHONPATH": str(Path(bag_table.__file__).parents[2])}
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    )
+    assert held.sum() == held.size  # held (and touched) while the child ran
+    assert 0 < int(out.stdout) < 200_000_000

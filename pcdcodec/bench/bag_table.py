@@ -38,6 +38,7 @@ __all__ = [
     "bag_kind",
     "chunk_bytes",
     "measure_bag",
+    "peak_rss_bytes",
     "remove_output",
     "run_child",
     "table",
@@ -346,8 +347,22 @@ def table(rows: Sequence[BagRow]) -> list[str]:
     return lines + notes
 
 
+def peak_rss_bytes() -> int:
+    """This process's peak resident memory. On Linux, the high-water mark of its own address
+    space (``VmHWM``): ``ru_maxrss`` of a process started by ``subprocess`` also counts the
+    parent's memory at the time it was started (the address space it came from)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return int(peak if sys.platform == "darwin" else peak * 1024)
+
+
 if __name__ == "__main__":
     result = _child(sys.argv[1], json.loads(sys.argv[2]))
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    result["peak_rss_bytes"] = int(peak if sys.platform == "darwin" else peak * 1024)
+    result["peak_rss_bytes"] = peak_rss_bytes()
     print(json.dumps(result))
