@@ -268,3 +268,23 @@ def test_a_killed_writer_leaves_its_written_kept_chunks_readable(tmp_path: Path)
         got = list(rec.kept_messages())
     assert 0 < len(got) <= len(big)
     assert [m.data for m in got] == [m.data for m in big[: len(got)]]
+
+
+def test_opening_lists_kept_messages_from_the_index_without_reading_them(tmp_path: Path) -> None:
+    """A damaged kept chunk does not stop the camera from being read: opening lists kept
+    messages from the message index (no chunk decompressed), reading them finds the damage."""
+    t = _topic()
+    messages = [KeptMessage(t, 10 + k, bytes([k % 251]) * 200) for k in range(50)]
+    out = tmp_path / "x.pcdc"
+    _write(out, messages, [t])
+    at = _kept_chunk_offset(out)
+    data = bytearray(out.read_bytes())
+    data[at + 80] ^= 0x40
+    bad = tmp_path / "bad.pcdc"
+    bad.write_bytes(bytes(data))
+    with pcdcodec.open(bad) as rec:
+        assert rec.index.indexed
+        assert rec.kept_counts() == {"/imu": 50}
+        assert len(rec) == 3 and int(rec[2].depth[0, 0]) == 2
+        with pytest.raises(DecodeError, match=r"bad\.pcdc"):
+            list(rec.kept_messages())
