@@ -288,3 +288,26 @@ def test_opening_lists_kept_messages_from_the_index_without_reading_them(tmp_pat
         assert len(rec) == 3 and int(rec[2].depth[0, 0]) == 2
         with pytest.raises(DecodeError, match=r"bad\.pcdc"):
             list(rec.kept_messages())
+
+
+def test_encode_and_info_list_the_kept_topics(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    path = _bag("ros2-converted/spot_ros2_mcap")
+    out = tmp_path / "x.pcdc"
+    flags = ["--fx", "200", "--fy", "200", "--cx", "212", "--cy", "120"]
+
+    def cli(*args: str) -> str:
+        done = subprocess.run(
+            [sys.executable, "-m", "pcdcodec", *args], capture_output=True, text=True, check=True
+        )
+        return done.stdout
+
+    text = cli("encode", str(path), "-o", str(out), *flags, "--exclude-topic", "*mono*")
+    assert "kept         6 other topics" in text
+    assert "/spot/depth/frontleft/image/compressedDepth" in text.split("kept")[1]
+    assert "/spot/camera/hand_mono/image " in text.split("left out")[1]
+    info = cli("info", str(out))
+    assert "kept         6 other topics" in info
+    assert "[sensor_msgs/msg/CompressedImage, 1 msgs]" in info
