@@ -285,7 +285,8 @@ def test_opening_lists_kept_messages_from_the_index_without_reading_them(tmp_pat
     with pcdcodec.open(bad) as rec:
         assert rec.index.indexed
         assert rec.kept_counts() == {"/imu": 50}
-        assert len(rec) == 3 and int(rec[2].depth[0, 0]) == 2
+        assert len(rec) == 3
+        assert int(rec[2].depth[0, 0]) == 2
         with pytest.raises(DecodeError, match=r"bad\.pcdc"):
             list(rec.kept_messages())
 
