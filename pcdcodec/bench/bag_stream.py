@@ -196,7 +196,9 @@ def open_bag(path: Path, stack: contextlib.ExitStack) -> Bag:
 @contextlib.contextmanager
 def zstd_level(level: int) -> Iterator[None]:
     """The ``mcap`` writer's chunks compressed at zstd ``level`` (it offers no level of its
-    own: it calls ``zstandard.compress`` at zstd's default 3)."""
+    own: it calls ``zstandard.compress`` at zstd's default 3). It swaps the ``mcap.writer``
+    module's compressor while the block runs, so other MCAP writers of the process that
+    compress with zstd at that time get the level too (pcdcodec's recordings use none)."""
 
     import zstandard
 
