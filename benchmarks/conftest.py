@@ -91,6 +91,30 @@ def _random_access_table(session: Any, write: Any) -> None:
         )
 
 
+def _bag_peer_table(session: Any, write: Any) -> None:
+    """``test_bench_bag_peers.py``: each bag's size under each peer, its ratio and MB/s."""
+    rows = [
+        (b.extra_info, b.stats)
+        for b in session.benchmarks
+        if b.extra_info.get("kind") == "bag-peer"
+    ]
+    if not rows:
+        return
+    write("")
+    write("bag peers: bytes, the bag's size over them, MB/s of the bag (median of rounds)")
+    write(
+        f"| {'bag':12} | {'peer':13} | {'bytes in':>11} | {'bytes out':>11} "
+        f"| {'ratio':>6} | {'MB/s':>7} |"
+    )
+    write(f"|{'-' * 14}|{'-' * 15}|{'-' * 13}|{'-' * 13}|{'-' * 8}|{'-' * 9}|")
+    for info, stats in sorted(rows, key=lambda r: (r[0]["bag"], r[0]["peer"])):
+        rate = info["bytes_in"] / 1e6 / stats.median if stats is not None else info["mb_per_s"]
+        write(
+            f"| {info['bag']:12} | {info['peer']:13} | {info['bytes_in']:>11,} "
+            f"| {info['bytes_out']:>11,} | {info['ratio']:6.2f} | {rate:7.1f} |"
+        )
+
+
 @pytest.hookimpl(trylast=True)
 def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pytest.Config) -> None:
     session = getattr(config, "_benchmarksession", None)
@@ -127,6 +151,7 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
 
     _depthac_jxl_table(session, write)
     _random_access_table(session, write)
+    _bag_peer_table(session, write)
 
     projector: dict[str, dict[str, float]] = defaultdict(dict)
     for b in session.benchmarks:
