@@ -353,3 +353,22 @@ def test_a_rig_of_camera_files_names_the_tracks_it_does_not_keep(tmp_path: Path)
     summary = encode_rig(paths, tmp_path / "rig.pcdc")
     for p in paths:  # a rig keeps no other topics: each file's are named, not lost unseen
         assert [s["name"] for s in summary.left_out[str(p)]] == ["IMU", "IR", "notes.txt"]
+
+
+def test_decode_writes_the_ir_as_16_bit_png_files_bit_exact(tmp_path: Path) -> None:
+    import imagecodecs
+
+    path = tmp_path / "ir.mkv"
+    held = _k4a_mkv(path, 3)
+    rec = tmp_path / "ir.pcdc"
+    pcdcodec.encode(path, rec)
+    out = tmp_path / "decoded"
+    text = _cli("decode", str(rec), "-o", str(out))
+    assert "kept images  /k4a/ir: 3 16-bit PNG files in k4a/ir/" in text
+    listed = (out / "k4a" / "ir.txt").read_text().splitlines()[2:]
+    depth_times = [line.split()[0] for line in (out / "depth.txt").read_text().splitlines()[2:]]
+    assert [line.split()[0] for line in listed] == depth_times  # each at its capture's time
+    for line, want in zip(listed, held["ir"], strict=True):
+        got = imagecodecs.png_decode((out / line.split()[1]).read_bytes())
+        assert got.dtype == np.uint16
+        assert np.array_equal(got, want)
