@@ -19,7 +19,7 @@ from pcdcodec.bench import bag_peers
 from pcdcodec.bench.sequences import SPOT_BAG
 from pcdcodec.datasets import load_sample
 
-FRAMES = 3
+FRAMES = 2
 
 PEERS: dict[str, Callable[[Path, Path], bag_peers.BagPeerResult]] = {
     "mcap-zstd-1": lambda bag, out: bag_peers.mcap_zstd(bag, out),

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,6 +44,7 @@ __all__ = [
     "read_camera_json",
     "sample_dir",
     "write_folder",
+    "write_kept_images",
     "write_rig_folder",
 ]
 
@@ -314,6 +316,47 @@ def write_folder(
                     ).tolist()
             (tmp / "camera.json").write_text(json.dumps(camera, indent=2) + "\n")
     return count
+
+
+def write_kept_images(rec: Any, path: str | os.PathLike[str]) -> dict[str, int]:
+    """Write the images a recording keeps beside its frames (its kept topics of encoded depth
+    frames, message encoding ``pcdcodec.depth``: an Azure Kinect's IR on ``/k4a/ir``) under the
+    folder ``path``, bit-exact: each topic's images as 16-bit PNG files named by topic
+    (``/k4a/ir`` -> ``k4a/ir/000000.png``, ...) and ``k4a/ir.txt`` listing each image's log
+    time in seconds and its file, as TUM lists images. Written beside and moved into place
+    when complete (the folder may hold a decoded recording already; files of the same name
+    are replaced). Returns the images written per topic; nothing is written without such
+    topics. Raises :class:`~pcdcodec.DecodeError` when an image does not decode."""
+    import imagecodecs
+
+    from ._atomic import atomic_output
+    from .ros.kept import IMAGE_ENCODING
+    from .sources.poses import seconds_text
+
+    topics = [t.topic for t in rec.kept_topics if t.message_encoding == IMAGE_ENCODING]
+    if not topics:
+        return {}
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{str(out)!r} is a file, not a folder")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    counts: dict[str, int] = {}
+    with atomic_output(out, place=_place_folder) as tmp:
+        tmp.mkdir()
+        for topic in dict.fromkeys(topics):
+            # The topic's names as folders: only plain names (a topic is the file's word).
+            parts = [re.sub(r"[^A-Za-z0-9_.-]", "_", p) for p in topic.split("/") if p]
+            parts = [p if p.strip(".") else "_" for p in parts] or ["kept"]
+            folder = tmp.joinpath(*parts)
+            folder.mkdir(parents=True, exist_ok=True)
+            lines = [f"# {topic} images", "# timestamp filename"]
+            for i, (log_time, image) in enumerate(rec.kept_images(topic)):
+                name = "/".join([*parts, f"{i:06d}.png"])
+                (tmp / name).write_bytes(imagecodecs.png_encode(image))
+                lines.append(f"{seconds_text(log_time)} {name}")
+            folder.with_name(parts[-1] + ".txt").write_text("\n".join(lines) + "\n")
+            counts[topic] = len(lines) - 2
+    return counts
 
 
 def _write_poses(folder: Path, layout: str, poses: list[tuple[str, int, Any]]) -> None:

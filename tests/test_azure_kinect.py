@@ -102,7 +102,7 @@ def test_cli_encodes_a_camera_recording(tmp_path: Path, capsys: pytest.CaptureFi
     assert "depth scale  1000 units per metre" in capsys.readouterr().out
     assert main(["info", str(out), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
-    assert info["format_version"] == 2
+    assert info["format_version"] == 4  # a color camera apart (2), and kept tracks (4)
     assert info["color_intrinsics"]["width"] == 1280
     assert info["intrinsics"]["distortion_model"] == "rational_polynomial"
     assert info["metadata"]["serial"] == "001514394512"

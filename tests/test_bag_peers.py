@@ -159,6 +159,35 @@ def test_mcap_zstd_reads_a_split_ros2_bag(tmp_path: Path) -> None:
     assert [t for _, _, t, _ in got] == [s * NS for s in (1, 2, 3, 11, 12, 13)]
 
 
+def test_an_mcap_bag_is_read_one_chunk_at_a_time(tmp_path: Path) -> None:
+    """Memory stays bounded whatever the bag's length: reading holds one chunk, not all."""
+    import contextlib
+    import tracemalloc
+
+    from pcdcodec.bench.bag_stream import open_bag
+
+    sample = load_sample()
+    frames = [sample[i] for i in range(8)]
+    bag = bag_peers.write_cloud_bag(
+        tmp_path / "clouds",
+        [f.depth for f in frames],
+        [f.color for f in frames],
+        sample.intrinsics,
+        sample.depth_scale,
+    )
+    size = bag_peers.bag_bytes(bag)
+    assert size > 78_000_000  # eight 9.8 MB clouds
+    tracemalloc.start()
+    try:
+        with contextlib.ExitStack() as stack:
+            count = sum(1 for _ in open_bag(bag, stack).records)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert count == 16
+    assert peak < 0.5 * size  # a few copies of one cloud
+
+
 def test_a_missing_bag_is_named(tmp_path: Path) -> None:
     missing = tmp_path / "nothere.bag"
     with pytest.raises(InputError, match=r"nothere\.bag"):

@@ -268,3 +268,47 @@ def test_a_killed_writer_leaves_its_written_kept_chunks_readable(tmp_path: Path)
         got = list(rec.kept_messages())
     assert 0 < len(got) <= len(big)
     assert [m.data for m in got] == [m.data for m in big[: len(got)]]
+
+
+def test_opening_lists_kept_messages_from_the_index_without_reading_them(tmp_path: Path) -> None:
+    """A damaged kept chunk does not stop the camera from being read: opening lists kept
+    messages from the message index (no chunk decompressed), reading them finds the damage."""
+    t = _topic()
+    messages = [KeptMessage(t, 10 + k, bytes([k % 251]) * 200) for k in range(50)]
+    out = tmp_path / "x.pcdc"
+    _write(out, messages, [t])
+    at = _kept_chunk_offset(out)
+    data = bytearray(out.read_bytes())
+    data[at + 80] ^= 0x40
+    bad = tmp_path / "bad.pcdc"
+    bad.write_bytes(bytes(data))
+    with pcdcodec.open(bad) as rec:
+        assert rec.index.indexed
+        assert rec.kept_counts() == {"/imu": 50}
+        assert len(rec) == 3
+        assert int(rec[2].depth[0, 0]) == 2
+        with pytest.raises(DecodeError, match=r"bad\.pcdc"):
+            list(rec.kept_messages())
+
+
+def test_encode_and_info_list_the_kept_topics(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    path = _bag("ros2-converted/spot_ros2_mcap")
+    out = tmp_path / "x.pcdc"
+    flags = ["--fx", "200", "--fy", "200", "--cx", "212", "--cy", "120"]
+
+    def cli(*args: str) -> str:
+        done = subprocess.run(
+            [sys.executable, "-m", "pcdcodec", *args], capture_output=True, text=True, check=True
+        )
+        return done.stdout
+
+    text = cli("encode", str(path), "-o", str(out), *flags, "--exclude-topic", "*mono*")
+    assert "kept         6 other topics" in text
+    assert "/spot/depth/frontleft/image/compressedDepth" in text.split("kept")[1]
+    assert "/spot/camera/hand_mono/image " in text.split("left out")[1]
+    info = cli("info", str(out))
+    assert "kept         6 other topics" in info
+    assert "[sensor_msgs/msg/CompressedImage, 1 msgs]" in info

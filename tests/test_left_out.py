@@ -78,6 +78,10 @@ def test_realsense_bag_names_its_70_topics_but_the_8_it_records(tmp_path: Path) 
     }
     want = {t: n for t, n in topics.items() if t not in kept}
     with open_source(REALSENSE) as src:
+        # By default every topic not made into frames is kept: nothing is left out.
+        assert src.left_out == ()
+        assert len({t.topic for t in src.kept_topics()}) == 68
+    with open_source(REALSENSE, keep_topics=False) as src:
         got = {s.name: s.count for s in src.left_out}
         types = {s.name: s.type for s in src.left_out}
         # the device's info is recorded whole: every key it holds
@@ -87,14 +91,17 @@ def test_realsense_bag_names_its_70_topics_but_the_8_it_records(tmp_path: Path) 
     assert got["/device_0/sensor_0/Depth_0/image/metadata"] == 36
 
     # (its one color frame is 268 ms from the depth it would pair with: past the default limit)
-    summary = pcdcodec.encode(REALSENSE, tmp_path / "rs.pcdc", max_difference=300_000_000)
+    summary = pcdcodec.encode(
+        REALSENSE, tmp_path / "rs.pcdc", max_difference=300_000_000, keep_topics=False
+    )
     assert {s["name"]: s["messages"] for s in summary.left_out} == want
     assert summary.to_dict()["left_out"] == summary.left_out
 
     argv = ["encode", str(REALSENSE), "-o", str(tmp_path / "cli.pcdc"), "--max-difference", "300ms"]
+    argv += ["--exclude-topic", "*"]
     out = _cli(*argv)
     _listed(out, want)
-    _listed(_cli("info", str(REALSENSE)), want)
+    _listed(_cli("info", str(REALSENSE), "--exclude-topic", "*"), want)
 
 
 def test_a_depth_units_option_given_leaves_the_recorded_one_out(tmp_path: Path) -> None:
@@ -103,10 +110,13 @@ def test_a_depth_units_option_given_leaves_the_recorded_one_out(tmp_path: Path) 
     path = tmp_path / "small.bag"
     write_bag(rs_spec(), path)
     units = "/device_0/sensor_0/option/Depth Units/value"
-    with open_source(path) as src:
+    with open_source(path, keep_topics=False) as src:
         assert [s.name for s in src.left_out] == ["/file_version"]
-    with open_source(path, depth_scale=5000) as src:
+    with open_source(path, depth_scale=5000, keep_topics=False) as src:
         assert [s.name for s in src.left_out] == [units, "/file_version"]
+    with open_source(path, depth_scale=5000) as src:  # kept, then, as it came
+        assert src.left_out == ()
+        assert {units, "/file_version"} <= {t.topic for t in src.kept_topics()}
 
 
 # -- ROS 1 and ROS 2 bags ----------------------------------------------------------------------
@@ -259,14 +269,18 @@ def test_tf_that_gives_the_camera_no_pose_is_left_out(tmp_path: Path) -> None:
 @pytest.mark.skipif(not MKV.exists(), reason=f"{MKV} is not present")
 def test_azure_kinect_names_its_infrared_and_imu_tracks(tmp_path: Path) -> None:
     with open_source(MKV) as src:
+        assert src.left_out == ()  # by default its other tracks and attachments are kept
+    with open_source(MKV, keep_topics=False) as src:
         got = {s.name: (s.type, s.count) for s in src.left_out}
         assert len(src) == 1  # the frame count, from the file's blocks
     assert got == {"IMU": ("subtitle", 1), "IR": ("video b16g", 1)}
-    summary = pcdcodec.encode(MKV, tmp_path / "k.pcdc")
+    summary = pcdcodec.encode(MKV, tmp_path / "k.pcdc", keep_topics=False)
     assert {s["name"] for s in summary.left_out} == {"IR", "IMU"}
     want = {"IR": 1, "IMU": 1}
-    _listed(_cli("encode", str(MKV), "-o", str(tmp_path / "cli.pcdc")), want)
-    info = _cli("info", str(MKV))
+    # (the calibration, read for the cameras, is recorded: never left out)
+    none = ("--exclude-topic", "/k4a/i*")
+    _listed(_cli("encode", str(MKV), "-o", str(tmp_path / "cli.pcdc"), *none), want)
+    info = _cli("info", str(MKV), *none)
     _listed(info, want)
     assert "frames       1" in info
 
@@ -286,7 +300,7 @@ def _mkv_with_ir(path: Path, captures: int) -> Path:
 
 def test_synthetic_mkv_counts_its_frames_and_its_infrared_blocks(tmp_path: Path) -> None:
     path = _mkv_with_ir(tmp_path / "ir.mkv", 4)
-    with open_source(path) as src:
+    with open_source(path, keep_topics=False) as src:
         assert src.frame_count == 4
         assert [(s.name, s.count) for s in src.left_out] == [("IR", 4)]
         assert len(list(src)) == 4
@@ -450,7 +464,7 @@ def test_live_playback_names_the_bags_topics_it_does_not_record(tmp_path: Path) 
     from pcdcodec.sources import realsense_live
     from pcdcodec.sources.realsense import RealSenseBagSource
 
-    with RealSenseBagSource(REALSENSE) as bag:
+    with RealSenseBagSource(REALSENSE, keep_topics=False) as bag:
         want = {s.name: s.count for s in bag.left_out}
         color = {t for t in bag.recorded_streams() if "/Color_0/" in t}
     with realsense_live(playback=REALSENSE) as live:

@@ -10,6 +10,8 @@ never imports this package.
 * :mod:`~pcdcodec.bench.pytest_plugin`: the pytest-benchmark plugin (fixtures, summary table).
 * :mod:`~pcdcodec.bench.damage`: what ``recover`` must give back of a recording with flipped
   bytes, worked out from the undamaged file (the tests and ``scripts/recover_damage.py``).
+* :mod:`~pcdcodec.bench.bag_peers`: a whole bag under the tools bags are kept small with (MCAP
+  zstd, ROS 1 lz4, Cloudini), read and rewritten by :mod:`~pcdcodec.bench.bag_stream`.
 * :mod:`~pcdcodec.bench.sequences` and :mod:`~pcdcodec.bench.sparse`: the sequences the
   repository's tests and benchmarks run on, and sparse depth made from them.
 """

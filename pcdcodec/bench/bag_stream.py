@@ -68,24 +68,24 @@ def _mcap_files(path: Path) -> list[Path] | None:
 
 
 def _mcap_records(path: Path, files: list[Path], stack: contextlib.ExitStack) -> Bag:
-    from mcap.reader import make_reader
+    from mcap.reader import NonSeekingReader, make_reader
 
-    readers = []
-    for file in files:
-        try:
-            readers.append(make_reader(stack.enter_context(file.open("rb"))))
-        except Exception as exc:
-            raise bagfile.bag_error(exc, path) from exc
     try:
-        profile = readers[0].get_header().profile
+        with files[0].open("rb") as f:
+            profile = make_reader(f).get_header().profile
     except Exception as exc:
         raise bagfile.bag_error(exc, path) from exc
 
     def records() -> Iterator[Record]:
         channels: dict[tuple[int, int], Channel] = {}
-        for n, reader in enumerate(readers):
+        for n, file in enumerate(files):
             try:
-                for schema, channel, message in reader.iter_messages(log_time_order=False):
+                f = stack.enter_context(file.open("rb"))
+                # In the file's own order, one chunk at a time: the seeking reader would read
+                # every chunk before the first message unless asked for log-time order.
+                for schema, channel, message in NonSeekingReader(f).iter_messages(
+                    log_time_order=False
+                ):
                     key = (n, channel.id)
                     if key not in channels:
                         channels[key] = Channel(
@@ -109,14 +109,16 @@ def _mcap_records(path: Path, files: list[Path], stack: contextlib.ExitStack) ->
                 raise bagfile.bag_error(exc, path) from exc
 
     def extras(writer: Any) -> None:
-        for reader in readers:
+        for file in files:
             try:
-                for meta in reader.iter_metadata():
-                    writer.add_metadata(meta.name, dict(meta.metadata))
-                for att in reader.iter_attachments():
-                    writer.add_attachment(
-                        att.create_time, att.log_time, att.name, att.media_type, bytes(att.data)
-                    )
+                with file.open("rb") as f:
+                    reader = make_reader(f)
+                    for meta in reader.iter_metadata():
+                        writer.add_metadata(meta.name, dict(meta.metadata))
+                    for att in reader.iter_attachments():
+                        writer.add_attachment(
+                            att.create_time, att.log_time, att.name, att.media_type, att.data
+                        )
             except Exception as exc:
                 raise bagfile.bag_error(exc, path) from exc
 
@@ -194,7 +196,9 @@ def open_bag(path: Path, stack: contextlib.ExitStack) -> Bag:
 @contextlib.contextmanager
 def zstd_level(level: int) -> Iterator[None]:
     """The ``mcap`` writer's chunks compressed at zstd ``level`` (it offers no level of its
-    own: it calls ``zstandard.compress`` at zstd's default 3)."""
+    own: it calls ``zstandard.compress`` at zstd's default 3). It swaps the ``mcap.writer``
+    module's compressor while the block runs, so other MCAP writers of the process that
+    compress with zstd at that time get the level too (pcdcodec's recordings use none)."""
 
     import zstandard
 

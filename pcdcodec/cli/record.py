@@ -201,7 +201,7 @@ def print_rig_summary(summary: Any, output: str) -> None:
 def cmd_decode(args: argparse.Namespace) -> int:
     """``pcdcodec decode REC -o FOLDER``: a TUM-layout folder, with point clouds if asked; of a
     recording of several cameras, one such folder per camera and ``rig.json``."""
-    from ..datasets import write_folder
+    from ..datasets import write_folder, write_kept_images
     from ..recording import open as open_recording
     from ..recording.rig_reader import RigRecording
     from ..sources.poses import DEFAULT_POSE_LAYOUT, POSE_LAYOUT_KEY, POSE_LAYOUTS
@@ -231,9 +231,13 @@ def cmd_decode(args: argparse.Namespace) -> int:
                 progress=bar.update,
                 pose_layout=layout,
             )
+        # The images kept beside the frames (an Azure Kinect's IR), as 16-bit PNG files.
+        images = write_kept_images(rec, args.output)
     print(f"wrote {count} frames to {args.output}")
     if poses:
         print(f"  poses        {POSE_LAYOUTS[layout]}")
+    for topic, n in images.items():
+        print(f"  kept images  {topic}: {n} 16-bit PNG files in {topic.strip('/')}/")
     return 0
 
 

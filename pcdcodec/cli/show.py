@@ -112,7 +112,17 @@ def _info(rec: Any) -> dict[str, Any]:
         "ratio_raw_rgbd": round(raw / size, 2) if size else None,
         "color_gop": _gop(rec),
         "frames_without_color": rec.color_missing,
+        "kept": _kept_info(rec),
     }
+
+
+def _kept_info(rec: Any) -> list[dict[str, Any]]:
+    """The recording's kept topics: name, type and messages."""
+    counts = rec.kept_counts()
+    from ..ros.kept import kept_listing
+    from ..sources.base import InputStream
+
+    return kept_listing(rec.kept_topics, [InputStream(t, "", n) for t, n in counts.items()])
 
 
 def _print_ratio(info: dict[str, Any], color: bool) -> None:
@@ -419,6 +429,7 @@ def cmd_info(args: argparse.Namespace) -> int:
             f"  no color   {len(lost)} frame(s) kept by `pcdcodec recover` without their color, "
             f"lost to damage (first: frame {lost[0]})"
         )
+    print_kept(info["kept"])
     stamps = info["metadata"].get("timestamps", "")
     if stamps.startswith("not recorded"):
         print(f"  times      {stamps} (the input had no timestamps)")

@@ -12,7 +12,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from typing import IO, Any
 
 from ..errors import DecodeError, InputError
-from ..ros.kept import KEPT_KEY, KeptMessage, KeptTopic
+from ..ros.kept import IMAGE_ENCODING, KEPT_KEY, KeptMessage, KeptTopic
 from . import _index as fmt
 
 __all__ = [
@@ -284,3 +284,28 @@ class KeptAccess:
         Reads its own handle of the file, so frames can be read meanwhile."""
         with open(self.path, "rb") as f:
             yield from read_kept(f, self.index, repr(str(self.path)), topics=topics)
+
+    def kept_images(self, topic: str) -> Iterator[tuple[int, Any]]:
+        """The images of a kept topic of encoded depth frames (message encoding
+        ``pcdcodec.depth``: an Azure Kinect's IR on ``/k4a/ir``), in order, each as ``(log
+        time ns, image)``: bit-exact, of the dtype and size they were kept with (uint16 for
+        IR). Each frame's CRC is checked as it decodes. Raises
+        :class:`~pcdcodec.InputError` when ``topic`` is not such a kept topic of the recording,
+        :class:`~pcdcodec.DecodeError` when a frame does not decode."""
+        from ..depth import decode_depth
+
+        encodings = {t.topic: t.message_encoding for t in self.kept_topics}
+        if encodings.get(topic) != IMAGE_ENCODING:
+            images = sorted(t for t, e in encodings.items() if e == IMAGE_ENCODING)
+            raise InputError(
+                f"{str(self.path)!r} keeps no images on {topic!r} (topics of "
+                f"{IMAGE_ENCODING} frames: {', '.join(images) or 'none'})"
+            )
+        for m in self.kept_messages([topic]):
+            try:
+                image = decode_depth(m.data)
+            except DecodeError as exc:
+                raise DecodeError(
+                    f"{str(self.path)!r}: the {topic} image at {m.log_time} ns: {exc}"
+                ) from None
+            yield m.log_time, image

@@ -319,10 +319,17 @@ def _parse_summary(f: IO[bytes], summary: bytes, start: int, size: int) -> FileI
             index.add(ids[0], ci.message_start_time, ci.chunk_start_offset)
             counts[ids[0]] = counts.get(ids[0], 0) + 1
             continue
-        # A chunk with several messages: read them from the chunk itself.
-        for message in read_chunk_messages(f, ci.chunk_start_offset, what="index", size=size):
-            index.add(message.channel_id, message.log_time, ci.chunk_start_offset)
-            counts[message.channel_id] = counts.get(message.channel_id, 0) + 1
+        # A chunk with several messages (kept topics): its message index records list them,
+        # without reading (and decompressing) the chunk; in chunk order, as they were written.
+        listed = _listed_messages(f, ci, size)
+        if listed is None:
+            listed = [
+                (m.channel_id, m.log_time)
+                for m in read_chunk_messages(f, ci.chunk_start_offset, what="index", size=size)
+            ]
+        for cid, log_time in listed:
+            index.add(cid, log_time, ci.chunk_start_offset)
+            counts[cid] = counts.get(cid, 0) + 1
     if statistics is None and index.channels:
         # Without statistics nothing says whether every message is in an indexed chunk.
         raise SummaryError("it has no statistics record to check its chunk indexes against")
@@ -344,6 +351,34 @@ def _parse_summary(f: IO[bytes], summary: bytes, start: int, size: int) -> FileI
                 f"channel {counts})"
             )
     return index
+
+
+_MESSAGE_INDEX_HEAD = struct.Struct("<BQHI")  # opcode, length, channel id, records length
+
+
+def _listed_messages(f: IO[bytes], ci: Any, size: int) -> list[tuple[int, int]] | None:
+    """``(channel id, log time)`` of every message of a chunk, in their order in the chunk,
+    from the message index records after it; ``None`` where they are missing or do not hold
+    together (the chunk is read instead)."""
+    start = ci.chunk_start_offset + ci.chunk_length
+    length = ci.message_index_length
+    if length <= 0 or length > 64 << 20 or start + length > size:
+        return None
+    data = read_at(f, start, length, size, what="message index")
+    found: list[tuple[int, int, int]] = []  # (offset in chunk, channel, log time)
+    pos = 0
+    while pos < len(data):
+        if pos + _MESSAGE_INDEX_HEAD.size > len(data):
+            return None
+        op, rlen, cid, n = _MESSAGE_INDEX_HEAD.unpack_from(data, pos)
+        if op != _OP_MESSAGE_INDEX or n % 16 or rlen != 6 + n or pos + 9 + rlen > len(data):
+            return None
+        pairs = np.frombuffer(data, "<u8", count=n // 8, offset=pos + _MESSAGE_INDEX_HEAD.size)
+        found.extend((int(o), cid, int(t)) for t, o in pairs.reshape(-1, 2))
+        pos += 9 + rlen
+    if len({o for o, _, _ in found}) != len(found):
+        return None
+    return [(cid, t) for _, cid, t in sorted(found)]
 
 
 def _kept_channel(index: FileIndex, channel_id: int) -> bool:

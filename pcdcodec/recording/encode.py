@@ -162,6 +162,9 @@ def encode(
                 f"the folder of the output {str(target)!r} does not exist; create "
                 f"{str(target.parent)!r} first"
             )
+        use_depth_codec = getattr(source, "use_depth_codec", None)
+        if use_depth_codec is not None:  # images kept beside (an Azure Kinect's IR), lossless
+            use_depth_codec(depth)
         # Written beside the final name and moved there once complete: a failed conversion
         # leaves nothing under the final name (and an older file there intact).
         from .._atomic import atomic_output  # not loaded by `import pcdcodec`

@@ -17,6 +17,7 @@ from typing import Any
 from ..errors import InputError
 
 __all__ = [
+    "IMAGE_ENCODING",
     "KEPT_KEY",
     "KeptMessage",
     "KeptTopic",
@@ -28,6 +29,9 @@ __all__ = [
 
 #: The channel metadata key that marks a kept topic's channel in a recording.
 KEPT_KEY = "pcdcodec.kept"
+#: The message encoding of a kept topic of pcdcodec's own making whose messages are images in
+#: the encoded depth frame container (``docs/format.md``), kept losslessly: an Azure Kinect's IR.
+IMAGE_ENCODING = "pcdcodec.depth"
 #: Channel metadata keys with the connection facts of ROS 1 (the connection header's fields
 #: besides the topic, type and definition) and of ROS 2 (what ``ros2 bag`` keeps per topic).
 ROS1_KEYS = ("callerid", "latching", "md5sum")
@@ -208,11 +212,11 @@ def by_time(frames: Iterator[Any], messages: Iterator[KeptMessage]) -> Iterator[
 
 def kept_listing(topics: Iterable[KeptTopic], streams: Iterable[Any]) -> list[dict[str, Any]]:
     """``{"name", "type", "messages"}`` per kept topic name, the count from the input's
-    ``streams`` (:class:`~pcdcodec.sources.InputStream`) where its index says."""
+    ``streams`` (:class:`~pcdcodec.sources.InputStream`) where its index says; the type is the
+    message encoding for a topic without a message type (an Azure Kinect's IR, IMU)."""
     counts = {s.name: s.count for s in streams}
     out: dict[str, dict[str, Any]] = {}
     for t in topics:
-        out.setdefault(
-            t.topic, {"name": t.topic, "type": t.msgtype, "messages": counts.get(t.topic)}
-        )
+        kind = t.msgtype or t.message_encoding
+        out.setdefault(t.topic, {"name": t.topic, "type": kind, "messages": counts.get(t.topic)})
     return list(out.values())

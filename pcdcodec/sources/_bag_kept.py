@@ -30,7 +30,8 @@ def _qos_yaml(conn: Any) -> str:
 
 
 class BagKeptTopics:
-    """The kept-topic half of :class:`~pcdcodec.sources.rosbag.RosbagSource`."""
+    """The kept-topic half of the bag readers (:class:`~pcdcodec.sources.rosbag.RosbagSource`,
+    :class:`~pcdcodec.sources.realsense.RealSenseBagSource`)."""
 
     path: Any
     _reader: Any
@@ -48,15 +49,20 @@ class BagKeptTopics:
             if t
         }
 
+    def _bag_connections(self) -> tuple[list[Any], bool]:
+        """The bag's rosbags connections (their ids those of :func:`bagfile.open_reader`'s
+        reader), and whether it is a ROS 2 bag: the open reader's, unless a reader says."""
+        return list(self._reader.connections), bool(self._reader.is2)
+
     def _kept_connections(self) -> dict[int, KeptTopic]:
         found = getattr(self, "_kept_conns", None)
         if found is not None:
             return found  # type: ignore[no-any-return]
         frames = self._frame_topics()
-        ros2 = bool(self._reader.is2)
+        connections, ros2 = self._bag_connections()
         found = {
             c.id: kept_topic_of_connection(c, ros2, _qos_yaml(c) if ros2 else "")
-            for c in self._reader.connections
+            for c in connections
             if c.topic not in frames and self.topic_filter(c.topic)
         }
         self._kept_conns = found

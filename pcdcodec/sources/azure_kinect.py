@@ -20,7 +20,7 @@ the Azure Kinect SDK's mode-specific calibration. The lens model is OpenCV's rat
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -29,13 +29,15 @@ import numpy.typing as npt
 
 from ..errors import DecodeError, InputError
 from ..geometry.camera import CameraIntrinsics, as_intrinsics
+from ..ros.kept import TopicFilter
 from ..sync import MAX_DIFFERENCE, Synchronizer, as_max_difference
 from . import _k4a_calibration as k4a
+from ._k4a_kept import IMU_SAMPLE, K4aKeptTracks, imu_samples
 from ._mkv import EBML_MAGIC, blocks_by_track, declared_tag, has_cluster, list_tracks, walk_blocks
 from ._mkv import track_name as _name
 from .base import InputStream, Source, read_magic, register_source
 
-__all__ = ["DEPTH_MODES", "AzureKinectSource", "open_azure_kinect"]
+__all__ = ["DEPTH_MODES", "IMU_SAMPLE", "AzureKinectSource", "imu_samples", "open_azure_kinect"]
 
 _NS = 1_000_000_000
 
@@ -83,13 +85,20 @@ def _start_offset(tags: dict[str, Any], where: str) -> int:
     return int(text)
 
 
-class AzureKinectSource(Source):
+class AzureKinectSource(K4aKeptTracks, Source):
     """Frames of an Azure Kinect ``.mkv``: depth in millimetres (depth scale 1000) with the
     depth camera's intrinsics, color with the color camera's, and ``depth_to_color``.
 
     ``max_frames`` stops early; ``intrinsics`` replaces the calibrated depth camera;
     ``color=False`` reads the depth track alone (the COLOR track is then left out).
     ``metadata`` holds the serial number, the depth and color modes and the firmware versions.
+
+    The other tracks and the attachments are kept (:meth:`kept_topics`, see
+    :mod:`pcdcodec.sources._k4a_kept`): the IR images on ``/k4a/ir``, compressed losslessly
+    with ``ir_codec`` (default: the recording's depth codec where it is lossless, else
+    ``depthac``), the IMU blocks on ``/k4a/imu``, ``calibration.json`` and any other
+    attachment on ``/k4a/attachment/<name>``; ``keep_topics``, ``include_topics`` and
+    ``exclude_topics`` choose them by topic, as for a bag.
 
     A capture is a frame only when its color and depth images are both there and whole (each
     MJPEG packet is checked whole and of the color camera's size before it is decoded), paired
@@ -115,6 +124,10 @@ class AzureKinectSource(Source):
         strict: bool = False,
         max_difference: int = MAX_DIFFERENCE,
         color: bool = True,
+        keep_topics: bool = True,
+        include_topics: Sequence[str] | str | None = None,
+        exclude_topics: Sequence[str] | str | None = None,
+        ir_codec: Any = None,
     ) -> None:
         import av
 
@@ -122,6 +135,7 @@ class AzureKinectSource(Source):
         self.max_frames = max_frames
         self.max_difference = as_max_difference(max_difference)
         self.strict = strict
+        self.topic_filter = TopicFilter.of(include_topics, exclude_topics, keep_topics)
         self._dropped = {"color": 0, "depth": 0}
         #: why captures were dropped while reading: reason -> count
         self.drop_reasons: dict[str, int] = {}
@@ -144,6 +158,8 @@ class AzureKinectSource(Source):
             raise InputError(f"{name!r} is not a readable Matroska file: {exc}") from exc
         try:
             self._read_header(container, name, color)
+            frames = {i for i in (self._depth_index, self._color_index) if i is not None}
+            self._note_kept(container.streams, frames, ir_codec)
         except UnicodeDecodeError as exc:
             raise InputError(f"{name!r}: a tag or track name is not UTF-8 text: {exc}") from None
         finally:
@@ -314,8 +330,9 @@ class AzureKinectSource(Source):
         ]
 
     def recorded_streams(self) -> set[str]:
-        """The DEPTH and COLOR tracks and the calibration; the IR and IMU tracks are left out."""
-        return set(self._recorded)
+        """The DEPTH and COLOR tracks and the calibration, and the tracks and attachments kept
+        (:meth:`kept_streams`)."""
+        return set(self._recorded) | set(self.kept_streams())
 
     @property
     def dropped(self) -> dict[str, int]:
@@ -324,6 +341,9 @@ class AzureKinectSource(Source):
 
     def describe(self) -> dict[str, Any]:
         out = super().describe()
+        blocks = {i.name: i.count for i in self.input_streams()}
+        for item in out["kept"]:
+            item["messages"] = self.kept_count(item["name"], blocks)
         out["dropped"] = self.dropped
         out["notes"] = [
             f"dropped {n} capture(s): {reason} (first at pts "

@@ -23,7 +23,7 @@ from __future__ import annotations
 import itertools
 import json
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -35,7 +35,9 @@ from ..errors import DecodeError, InputError, PcdcodecError
 from ..geometry.camera import CameraIntrinsics, as_intrinsics
 from ..ros.bagfile import ROS1_MAGIC
 from ..ros.bagindex import PairStats, check_ros1_index, pair_in_order
+from ..ros.kept import TopicFilter
 from ..sync import MAX_DIFFERENCE, as_max_difference
+from ._bag_kept import BagKeptTopics
 from .base import FrameIndex, InputStream, Source, read_magic, register_source, streams_by_name
 
 __all__ = ["RealSenseBagSource", "open_realsense"]
@@ -158,7 +160,7 @@ def _image_topics(source: Any) -> set[str]:
     return {t for t in (source.depth_topic, source.color_topic) if t}
 
 
-class RealSenseBagSource(Source):
+class RealSenseBagSource(BagKeptTopics, Source):
     """Frames of a librealsense ``.bag``: depth with its own camera, color with its own.
 
     ``depth_scale`` (depth units per metre) overrides the recorded Depth Units option; without
@@ -169,7 +171,10 @@ class RealSenseBagSource(Source):
     recorded depth camera; ``color_topic`` picks the color stream by its image topic (default
     the first; ``''`` or ``'none'`` reads the depth alone, leaving the color topics out).
     ``metadata`` holds the device name, serial number and firmware, and the topics read.
-    :attr:`dropped` counts the images left out for want of a partner.
+    :attr:`dropped` counts the images left out for want of a partner. Every other topic (IMU,
+    infrared, options, per-frame metadata, stream infos, ...) is kept as it came
+    (:meth:`kept_topics`), as a ROS bag's are: ``keep_topics``, ``include_topics`` and
+    ``exclude_topics`` choose them as they do for :class:`~pcdcodec.sources.rosbag.RosbagSource`.
 
     Color is read from rgb8, bgr8, rgba8, bgra8 and mjpeg Images (a JPEG is checked whole and of
     the color camera's size before it is decoded). Every Image is checked against its camera
@@ -191,11 +196,15 @@ class RealSenseBagSource(Source):
         max_frames: int | None = None,
         intrinsics: CameraIntrinsics | None = None,
         color_topic: str | None = None,
+        keep_topics: bool = True,
+        include_topics: Sequence[str] | str | None = None,
+        exclude_topics: Sequence[str] | str | None = None,
     ) -> None:
         from rosbags.rosbag1 import Reader
         from rosbags.typesys import Stores, get_typestore
 
         self.path = Path(path)
+        self.topic_filter = TopicFilter.of(include_topics, exclude_topics, keep_topics)
         self._typestore = get_typestore(Stores.ROS1_NOETIC)
         if max_dt is not None:  # the former name, in seconds
             max_difference = round(max_dt * _NS)
@@ -338,7 +347,7 @@ class RealSenseBagSource(Source):
         self._shapes = {True: self.intrinsics.shape, False: (0, 0)}
         # What the recording holds of the bag: the images, the cameras, the device's info, and
         # the extrinsics and depth units where they are used.
-        conns_all = reader.connections
+        conns_all = self._connections = list(reader.connections)
         self._streams = streams_by_name((c.topic, c.msgtype, c.msgcount) for c in conns_all)
         self._recorded = {self.depth_topic, f"{depth_prefix}/info/camera_info", f"{device}/info"}
         if color is not None:
@@ -432,9 +441,13 @@ class RealSenseBagSource(Source):
 
     def recorded_streams(self) -> set[str]:
         """The image topics, their camera infos, the device's info, and the extrinsics and the
-        Depth Units option where they are used; IMU, infrared, the other options, the
-        per-frame metadata and the stream infos are left out."""
+        Depth Units option where they are used; the other topics (IMU, infrared, the other
+        options, the per-frame metadata, the stream infos) are kept as they came, unless
+        ``keep_topics``, ``include_topics`` or ``exclude_topics`` leave them out."""
         return set(self._recorded)
+
+    def _bag_connections(self) -> tuple[list[Any], bool]:
+        return self._connections, False
 
     @contextmanager
     def _reader(self) -> Iterator[Any]:

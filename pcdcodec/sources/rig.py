@@ -267,7 +267,10 @@ def open_inputs(
                 several = _input_cameras(path, kind, options)
                 if several is None:
                     name = camera_name(path.name, taken)
-                    cams.append(CameraInput(name, open_source(path, **options)))
+                    # A rig keeps no other topics: those of a camera file are left out, named.
+                    keeps = kind in ("realsense", "azure_kinect")
+                    opts = {"keep_topics": False, **options} if keeps else options
+                    cams.append(CameraInput(name, open_source(path, **opts)))
                     continue
                 opened, root = several
                 if root is not None:
