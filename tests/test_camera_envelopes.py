@@ -156,21 +156,31 @@ def _bag(name: str) -> Path:
     return path
 
 
+SPOT_DEPTH = "/spot/depth/frontleft/image"
+
+
 @pytest.mark.parametrize(
-    "name",
+    ("name", "depth_topic"),
     [
-        "spot/raw.bag",
-        "spot/compressed.bag",
-        "spot/compressedDepth.bag",
-        "ros2-converted/spot_ros2_sqlite",
-        "ros2-converted/spot_ros2_mcap",
+        ("spot/raw.bag", None),
+        ("spot/compressed.bag", None),
+        ("spot/compressedDepth.bag", None),
+        ("ros2-converted/spot_ros2_sqlite", None),
+        ("ros2-converted/spot_ros2_sqlite", SPOT_DEPTH + "/compressed"),
+        ("ros2-converted/spot_ros2_mcap", None),
+        ("ros2-converted/spot_ros2_mcap", SPOT_DEPTH + "/compressedDepth"),
     ],
 )
-def test_real_bags_depth_comes_back_as_it_came(name: str, tmp_path: Path) -> None:
+def test_real_bags_depth_comes_back_as_it_came(
+    name: str, depth_topic: str | None, tmp_path: Path
+) -> None:
     path = _bag(name)
     out = tmp_path / "x.pcdc"
-    summary = pcdcodec.encode(path, out, intrinsics=SPOT_CAMERA, color="ffv1")
+    summary = pcdcodec.encode(
+        path, out, intrinsics=SPOT_CAMERA, color="ffv1", depth_topic=depth_topic
+    )
     topic = summary.source["depth_topic"]
+    assert depth_topic in (None, topic)
     want = _messages(path, {topic})[topic]
     ros1 = path.suffix == ".bag"
     with pcdcodec.open(out) as rec:
