@@ -351,3 +351,38 @@ def test_an_envelope_that_fits_no_frame_is_an_error(tmp_path: Path) -> None:
         w.write_message(KeptMessage(topic, 1_500, env.pack()))
     with pcdcodec.open(out) as rec, pytest.raises(DecodeError, match=r"x\.pcdc.*2000 ns"):
         list(rec.camera_messages())
+
+
+def test_messages_waiting_beyond_the_memory_bound_wait_in_a_file(
+    ros1_bag: Path, tmp_path: Path, monkeypatch: Any
+) -> None:
+    import tempfile
+
+    from pcdcodec.sources import _bag_envelope
+
+    monkeypatch.setattr(_bag_envelope, "HELD_BYTES", 1000)
+    spills = []
+    make = tempfile.TemporaryFile
+
+    def spill() -> Any:
+        spills.append(make())
+        return spills[-1]
+
+    monkeypatch.setattr(_bag_envelope.tempfile, "TemporaryFile", spill)
+    bag = tmp_path / "compressed.bag"
+    topics = _rewrite(ros1_bag, bag, "compressed")
+    options = {"depth_topic": topics["depth"], "color_topic": topics["color"]}
+    with pcdcodec.open_source(bag, info_topic=topics["info"], **options) as source:
+        items = list(source.items())
+    kept = [m for m in items if isinstance(m, KeptMessage)]
+    assert [m.log_time for m in kept] == sorted(m.log_time for m in kept)
+    assert sum(1 for m in kept if m.topic.camera) == 9
+    assert len(spills) == 1
+    assert spills[0].closed
+    out = tmp_path / "x.pcdc"
+    pcdcodec.encode(bag, out, color="ffv1", info_topic=topics["info"], **options)
+    want = _messages(bag, {topics["color"]})[topics["color"]]
+    with pcdcodec.open(out) as rec:
+        got = _given_back(rec)[topics["color"]]
+    assert [t for t, _ in got] == [t for t, _ in want]
+    assert got[2] == want[2]  # the one without a partner, kept raw: waited in the file

@@ -11,16 +11,18 @@ camera channel of its own encoding. So every message of the camera topics comes 
 
 Envelopes are made while :meth:`~pcdcodec.Source.items` reads the frames, and merged into the
 kept messages in log-time order: a camera message read but not yet paired or dropped holds
-back the messages logged after it, so at most the synchronizer's queue is waited for.
+back the messages logged after it, so at most the synchronizer's queue is waited for. Messages
+waiting beyond :data:`HELD_BYTES` (a long stretch of images without partners between two
+frames) wait in a temporary file, so memory stays bounded however long the bag.
 """
 
 from __future__ import annotations
 
 import heapq
-from collections import deque
+import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import IO, Any
 
 from ..ros.envelope import make_envelope
 from ..ros.kept import (
@@ -34,7 +36,10 @@ from ..ros.kept import (
 )
 from ._bag_kept import BagKeptTopics, _qos_yaml
 
-__all__ = ["BagEnvelopes"]
+__all__ = ["HELD_BYTES", "BagEnvelopes"]
+
+#: The most bytes of camera messages held in memory while they wait for their turn.
+HELD_BYTES = 64 << 20
 
 
 @dataclass
@@ -56,7 +61,10 @@ class _Run:
     topics: dict[int, tuple[KeptTopic, KeptTopic]]  # connection id: (envelope, raw)
     cdr: bool
     read: dict[int, _Read] = field(default_factory=dict)  # id(msg): read
-    ready: list[tuple[int, int, KeptMessage]] = field(default_factory=list)
+    # (log time, read order, message, or (topic, offset, length) in the spill file)
+    ready: list[tuple[int, int, Any]] = field(default_factory=list)
+    held: int = 0  # bytes of the messages in ``ready`` held in memory
+    spill: IO[bytes] | None = None
     seq: int = 0
     last_log: int = -1
     done: bool = False
@@ -74,7 +82,31 @@ class _Run:
         """Keep ``r`` as an envelope (``data``), or raw where ``data`` is None."""
         envelope, raw = self.topics[r.conn.id]
         m = KeptMessage(envelope, r.log_time, data) if data else KeptMessage(raw, r.log_time, r.raw)
-        heapq.heappush(self.ready, (r.log_time, r.seq, m))
+        item: Any = m
+        if self.held + len(m.data) > HELD_BYTES:
+            if self.spill is None:
+                self.spill = tempfile.TemporaryFile()  # noqa: SIM115 (closed by close())
+            at = self.spill.seek(0, 2)
+            self.spill.write(m.data)
+            item = (m.topic, at, len(m.data))
+        else:
+            self.held += len(m.data)
+        heapq.heappush(self.ready, (r.log_time, r.seq, item))
+
+    def pop(self) -> KeptMessage:
+        log_time, _, item = heapq.heappop(self.ready)
+        if isinstance(item, KeptMessage):
+            self.held -= len(item.data)
+            return item
+        topic, at, size = item
+        assert self.spill is not None
+        self.spill.seek(at)
+        return KeptMessage(topic, log_time, self.spill.read(size))
+
+    def close(self) -> None:
+        if self.spill is not None:
+            self.spill.close()
+            self.spill = None
 
     def bound(self) -> float:
         """No message still to come is logged before this."""
@@ -185,42 +217,30 @@ class BagEnvelopes(BagKeptTopics):
         return self._items(_Run(topics, bool(self._reader.is2)))
 
     def _items(self, run: _Run) -> Iterator[Any]:
+        """The frames, and before each the kept messages and envelopes logged before its
+        time whose place is known (nothing read and unresolved before them); the rest at
+        the end. One frame and one kept message are held at a time."""
         self._env = run
-        frames = iter(self)  # type: ignore[call-overload]
-        early: deque[Any] = deque()  # frames read to resolve an envelope, not yet given
+        kept = self.kept_messages()
+        k = next(kept, None)
 
-        def pull() -> None:
-            frame = next(frames, None)
-            if frame is None:
-                run.finish()
-            else:
-                early.append(frame)
-
-        def frame_stream() -> Iterator[Any]:
-            while early or not run.done:
-                if early:
-                    yield early.popleft()
-                else:
-                    pull()
-
-        def kept_stream() -> Iterator[KeptMessage]:
-            kept = self.kept_messages()
-            k = next(kept, None)
+        def release(limit: float) -> Iterator[KeptMessage]:
+            nonlocal k
             while True:
-                if k is not None and k.log_time <= run.bound():
+                if k is not None and k.log_time < limit and k.log_time <= run.bound():
                     yield k
                     k = next(kept, None)
-                elif run.releasable() or (run.done and run.ready):
-                    yield heapq.heappop(run.ready)[2]
-                elif run.done:
-                    if k is None:
-                        return
-                    yield k
-                    k = next(kept, None)
+                elif run.releasable() and run.ready[0][0] < limit:
+                    yield run.pop()
                 else:
-                    pull()
+                    return
 
         try:
-            yield from by_time(frame_stream(), kept_stream())
+            for frame in iter(self):  # type: ignore[call-overload]
+                yield from release(frame.timestamp_ns)
+                yield frame
+            run.finish()
+            yield from release(float("inf"))
         finally:
             self._env = None
+            run.close()
