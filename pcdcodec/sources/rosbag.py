@@ -121,7 +121,8 @@ class RosbagSource(BagVideo, BagEnvelopes, Source):
       numbers) where the color topic's own CameraInfo shows a camera apart from the depth and
       the bag's tf does not place one in the other (see :meth:`_setup_color_camera`);
     * ``keep_topics`` (default true), ``include_topics``, ``exclude_topics``: which of the other
-      topics a recording keeps as they came (:meth:`kept_topics`; shell-style patterns).
+      topics a recording keeps as they came (:meth:`kept_topics`; shell-style patterns), and
+      the depth and color topics' own messages, kept exactly (``docs/format.md``).
 
     After iterating, :attr:`dropped` counts the images that found no partner and
     :attr:`out_of_order` those whose stamp did not increase. Raises
