@@ -8,12 +8,13 @@ from __future__ import annotations
 import hashlib
 import json
 import struct
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import IO, Any
 
 from ..errors import DecodeError, InputError
 from ..ros.kept import IMAGE_ENCODING, KEPT_KEY, KeptMessage, KeptTopic
 from . import _index as fmt
+from ._camera import CameraAccess
 
 __all__ = [
     "CHUNK_BYTES",
@@ -179,11 +180,12 @@ def kept_channel_ids(index: fmt.FileIndex) -> dict[int, KeptTopic]:
     }
 
 
-def kept_topics_of(index: fmt.FileIndex) -> list[KeptTopic]:
-    """The kept topics of a file, in channel order."""
+def kept_topics_of(index: fmt.FileIndex, camera: bool = False) -> list[KeptTopic]:
+    """The kept topics of a file, in channel order: those kept as they came, or with
+    ``camera`` the channels of the camera topics (envelopes, and messages kept raw)."""
     out: list[KeptTopic] = []
     for t in kept_channel_ids(index).values():
-        if t not in out:
+        if bool(t.camera) == camera and t not in out:
             out.append(t)
     return out
 
@@ -219,11 +221,12 @@ def read_kept(
     *,
     topics: Iterable[str] | None = None,
     check: bool = True,
+    select: Callable[[KeptTopic], bool] | None = None,
 ) -> Iterator[KeptMessage]:
-    """The kept messages of the file, in file order, each chunk's CRC checked before its
-    messages are given. With ``check`` (and every topic read) the whole is compared with the
-    seal's digest at the end: a :class:`~pcdcodec.DecodeError` then says the messages given
-    were not those sealed."""
+    """The kept messages of the file (those of ``topics`` and of channels ``select`` takes,
+    when given), in file order, each chunk's CRC checked before its messages are given. With
+    ``check`` the whole (every kept channel's) is compared with the seal's digest at the end:
+    a :class:`~pcdcodec.DecodeError` then says the messages given were not those sealed."""
     channels = kept_channel_ids(index)
     if not channels:
         return
@@ -243,7 +246,7 @@ def read_kept(
                 continue
             data = bytes(m.data)
             digest.note(topic.topic, m.log_time, m.publish_time, data)
-            if wanted is None or topic.topic in wanted:
+            if (wanted is None or topic.topic in wanted) and (select is None or select(topic)):
                 yield KeptMessage(topic, int(m.log_time), data, int(m.publish_time))
     seal = index.metadata.get(fmt.SEAL_NAME)
     if (
@@ -257,8 +260,9 @@ def read_kept(
         )
 
 
-class KeptAccess:
-    """What a :class:`~pcdcodec.Recording` gives of its kept topics."""
+class KeptAccess(CameraAccess):
+    """What a :class:`~pcdcodec.Recording` gives of its kept topics (and, through
+    :class:`~pcdcodec.recording._camera.CameraAccess`, of its camera topics' messages)."""
 
     path: Any
     index: fmt.FileIndex
@@ -269,21 +273,43 @@ class KeptAccess:
     def kept_topics(self) -> list[KeptTopic]:
         """The other topics of the input that the recording keeps as they came (each with its
         type, message definition, serialization and connection facts); empty for recordings
-        without (format versions 1-3)."""
+        without (format versions 1-3). The camera topics are not among them
+        (:attr:`camera_topics`)."""
         return kept_topics_of(self.index)
 
+    @property
+    def camera_topics(self) -> list[KeptTopic]:
+        """The camera topics the frames were made of, as the input had them (type,
+        definition, encoding, connection facts), whose messages :meth:`camera_messages`
+        gives back; empty for recordings without."""
+        out: list[KeptTopic] = []
+        for t in kept_topics_of(self.index, camera=True):
+            if t.original() not in out:
+                out.append(t.original())
+        return out
+
     def kept_counts(self) -> dict[str, int]:
-        """Messages per kept topic."""
-        return kept_counts(self.index)
+        """Messages per kept topic (of :attr:`kept_topics`)."""
+        names = {t.topic for t in self.kept_topics}
+        return {t: n for t, n in kept_counts(self.index).items() if t in names}
+
+    def _read_kept(self, camera: bool) -> Iterator[KeptMessage]:
+        with open(self.path, "rb") as f:
+            yield from read_kept(
+                f, self.index, repr(str(self.path)), select=lambda t: bool(t.camera) == camera
+            )
 
     def kept_messages(self, topics: Iterable[str] | None = None) -> Iterator[KeptMessage]:
         """The kept topics' messages (of ``topics`` only, when given), in the order they were
         written, each with its bytes as the input held them and its log and publish times.
         Each chunk's CRC is checked before its messages are given, and reading them all checks
         them against the seal at the end (:class:`~pcdcodec.DecodeError` if they differ).
-        Reads its own handle of the file, so frames can be read meanwhile."""
+        Reads its own handle of the file, so frames can be read meanwhile. The camera topics'
+        messages are not among them (:meth:`camera_messages`)."""
         with open(self.path, "rb") as f:
-            yield from read_kept(f, self.index, repr(str(self.path)), topics=topics)
+            yield from read_kept(
+                f, self.index, repr(str(self.path)), topics=topics, select=lambda t: not t.camera
+            )
 
     def kept_images(self, topic: str) -> Iterator[tuple[int, Any]]:
         """The images of a kept topic of encoded depth frames (message encoding

@@ -218,6 +218,7 @@ def pair_in_order(
     messages: Iterable[tuple[bool, int, T]],
     max_difference: int,
     stats: PairStats | None = None,
+    left: Callable[[bool, int, T], None] | None = None,
 ) -> Iterator[tuple[int, T, T, int]]:
     """``(depth stamp, depth item, color item, color stamp)`` for each pair of a bag's depth
     and color messages, from ``(is_depth, stamp, item)`` of each message in bag order: the one
@@ -226,30 +227,47 @@ def pair_in_order(
 
     A message whose stamp does not increase on its stream is skipped (counted in ``stats``);
     color and depth are paired by :class:`~pcdcodec.sync.Synchronizer` (``max_difference``
-    ns), whose unmatched images ``stats`` counts as they are dropped.
+    ns), whose unmatched images ``stats`` counts as they are dropped. ``left``, when given,
+    is called with ``(is_depth, stamp, item)`` of each message skipped or dropped, once it is.
     """
     sync: Synchronizer[T, T] = Synchronizer(max_difference=max_difference)
     latest = {True: -1, False: -1}
+    held: dict[tuple[bool, int], T] = {}  # with ``left``: the items the synchronizer holds
+    gone = {True: 0, False: 0}
 
     def count() -> None:
+        dropped = {False: sync.dropped_color, True: sync.dropped_depth}
         if stats is not None:
-            stats.dropped_color = len(sync.dropped_color)
-            stats.dropped_depth = len(sync.dropped_depth)
+            stats.dropped_color = len(dropped[False])
+            stats.dropped_depth = len(dropped[True])
+        if left is not None:
+            for d, stamps in dropped.items():
+                for ts in stamps[gone[d] :]:
+                    left(d, ts, held.pop((d, ts)))
+                gone[d] = len(stamps)
+
+    def paired(ready: list[tuple[int, T, int, T]]) -> Iterator[tuple[int, T, T, int]]:
+        for cts, citem, dts, ditem in ready:
+            held.pop((True, dts), None)
+            held.pop((False, cts), None)
+            yield dts, ditem, citem, cts
 
     for is_depth, ts, item in messages:
         if ts <= latest[is_depth]:
             if stats is not None:
                 stats.out_of_order += 1
+            if left is not None:
+                left(is_depth, ts, item)
             continue
         latest[is_depth] = ts
+        if left is not None:
+            held[(is_depth, ts)] = item
         ready = sync.add_depth(ts, item) if is_depth else sync.add_color(ts, item)
         count()
-        for cts, citem, dts, ditem in ready:
-            yield dts, ditem, citem, cts
+        yield from paired(ready)
     ready = sync.flush()
     count()
-    for cts, citem, dts, ditem in ready:
-        yield dts, ditem, citem, cts
+    yield from paired(ready)
 
 
 def index_rows(

@@ -17,6 +17,8 @@ from typing import Any
 from ..errors import InputError
 
 __all__ = [
+    "CAMERA_KEY",
+    "ENVELOPE_ENCODING",
     "IMAGE_ENCODING",
     "KEPT_KEY",
     "KeptMessage",
@@ -32,6 +34,14 @@ KEPT_KEY = "pcdcodec.kept"
 #: The message encoding of a kept topic of pcdcodec's own making whose messages are images in
 #: the encoded depth frame container (``docs/format.md``), kept losslessly: an Azure Kinect's IR.
 IMAGE_ENCODING = "pcdcodec.depth"
+#: The channel metadata key that marks the channels of a camera topic (one made into frames):
+#: its value is the role, ``depth`` or ``color``. Their messages are envelopes
+#: (:data:`ENVELOPE_ENCODING`), or messages kept raw where no frame gives them back.
+CAMERA_KEY = "pcdcodec.camera"
+#: The message encoding of a camera topic's envelopes (:mod:`pcdcodec.ros.envelope`).
+ENVELOPE_ENCODING = "pcdcodec.envelope"
+#: An envelope channel's metadata key with the original message encoding (``ros1``, ``cdr``).
+ORIGINAL_ENCODING_KEY = "pcdcodec.encoding"
 #: Channel metadata keys with the connection facts of ROS 1 (the connection header's fields
 #: besides the topic, type and definition) and of ROS 2 (what ``ros2 bag`` keeps per topic).
 ROS1_KEYS = ("callerid", "latching", "md5sum")
@@ -57,9 +67,31 @@ class KeptTopic:
     metadata: Mapping[str, str] = field(default_factory=dict, hash=False)
 
     @property
+    def camera(self) -> str:
+        """The role of a camera topic's channel (``depth``, ``color``), else ``""``."""
+        return str(self.metadata.get(CAMERA_KEY, ""))
+
+    @property
+    def original_encoding(self) -> str:
+        """The messages' own encoding: an envelope channel's original one."""
+        if self.message_encoding == ENVELOPE_ENCODING:
+            return str(self.metadata.get(ORIGINAL_ENCODING_KEY, ""))
+        return self.message_encoding
+
+    def original(self) -> KeptTopic:
+        """The topic as the input had it: a camera channel without pcdcodec's own keys, in
+        its original encoding."""
+        own = (CAMERA_KEY, ORIGINAL_ENCODING_KEY)
+        meta = {k: v for k, v in self.metadata.items() if k not in own}
+        return KeptTopic(
+            self.topic, self.msgtype, self.schema_encoding, self.definition,
+            self.original_encoding, meta,
+        )  # fmt: skip
+
+    @property
     def schema_name(self) -> str:
         """The type as the input's ROS spells it: ``sensor_msgs/Imu`` in ROS 1."""
-        if self.message_encoding == "ros1" and "/msg/" in self.msgtype:
+        if self.original_encoding == "ros1" and "/msg/" in self.msgtype:
             return self.msgtype.replace("/msg/", "/", 1)
         return self.msgtype
 
@@ -79,7 +111,10 @@ class KeptTopic:
         data)``) stores."""
         name, encoding, data = schema if schema is not None else ("", "", b"")
         msgtype = name
-        if message_encoding == "ros1" and name.count("/") == 1:
+        original = message_encoding
+        if message_encoding == ENVELOPE_ENCODING:
+            original = metadata.get(ORIGINAL_ENCODING_KEY, "")
+        if original == "ros1" and name.count("/") == 1:
             msgtype = name.replace("/", "/msg/", 1)
         meta = {k: v for k, v in metadata.items() if k != KEPT_KEY}
         return cls(topic, msgtype, encoding, data.decode(errors="replace"), message_encoding, meta)
@@ -217,6 +252,8 @@ def kept_listing(topics: Iterable[KeptTopic], streams: Iterable[Any]) -> list[di
     counts = {s.name: s.count for s in streams}
     out: dict[str, dict[str, Any]] = {}
     for t in topics:
+        if t.camera:
+            continue  # a camera topic's messages: made into frames, given back from them
         kind = t.msgtype or t.message_encoding
         out.setdefault(t.topic, {"name": t.topic, "type": kind, "messages": counts.get(t.topic)})
     return list(out.values())

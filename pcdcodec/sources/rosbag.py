@@ -55,7 +55,7 @@ from ..ros.topics import (
 )
 from ..sync import MAX_DIFFERENCE, as_max_difference
 from ._bag_color import color_camera
-from ._bag_kept import BagKeptTopics
+from ._bag_envelope import BagEnvelopes
 from ._bag_video import BagVideo
 from .base import FrameIndex, InputStream, Source, read_magic, register_source, streams_by_name
 
@@ -105,7 +105,7 @@ class _Stats(bagindex.PairStats):
     frames: int = 0
 
 
-class RosbagSource(BagVideo, BagKeptTopics, Source):
+class RosbagSource(BagVideo, BagEnvelopes, Source):
     """A ROS 1 or ROS 2 bag read as RGB-D frames.
 
     Options (all keyword-only):
@@ -121,7 +121,8 @@ class RosbagSource(BagVideo, BagKeptTopics, Source):
       numbers) where the color topic's own CameraInfo shows a camera apart from the depth and
       the bag's tf does not place one in the other (see :meth:`_setup_color_camera`);
     * ``keep_topics`` (default true), ``include_topics``, ``exclude_topics``: which of the other
-      topics a recording keeps as they came (:meth:`kept_topics`; shell-style patterns).
+      topics a recording keeps as they came (:meth:`kept_topics`; shell-style patterns), and
+      the depth and color topics' own messages, kept exactly (``docs/format.md``).
 
     After iterating, :attr:`dropped` counts the images that found no partner and
     :attr:`out_of_order` those whose stamp did not increase. Raises
@@ -562,7 +563,9 @@ class RosbagSource(BagVideo, BagKeptTopics, Source):
     def _messages(self, conns: list[Any]) -> Iterator[tuple[Any, int, Any]]:
         try:
             for c, t, raw in self._reader.messages(connections=conns):
-                yield c, t, self._reader.deserialize(raw, c.msgtype)
+                msg = self._reader.deserialize(raw, c.msgtype)
+                self._env_read(c, t, raw, msg)
+                yield c, t, msg
         except PcdcodecError:
             raise
         except Exception as exc:
@@ -576,13 +579,16 @@ class RosbagSource(BagVideo, BagKeptTopics, Source):
             ts = self._stamp(msg, t, c.topic)
             if ts <= last:
                 self.stats.out_of_order += 1
+                self._env_left(True, ts, msg)
                 continue
             last = ts
             yield msg, ts
 
     def _depth_frames(self) -> Iterator[_Images]:
         for msg, ts in self._in_order(self._depth_conn):
-            yield None, self._decode(msg, self._depth_conn, "depth", ts), ts, None
+            depth = self._decode(msg, self._depth_conn, "depth", ts)
+            self._env_frame(ts, (msg, depth, "depth"))
+            yield None, depth, ts, None
 
     def _paired_frames(self) -> Iterator[_Images]:
         dtopic = self._depth_conn.topic
@@ -590,7 +596,7 @@ class RosbagSource(BagVideo, BagKeptTopics, Source):
             (conn.topic == dtopic, self._stamp(msg, t, conn.topic), msg)
             for conn, t, msg in self._messages([self._depth_conn, self._color_conn])
         )
-        pairs = bagindex.pair_in_order(messages, self.max_difference, self.stats)
+        pairs = bagindex.pair_in_order(messages, self.max_difference, self.stats, self._env_left)
         for dts, dmsg, cmsg, cts in pairs:
             yield self._pair(cmsg, dmsg, dts, cts)
 
@@ -605,6 +611,7 @@ class RosbagSource(BagVideo, BagKeptTopics, Source):
                 f"depth topic {dconn.topic!r} is {depth.shape[1]}x{depth.shape[0]} "
                 f"at {dts} ns"
             )
+        self._env_frame(dts, (dmsg, depth, "depth"), (cmsg, color, "color"))
         return color, depth, dts, cts
 
     def _cloud_frames(self) -> Iterator[_Images]:
