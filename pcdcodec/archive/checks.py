@@ -10,7 +10,7 @@ from typing import Any
 
 from ..errors import VerificationError
 
-__all__ = ["check_frames", "depth_bound", "depth_mismatch", "digest"]
+__all__ = ["check_frames", "check_kept", "depth_bound", "depth_mismatch", "digest", "in_window"]
 
 
 def digest(array: Any) -> str:
@@ -95,3 +95,35 @@ def depth_mismatch(decoded: Any, original: Any, bound: Any) -> str:
             f"(max_error={bound.abs_error:g}, max_rel_error={bound.rel_error:g})"
         )
     return ""
+
+
+def in_window(messages: Iterator[Any], window: tuple[int | None, int | None]) -> Iterator[Any]:
+    """The kept messages whose log time falls in ``window`` (``[low, high)``, ``None``: open):
+    a segment's share of its input's other topics, so that the segments' shares, joined,
+    hold each message once."""
+    low, high = window
+    for m in messages:
+        if (low is None or m.log_time >= low) and (high is None or m.log_time < high):
+            yield m
+
+
+def check_kept(name: str, output: Iterator[Any], source: Iterator[Any]) -> int:
+    """Compare the kept messages of an output with its source's: each message (topic, times,
+    bytes) there once; raise :class:`~pcdcodec.VerificationError` naming ``name`` on any
+    difference. Returns the messages compared."""
+    from collections import Counter
+
+    def key(m: Any) -> tuple[str, int, int, str]:
+        return m.topic.topic, m.log_time, m.published, hashlib.blake2b(m.data).hexdigest()
+
+    want = Counter(key(m) for m in source)
+    got = Counter(key(m) for m in output)
+    if got != want:
+        missing, extra = want - got, got - want
+        first = min(missing or extra)
+        raise VerificationError(
+            f"{name}: the kept messages differ from the source's: {sum(missing.values())} "
+            f"missing, {sum(extra.values())} not in the source or more than once (the first "
+            f"on {first[0]!r} at t={first[1]} ns)"
+        )
+    return sum(want.values())

@@ -319,10 +319,19 @@ def _parse_summary(f: IO[bytes], summary: bytes, start: int, size: int) -> FileI
             index.add(ids[0], ci.message_start_time, ci.chunk_start_offset)
             counts[ids[0]] = counts.get(ids[0], 0) + 1
             continue
-        # A chunk with several messages: read them from the chunk itself.
-        for message in read_chunk_messages(f, ci.chunk_start_offset, what="index", size=size):
-            index.add(message.channel_id, message.log_time, ci.chunk_start_offset)
-            counts[message.channel_id] = counts.get(message.channel_id, 0) + 1
+        # A chunk with several messages (kept topics): read them from the chunk itself, or,
+        # when it is damaged, from its message indexes (its messages are then found missing
+        # where they are read, by the chunk's CRC, and not at opening).
+        try:
+            found = [
+                (m.channel_id, m.log_time)
+                for m in read_chunk_messages(f, ci.chunk_start_offset, what="index", size=size)
+            ]
+        except DecodeError:
+            found = _message_indexes(f, ci, size)
+        for channel_id, log_time in found:
+            index.add(channel_id, log_time, ci.chunk_start_offset)
+            counts[channel_id] = counts.get(channel_id, 0) + 1
     if statistics is None and index.channels:
         # Without statistics nothing says whether every message is in an indexed chunk.
         raise SummaryError("it has no statistics record to check its chunk indexes against")
@@ -344,6 +353,24 @@ def _parse_summary(f: IO[bytes], summary: bytes, start: int, size: int) -> FileI
                 f"channel {counts})"
             )
     return index
+
+
+def _message_indexes(f: IO[bytes], ci: Any, size: int) -> list[tuple[int, int]]:
+    """(channel id, log time) of a chunk's messages in chunk order, from the message index
+    records after it (which its chunk index points at)."""
+    from mcap.records import MessageIndex
+
+    if not ci.message_index_offsets:
+        return []
+    start = min(ci.message_index_offsets.values())
+    data = read_at(f, start, ci.message_index_length, size, what="message index")
+    entries = []
+    for _, opcode, content in _records(data, start):
+        if opcode != _OP_MESSAGE_INDEX:
+            raise SummaryError(f"no message index record where chunk index {start} points")
+        record = MessageIndex.read(_stream(content))
+        entries += [(at, record.channel_id, t) for t, at in record.records]
+    return [(cid, t) for _, cid, t in sorted(entries)]
 
 
 def _kept_channel(index: FileIndex, channel_id: int) -> bool:
