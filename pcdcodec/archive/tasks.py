@@ -211,4 +211,4 @@ def _verify(
         bound = _depth_bound(rec.codecs.get("depth") or {})
         n = check_frames(name, iter(rec), source, bound, colors)
         kept = check_kept(name, rec.kept_messages(), source.kept_messages())
-    return {"frames": n, "kept": kept}
+    return {"frames": n, **({"kept": kept} if kept else {})}
