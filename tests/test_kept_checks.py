@@ -6,6 +6,7 @@ byte (``docs/recording.md``)."""
 from __future__ import annotations
 
 import collections
+import itertools
 from pathlib import Path
 from typing import Any
 
@@ -409,3 +410,20 @@ def test_archive_verification_finds_kept_messages_missing() -> None:
     assert check_kept("x", iter(messages), iter(messages)) == 10
     with pytest.raises(VerificationError, match=r"x: the kept messages differ.*1 missing, 1 not"):
         check_kept("x", iter([*messages[:4], messages[3], *messages[5:]]), iter(messages))
+
+
+def test_a_segment_reads_only_the_kept_messages_of_its_window(robot_bag: Path) -> None:
+    from pcdcodec.archive.checks import kept_in
+    from pcdcodec.sources import open_source
+
+    with open_source(robot_bag) as source:
+        every = _as_tuples(source.kept_messages())
+        times = sorted({m[1] for m in every})
+        cuts = [None, times[len(times) // 3], times[len(times) // 3] + 1, times[-1], None]
+        windows = list(itertools.pairwise(cuts))
+        parts = [_as_tuples(kept_in(source, w)) for w in windows]
+        # Read through the bag's index with start and stop, not filtered from every message.
+        low, high = windows[1]
+        assert _as_tuples(source.kept_messages(start=low, stop=high)) == parts[1]
+    assert [m for part in parts for m in part] == every
+    assert all(parts[k] for k in (0, 1, 3))

@@ -10,7 +10,15 @@ from typing import Any
 
 from ..errors import VerificationError
 
-__all__ = ["check_frames", "check_kept", "depth_bound", "depth_mismatch", "digest", "in_window"]
+__all__ = [
+    "check_frames",
+    "check_kept",
+    "depth_bound",
+    "depth_mismatch",
+    "digest",
+    "in_window",
+    "kept_in",
+]
 
 
 def digest(array: Any) -> str:
@@ -97,10 +105,20 @@ def depth_mismatch(decoded: Any, original: Any, bound: Any) -> str:
     return ""
 
 
+def kept_in(source: Any, window: tuple[int | None, int | None]) -> Iterator[Any]:
+    """The kept messages of ``source`` whose log time falls in ``window`` (``[low, high)``,
+    ``None``: open): a segment's share of its input's other topics, so that the segments'
+    shares, joined, hold each message once. A source whose ``kept_messages`` takes ``start``
+    and ``stop`` (a bag's) reads only those."""
+    import inspect
+
+    if window != (None, None) and "stop" in inspect.signature(source.kept_messages).parameters:
+        return in_window(source.kept_messages(start=window[0], stop=window[1]), window)
+    return in_window(source.kept_messages(), window)
+
+
 def in_window(messages: Iterator[Any], window: tuple[int | None, int | None]) -> Iterator[Any]:
-    """The kept messages whose log time falls in ``window`` (``[low, high)``, ``None``: open):
-    a segment's share of its input's other topics, so that the segments' shares, joined,
-    hold each message once."""
+    """The messages whose log time falls in ``window`` (``[low, high)``, ``None``: open)."""
     low, high = window
     for m in messages:
         if (low is None or m.log_time >= low) and (high is None or m.log_time < high):

@@ -13,7 +13,7 @@ from typing import Any
 
 from .._atomic import partial_path
 from ..errors import InputError, VerificationError
-from .checks import check_frames, check_kept, in_window
+from .checks import check_frames, check_kept, kept_in
 from .checks import depth_bound as _depth_bound
 from .checks import depth_mismatch as _depth_mismatch  # noqa: F401 - its name here before
 from .checks import digest as _digest
@@ -118,7 +118,7 @@ def _encode_segment(
             frames = source.frames_at(index) if index is not None else source.frames(start, stop)
             kept = source.kept_topics()
             if kept:
-                frames = by_time(iter(frames), in_window(source.kept_messages(), window))
+                frames = by_time(iter(frames), kept_in(source, window))
             meta = dict(source.metadata)
             opts = dict(writer_options)
             if not source.has_color:
