@@ -20,6 +20,7 @@ __all__ = [
     "CHUNK_BYTES",
     "KEPT_VERSION",
     "KeptChannels",
+    "check_kept",
     "kept_problems",
     "kept_topics_of",
     "read_kept",
@@ -258,6 +259,58 @@ def read_kept(
             f"{what}: the kept messages are not those sealed (changed, added, removed or "
             "reordered); run `pcdcodec recover` to copy those that check out"
         )
+
+
+def kept_offsets(index: fmt.FileIndex) -> dict[int, list[str]]:
+    """The chunks that hold kept messages: byte offset -> the kept topics found there."""
+    names = {ch.topic for ch in index.channels.values() if ch.metadata.get(KEPT_KEY) == "1"}
+    out: dict[int, list[str]] = {}
+    for topic in sorted(names):
+        for off in index.offsets.get(topic, []):
+            if topic not in out.setdefault(off, []):
+                out[off].append(topic)
+    return dict(sorted(out.items()))
+
+
+def check_kept(f: IO[bytes], index: fmt.FileIndex, what: str) -> tuple[list[str], dict[str, int]]:
+    """Every kept message of the file read, each chunk's CRC checked (a damaged chunk is
+    passed over, and said with the topics it holds), and what was read compared with the
+    seal: each topic's count, then the digest of them all. Returns the problems and the
+    messages read per topic."""
+    channels = kept_channel_ids(index)
+    problems: list[str] = []
+    digest = KeptDigest()
+    for off, topics in kept_offsets(index).items():
+        try:
+            messages = fmt.read_chunk_messages(f, off, what=what)
+        except DecodeError as exc:
+            problems.append(f"kept topics {', '.join(topics)}: unreadable ({exc})")
+            continue
+        for m in messages:
+            kept = channels.get(m.channel_id)
+            if kept is not None:
+                digest.note(kept.topic, m.log_time, m.publish_time, bytes(m.data))
+    seal = index.metadata.get(fmt.SEAL_NAME)
+    if seal is None:
+        return problems, digest.counts
+    try:
+        sealed = json.loads(seal.get("kept", "{}"))
+        if not isinstance(sealed, dict):
+            raise ValueError
+    except ValueError:
+        return [*problems, f"kept messages: the seal's count {seal.get('kept')!r} is not JSON"], {}
+    for topic in sorted(set(sealed) | set(digest.counts)):
+        if sealed.get(topic, 0) != digest.counts.get(topic, 0):
+            problems.append(
+                f"kept topic {topic}: {sealed.get(topic, 0)} messages sealed, "
+                f"{digest.counts.get(topic, 0)} read"
+            )
+    if not problems and digest.seal().get("kept_digest") != seal.get("kept_digest"):
+        problems.append(
+            "the kept messages are not those sealed (changed or reordered; their chunks' CRCs "
+            f"hold) on topics {', '.join(sorted(digest.counts))}"
+        )
+    return problems, digest.counts
 
 
 class KeptAccess(CameraAccess):
