@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import DecodeError, InputError
+from ..errors import DecodeError, InputError, PcdcodecError
 from ..ros import bagindex
 from ..ros.envelope import Envelope, split_cloud, split_image
 from ..ros.kept import KeptMessage, KeptTopic
@@ -79,7 +79,10 @@ def _jxl_encode(pixels: npt.NDArray[np.uint8]) -> bytes:
 def _jxl_decode(data: bytes) -> npt.NDArray[np.uint8]:
     import imagecodecs
 
-    return np.asarray(imagecodecs.jpegxl_decode(data))
+    try:
+        return np.asarray(imagecodecs.jpegxl_decode(data))
+    except Exception as exc:  # the library's own errors: damaged data
+        raise ValueError(f"its JPEG XL image does not decode: {exc}") from None
 
 
 def _zstd(data: bytes) -> bytes:
@@ -91,7 +94,13 @@ def _zstd(data: bytes) -> bytes:
 def _unzstd(data: bytes, size: int) -> bytes:
     import zstandard
 
-    return bytes(zstandard.ZstdDecompressor().decompress(data, max_output_size=size))
+    try:
+        out = bytes(zstandard.ZstdDecompressor().decompress(data, max_output_size=size))
+    except zstandard.ZstdError as exc:
+        raise ValueError(f"a zstd section does not decompress: {exc}") from None
+    if len(out) != size:
+        raise ValueError(f"a zstd section holds {len(out)} bytes, expected {size}")
+    return out
 
 
 def _sections(*parts: bytes) -> bytes:
@@ -129,8 +138,8 @@ def _predict_xyz(
     x = rx[None, :] * z
     y = ry[:, None] * z
     hole = depth == 0
-    x[hole] = 0
-    y[hole] = 0
+    np.copyto(x, 0, where=hole)
+    np.copyto(y, 0, where=hole)
     return x.view(np.uint32), y.view(np.uint32), z.view(np.uint32)
 
 
@@ -225,7 +234,7 @@ class Packer:
                 body = self._image(raw, enc)
             else:
                 body = self._cloud(raw, enc)
-        except (ValueError, InputError, DecodeError):
+        except Exception:  # a coder refusing these pixels: the message is kept as it came
             body = None
         packed = None if body is None else self._whole(raw, *body)
         if packed is not None:
@@ -289,28 +298,36 @@ class Packer:
         if found is None or found[1].shape != (env.height, env.width):
             return None
         ts, depth = found
-        points = np.frombuffer(raw, np.uint8, env.data_end - env.data_start, env.data_start)
-        points = points.reshape(env.height, env.width, env.point_step)
-        valid = depth != 0
+        data = np.frombuffer(raw, np.uint8, env.data_end - env.data_start, env.data_start)
+        points = data.reshape(env.height, env.width, env.point_step)
+        hole = depth == 0
         parts = []
         for bits, off in zip(
             _predict_xyz(depth, self.camera, self.depth_scale), shape.offsets[:3], strict=True
         ):
-            got = np.ascontiguousarray(points[..., off : off + 4]).view("<u4")[..., 0]
-            diff = got - bits  # wraps: the difference of the float32 bits
-            ulps = diff.view(np.int32)[valid]
-            if ulps.size and int(np.abs(ulps.astype(np.int64)).max()) > MAX_ULPS:
+            diff = _column(data, off, points.shape) - bits  # wraps: the float32 bits' difference
+            far = (diff + np.uint32(MAX_ULPS)) > 2 * MAX_ULPS  # more than MAX_ULPS either way
+            if np.logical_and(far, ~hole, out=far).any():
                 return None  # not made from this frame's depth
             parts.append(_zstd(diff.tobytes()))
-        rgb_off = shape.offsets[3]
-        if rgb_off >= 0:
-            bgr = points[..., rgb_off : rgb_off + 3]
-            parts.append(_jxl_encode(np.ascontiguousarray(bgr[..., ::-1])))
-        else:
-            parts.append(b"")
-        parts.append(_zstd(np.ascontiguousarray(points[..., shape.rest]).tobytes()))
+        parts.append(b"" if shape.offsets[3] < 0 else _jxl_encode(_rgb(data, shape, points.shape)))
+        parts.append(_zstd(points[..., shape.rest].tobytes()))
         head = _CLOUD_HEAD.pack(ts, env.height, env.width, env.point_step, *shape.offsets)
         return env, _CLOUD, head + _sections(*parts)
+
+
+def _column(data: npt.NDArray[np.uint8], offset: int, shape: tuple[int, ...]) -> Any:
+    """The uint32 at byte ``offset`` of every point of ``data`` (``shape``: height, width,
+    point_step), as a strided view (writable where ``data`` is)."""
+    h, w, step = shape
+    return np.ndarray((h, w), "<u4", data, offset, (w * step, step))
+
+
+def _rgb(data: npt.NDArray[np.uint8], shape: _CloudShape, dims: tuple[int, ...]) -> Any:
+    """The r, g, b bytes of every point (stored b, g, r from the colour field's offset), as an
+    H x W x 3 strided view (writable where ``data`` is)."""
+    h, w, step = dims
+    return np.ndarray((h, w, 3), np.uint8, data, shape.offsets[3] + 2, (w * step, step, -1))
 
 
 def _stamp(raw: bytes, enc: str) -> int | None:
@@ -360,7 +377,7 @@ def unpack(
             body = _unpack_image(kind, cur, depth_at, size)
     except (ValueError, struct.error, TypeError) as exc:
         raise DecodeError(f"{what}: a packed kept message is damaged ({exc})") from None
-    except DecodeError as exc:
+    except PcdcodecError as exc:  # its depth codec's, or a frame the file lacks
         raise DecodeError(f"{what}: a packed kept message: {exc}") from None
     out = prefix + body + suffix
     if len(out) != size or zlib.crc32(out) != crc:
@@ -408,20 +425,23 @@ def _unpack_cloud(cur: _Cursor, depth_at: DepthAt | None, camera: Any, size: int
         raise ValueError(f"{h}x{w} points of {step} bytes exceed the message's {size}")
     depth = _frame_depth(depth_at, ts, (h, w))
     shape = _CloudShape(step, (offsets[0], offsets[1], offsets[2], offsets[3]))
-    points = np.zeros((h, w, step), np.uint8)
+    if max(offsets) + 4 > step or min(offsets[:3]) < 0:
+        raise ValueError(f"field offsets {offsets} do not fit points of {step} bytes")
+    data = np.empty(h * w * step, np.uint8)
+    dims = (h, w, step)
     n = h * w * 4
     for bits, off in zip(_predict_xyz(depth, camera[:4], camera[4]), offsets[:3], strict=True):
         diff = np.frombuffer(_unzstd(cur.section(), n), "<u4").reshape(h, w)
-        points[..., off : off + 4] = (bits + diff).view(np.uint8).reshape(h, w, 4)
+        np.add(bits, diff, out=_column(data, off, dims))
     rgb = cur.section()
     if offsets[3] >= 0:
         pixels = _jxl_decode(rgb)
         if pixels.shape != (h, w, 3):
             raise ValueError(f"the colours are {pixels.shape}, expected {(h, w, 3)}")
-        points[..., offsets[3] : offsets[3] + 3] = pixels[..., ::-1]
+        _rgb(data, shape, dims)[...] = pixels
     rest = np.frombuffer(_unzstd(cur.section(), h * w * len(shape.rest)), np.uint8)
-    points[..., shape.rest] = rest.reshape(h, w, len(shape.rest))
-    return points.tobytes()
+    data.reshape(dims)[..., shape.rest] = rest.reshape(h, w, len(shape.rest))
+    return data.tobytes()
 
 
 def packed_frames(recording: Any) -> tuple[DepthAt, tuple[float, float, float, float, float]]:
