@@ -283,3 +283,25 @@ def test_a_damaged_packed_message_is_an_error_not_wrong_bytes() -> None:
     for damaged in (packed[:-9], packed[:30] + bytes([packed[30] ^ 1]) + packed[31:]):
         with pytest.raises(DecodeError, match="'where'"):
             unpack(damaged, None, "'where'")
+
+
+def test_compressed_images_stay_as_they_came_beside_packed_ones(tmp_path: Path) -> None:
+    """A real ROS 2 bag: its raw images (mono8, rgb8) are packed, its CompressedImage topics
+    (JPEG, PNG, compressedDepth) are already compressed and stay on their cdr channels."""
+    path = BAGS / "ros2-converted" / "spot_ros2_mcap"
+    if not path.exists():
+        pytest.skip(f"{path} is not present")
+    out = tmp_path / "spot.pcdc"
+    pcdcodec.encode(path, out, intrinsics=SPOT_CAMERA, color_topic="")
+    original = _original(path)
+    with pcdcodec.Recording(out) as rec:
+        kept = _kept(rec)
+        types = {t.topic: t.msgtype for t in rec.kept_topics}
+    for topic, messages in kept.items():
+        assert messages == original[topic], topic
+    channels = _channels(out)
+    for topic, kind in types.items():
+        want = IMAGE_ENCODING if kind == "sensor_msgs/msg/Image" else "cdr"
+        assert set(channels[topic]) == {want}, topic
+    assert "sensor_msgs/msg/CompressedImage" in types.values()
+    assert "sensor_msgs/msg/Image" in types.values()
