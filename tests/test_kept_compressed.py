@@ -270,19 +270,46 @@ def test_kept_images_raw_keeps_every_message_as_it_came(frames: Any, tmp_path: P
 
 
 def test_a_damaged_packed_message_is_an_error_not_wrong_bytes() -> None:
-    rng = np.random.default_rng(3)
-    ir8 = rng.integers(0, 255, (48, 64), dtype=np.uint8)
-    raw = _image_message(True, ir8, "mono8", 64)
+    """Every kind of packed message, cut short or with a byte flipped anywhere: the original
+    bytes or a DecodeError naming the file, never another exception or other bytes."""
     from pcdcodec.recording._kept_pack import Packer
 
+    rng = np.random.default_rng(3)
+    depth = rng.integers(300, 3000, (48, 64), dtype=np.uint16)
+    t = 5_000_000_000
     packer = Packer(pcdcodec.get_codec("depthac"), CAMERA, 1000.0)
-    topic = KeptTopic("/ir8", "sensor_msgs/msg/Image", "", "", "ros1")
-    packed = packer.pack(KeptMessage(topic, 1, raw))
-    assert packed is not None
-    assert unpack(packed, None, "x") == raw
-    for damaged in (packed[:-9], packed[:30] + bytes([packed[30] ^ 1]) + packed[31:]):
-        with pytest.raises(DecodeError, match="'where'"):
-            unpack(damaged, None, "'where'")
+    packer.saw_frame(t, depth)
+    image = KeptTopic("/i", "sensor_msgs/msg/Image", "", "", "ros1")
+    image2 = KeptTopic("/i", "sensor_msgs/msg/Image", "", "", "cdr")
+    cloud = KeptTopic(rb.CLOUD, "sensor_msgs/msg/PointCloud2", "", "", "ros1")
+    originals = [
+        (image, _image_message(True, rng.integers(0, 255, (48, 64), np.uint8), "mono8", 64)),
+        (image2, _image_message(False, rng.integers(0, 4000, (48, 64), np.uint16), "16UC1", 128)),
+        (image, _image_message(True, depth, "16UC1", 128)),  # t = 5 s: the frame itself
+        (cloud, _cloud_message(_cloud_of(depth), t)),
+    ]
+    camera = (CAMERA.fx, CAMERA.fy, CAMERA.cx, CAMERA.cy, 1000.0)
+    frames = {t: depth}.get
+    kinds = set()
+    for topic, raw in originals:
+        packed = packer.pack(KeptMessage(topic, 1, raw))
+        assert packed is not None
+        kinds.add(packed[5])
+        assert unpack(packed, frames, "x", camera) == raw
+        cases = [packed[:n] for n in rng.integers(0, len(packed), 20)]
+        for pos in rng.integers(0, len(packed), 60):
+            cases.append(packed[:pos] + bytes([packed[pos] ^ 0x10]) + packed[pos + 1 :])
+        for damaged in cases:
+            try:
+                back = unpack(damaged, frames, "'where'", camera)
+            except DecodeError as exc:
+                message = str(exc)
+            else:
+                message = "'where'" if back == raw else "other bytes"
+            assert "'where'" in message
+    assert kinds == {1, 2, 3, 4}
+    with pytest.raises(DecodeError, match="not in the file"):
+        unpack(packer.pack(KeptMessage(image, 1, originals[2][1])) or b"", {}.get, "x", camera)
 
 
 def test_compressed_images_stay_as_they_came_beside_packed_ones(tmp_path: Path) -> None:

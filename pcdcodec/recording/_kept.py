@@ -313,6 +313,8 @@ class KeptAccess:
         written, each with its bytes as the input held them and its log and publish times.
         Each chunk's CRC is checked before its messages are given, and reading them all checks
         them against the seal at the end (:class:`~pcdcodec.DecodeError` if they differ).
+        Packed images and clouds (``docs/bags.md``) come back byte for byte, rebuilt from
+        what they hold and the depth frames they refer to.
         Reads its own handle of the file, so frames can be read meanwhile."""
         depth_at, camera = packed_frames(self)
         with open(self.path, "rb") as f:

@@ -76,9 +76,18 @@ def _jxl_encode(pixels: npt.NDArray[np.uint8]) -> bytes:
     return bytes(imagecodecs.jpegxl_encode(pixels, lossless=True, effort=_JXL_EFFORT))
 
 
-def _jxl_decode(data: bytes) -> npt.NDArray[np.uint8]:
+def _jxl_decode(data: bytes, shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
+    """The pixels of a JPEG XL image of ``shape`` (height, width), checked before decoding."""
     import imagecodecs
 
+    from ..depth.jpegxl import jpegxl_size
+
+    try:
+        found = jpegxl_size(data)
+    except DecodeError as exc:
+        raise ValueError(str(exc)) from None
+    if found != shape:
+        raise ValueError(f"its JPEG XL image is {found}, expected {shape}")
     try:
         return np.asarray(imagecodecs.jpegxl_decode(data))
     except Exception as exc:  # the library's own errors: damaged data
@@ -397,7 +406,9 @@ def _frame_depth(depth_at: DepthAt | None, ts: int, shape: tuple[int, int]) -> A
 def _unpack_image(kind: int, cur: _Cursor, depth_at: DepthAt | None, size: int) -> bytes:
     h, w, extra = _SHAPE.unpack(cur.take(_SHAPE.size))
     if kind == _IMAGE8:
-        pixels = _jxl_decode(cur.take(len(cur.data) - cur.pos))
+        if h * w * max(extra, 1) > size:
+            raise ValueError(f"a {h}x{w} image does not fit the message's {size} bytes")
+        pixels = _jxl_decode(cur.take(len(cur.data) - cur.pos), (h, w))
         if pixels.dtype != np.uint8 or pixels.size != h * w * max(extra, 1):
             raise ValueError(f"the image is {pixels.shape}, expected {h}x{w}x{extra}")
         return pixels.tobytes()
@@ -405,11 +416,16 @@ def _unpack_image(kind: int, cur: _Cursor, depth_at: DepthAt | None, size: int) 
         (ts,) = struct.unpack("<q", cur.take(8))
         depth = _frame_depth(depth_at, ts, (h, w))
     elif kind == _IMAGE16:
+        from ..depth.base import read_header
         from ..registry import codec_for_reading
 
         config = json.loads(cur.section())
         codec: Any = codec_for_reading(config, kind="depth")
-        depth = codec.decode(cur.section())
+        coded = cur.section()
+        header = read_header(coded)  # checked before decoding: no huge image is made
+        if header.shape != (h, w) or header.dtype != np.uint16 or 2 * h * w > size:
+            raise ValueError(f"its coded image is {header.dtype} {header.shape}, expected {h}x{w}")
+        depth = codec.decode(coded, max_pixels=None)
         if depth.shape != (h, w) or depth.dtype != np.uint16:
             raise ValueError(f"the image is {depth.shape} {depth.dtype}, expected {h}x{w}")
     else:
@@ -435,7 +451,7 @@ def _unpack_cloud(cur: _Cursor, depth_at: DepthAt | None, camera: Any, size: int
         np.add(bits, diff, out=_column(data, off, dims))
     rgb = cur.section()
     if offsets[3] >= 0:
-        pixels = _jxl_decode(rgb)
+        pixels = _jxl_decode(rgb, (h, w))
         if pixels.shape != (h, w, 3):
             raise ValueError(f"the colours are {pixels.shape}, expected {(h, w, 3)}")
         _rgb(data, shape, dims)[...] = pixels

@@ -451,7 +451,9 @@ class RecordingWriter(FrameInputs):
         """Keep one message of a kept topic (one of ``kept_topics``, given when opening) as it
         came: its bytes, log and publish time. Messages are gathered into zstd chunks of about
         1 MiB (:data:`~pcdcodec.recording._kept.CHUNK_BYTES`), written as each fills and on
-        :meth:`close`. Raises :class:`~pcdcodec.InputError` for a topic not given."""
+        :meth:`close`. Images and organized clouds are packed where they rebuild exactly
+        (``kept_images``, ``docs/bags.md``). Raises :class:`~pcdcodec.InputError` for a topic
+        not given."""
         check_not_inherited(self, f"the writer of {str(self.path)!r}")
         self._check_open()
         self._container.add_kept(message)
