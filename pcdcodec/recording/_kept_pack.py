@@ -200,11 +200,10 @@ class Packer:
         camera: Any,
         depth_scale: float,
     ) -> None:
-        from ..registry import get_codec
-
         usable = depth_codec.lossless and "uint16" in depth_codec.dtypes
-        self.depth_codec: Any = depth_codec if usable else get_codec("depthac", kind="depth")
-        self.config = json.dumps(self.depth_codec.stored_config(), separators=(",", ":"))
+        #: The coder of 16-bit images: the recording's depth codec when lossless, else depthac
+        #: (made on first use).
+        self.depth_codec: Any = depth_codec if usable else None
         self.reference = bool(depth_codec.lossless)  # frames come back exactly: refer to them
         self.camera = (camera.fx, camera.fy, camera.cx, camera.cy)
         self.pinhole = not getattr(camera, "has_distortion", False)
@@ -282,11 +281,16 @@ class Packer:
                     _DEPTH_REF,
                     _SHAPE.pack(h, w, env.is_bigendian) + struct.pack("<q", found[0]),
                 )
+            if self.depth_codec is None:
+                from ..registry import get_codec
+
+                self.depth_codec = get_codec("depthac", kind="depth")
+            config = json.dumps(self.depth_codec.stored_config(), separators=(",", ":"))
             coded = self.depth_codec.encode(depth)
             return (
                 env,
                 _IMAGE16,
-                _SHAPE.pack(h, w, env.is_bigendian) + _sections(self.config.encode(), coded),
+                _SHAPE.pack(h, w, env.is_bigendian) + _sections(config.encode(), coded),
             )
         channels = _8BIT.get(env.encoding)
         if channels is None or env.step != channels * w or len(data) != env.step * h or h * w == 0:
