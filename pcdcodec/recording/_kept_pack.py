@@ -56,7 +56,10 @@ _HEAD = struct.Struct("<4sBBII")  # magic, version, kind, CRC-32 and length of t
 _VERSION = 1
 _IMAGE16, _IMAGE8, _DEPTH_REF, _CLOUD = 1, 2, 3, 4
 _SHAPE = struct.Struct("<IIB")  # height, width, channels (8-bit) or big-endian (16-bit)
-_CLOUD_HEAD = struct.Struct("<qIIIiiii")  # frame, h, w, point_step, x, y, z, rgb offsets
+# frame, h, w, point_step, x, y, z and rgb offsets, rule of the rebuild
+_CLOUD_HEAD = struct.Struct("<qIIIiiiiB")
+#: The rebuilds of x, y and z a cloud may be compared with (:func:`_predict_xyz`).
+RULES = (0, 1)
 _U32 = struct.Struct("<I")
 _16BIT = frozenset(("16UC1", "mono16", "Y16"))
 _8BIT = {"mono8": 1, "8UC1": 1, "rgb8": 3, "bgr8": 3, "8UC3": 3, "rgba8": 4, "bgra8": 4}
@@ -135,20 +138,33 @@ class _Cursor:
 
 
 def _predict_xyz(
-    depth: npt.NDArray[np.uint16], camera: tuple[float, float, float, float], scale: float
+    depth: npt.NDArray[np.uint16],
+    camera: tuple[float, float, float, float],
+    scale: float,
+    rule: int,
 ) -> tuple[npt.NDArray[np.uint32], ...]:
-    """The float32 bits of x, y and z a pinhole camera gives each pixel of ``depth``: z =
-    float32(d / scale), x = float32((u - cx) / fx) * z, y likewise; 0 where d is 0."""
+    """The float32 bits of x, y and z a pinhole camera gives each pixel of ``depth``. Rule 0
+    (pcdcodec's projector): z = float32(d / scale), x = float32((u - cx) / fx) * z, y
+    likewise, the divisions in float64, and x = y = 0 where d is 0. Rule 1 (librealsense's
+    deprojection, so realsense-ros's clouds): all in float32, z = d * float32(1 / scale),
+    x = ((u - cx) / fx) * z, y likewise."""
     fx, fy, cx, cy = camera
     h, w = depth.shape
-    z = (depth.astype(np.float64) / scale).astype(np.float32)
-    rx = ((np.arange(w, dtype=np.float64) - cx) / fx).astype(np.float32)
-    ry = ((np.arange(h, dtype=np.float64) - cy) / fy).astype(np.float32)
+    if rule == 0:
+        z = (depth.astype(np.float64) / scale).astype(np.float32)
+        rx = ((np.arange(w, dtype=np.float64) - cx) / fx).astype(np.float32)
+        ry = ((np.arange(h, dtype=np.float64) - cy) / fy).astype(np.float32)
+    else:
+        f32 = np.float32
+        z = depth.astype(np.float32) * f32(1.0 / scale)
+        rx = (np.arange(w, dtype=np.float32) - f32(cx)) / f32(fx)
+        ry = (np.arange(h, dtype=np.float32) - f32(cy)) / f32(fy)
     x = rx[None, :] * z
     y = ry[:, None] * z
-    hole = depth == 0
-    np.copyto(x, 0, where=hole)
-    np.copyto(y, 0, where=hole)
+    if rule == 0:  # holes are 0 (rule 1 keeps the products: -0.0 left of cx)
+        hole = depth == 0
+        np.copyto(x, 0, where=hole)
+        np.copyto(y, 0, where=hole)
     return x.view(np.uint32), y.view(np.uint32), z.view(np.uint32)
 
 
@@ -314,18 +330,32 @@ class Packer:
         data = np.frombuffer(raw, np.uint8, env.data_end - env.data_start, env.data_start)
         points = data.reshape(env.height, env.width, env.point_step)
         hole = depth == 0
-        parts = []
-        for bits, off in zip(
-            _predict_xyz(depth, self.camera, self.depth_scale), shape.offsets[:3], strict=True
-        ):
-            diff = _column(data, off, points.shape) - bits  # wraps: the float32 bits' difference
-            far = (diff + np.uint32(MAX_ULPS)) > 2 * MAX_ULPS  # more than MAX_ULPS either way
-            if np.logical_and(far, ~hole, out=far).any():
-                return None  # not made from this frame's depth
-            parts.append(_zstd(diff.tobytes()))
+        best: tuple[int, int, list[Any]] | None = None
+        for rule in RULES:
+            diffs = []
+            for bits, off in zip(
+                _predict_xyz(depth, self.camera, self.depth_scale, rule),
+                shape.offsets[:3],
+                strict=True,
+            ):
+                diff = _column(data, off, points.shape) - bits  # wraps: the bits' difference
+                far = (diff + np.uint32(MAX_ULPS)) > 2 * MAX_ULPS  # over MAX_ULPS either way
+                if np.logical_and(far, ~hole, out=far).any():
+                    break  # not this rule's rebuild of this frame's depth
+                diffs.append(diff)
+            else:
+                changed = sum(int(np.count_nonzero(d)) for d in diffs)
+                if best is None or changed < best[1]:
+                    best = (rule, changed, diffs)
+                if changed == 0:
+                    break
+        if best is None:
+            return None  # not made from this frame's depth
+        rule, _, diffs = best
+        parts = [_zstd(d.tobytes()) for d in diffs]
         parts.append(b"" if shape.offsets[3] < 0 else _jxl_encode(_rgb(data, shape, points.shape)))
         parts.append(_zstd(points[..., shape.rest].tobytes()))
-        head = _CLOUD_HEAD.pack(ts, env.height, env.width, env.point_step, *shape.offsets)
+        head = _CLOUD_HEAD.pack(ts, env.height, env.width, env.point_step, *shape.offsets, rule)
         return env, _CLOUD, head + _sections(*parts)
 
 
@@ -438,7 +468,7 @@ def _unpack_image(kind: int, cur: _Cursor, depth_at: DepthAt | None, size: int) 
 
 
 def _unpack_cloud(cur: _Cursor, depth_at: DepthAt | None, camera: Any, size: int) -> bytes:
-    ts, h, w, step, *offsets = _CLOUD_HEAD.unpack(cur.take(_CLOUD_HEAD.size))
+    ts, h, w, step, *offsets, rule = _CLOUD_HEAD.unpack(cur.take(_CLOUD_HEAD.size))
     if camera is None:
         raise DecodeError("a kept cloud needs the recording's camera to be rebuilt")
     if h * w * step > size:
@@ -450,7 +480,10 @@ def _unpack_cloud(cur: _Cursor, depth_at: DepthAt | None, camera: Any, size: int
     data = np.empty(h * w * step, np.uint8)
     dims = (h, w, step)
     n = h * w * 4
-    for bits, off in zip(_predict_xyz(depth, camera[:4], camera[4]), offsets[:3], strict=True):
+    if rule not in RULES:
+        raise ValueError(f"unknown rebuild rule {rule}")
+    xyz = _predict_xyz(depth, camera[:4], camera[4], rule)
+    for bits, off in zip(xyz, offsets[:3], strict=True):
         diff = np.frombuffer(_unzstd(cur.section(), n), "<u4").reshape(h, w)
         np.add(bits, diff, out=_column(data, off, dims))
     rgb = cur.section()
