@@ -262,9 +262,13 @@ def test_kept_images_raw_keeps_every_message_as_it_came(frames: Any, tmp_path: P
         bag, frames[:2], intrinsics=seq.camera, depth_scale=seq.depth_scale, seconds=0.1,
         extras=False,
     )  # fmt: skip
+    from pcdcodec.cli import main
+
     out = tmp_path / "robot.pcdc"
-    pcdcodec.encode(bag, out, kept_images="raw")
+    assert main(["encode", str(bag), "-o", str(out), "--kept-images", "raw", "-q"]) == 0
     assert all(set(c) == {"ros1"} for c in _channels(out).values())
+    assert main(["encode", str(bag), "-o", str(tmp_path / "p.pcdc"), "-q"]) == 0
+    assert set(_channels(tmp_path / "p.pcdc")[rb.DEPTH]) == {IMAGE_ENCODING}
     with pytest.raises(InputError, match="kept_images must be one of"):
         pcdcodec.encode(bag, tmp_path / "y.pcdc", kept_images="jpeg")
 
