@@ -61,16 +61,19 @@ def mcap_zstd(bag: Path, out: Path) -> tuple[int, dict[str, list[bytes]]]:
     return out.stat().st_size, by_topic
 
 
-def pcdc_topics(path: Path) -> dict[str, list[bytes]]:
-    """The stored (packed or raw) messages of each kept topic of a recording."""
+def pcdc_topics(path: Path) -> tuple[dict[str, list[bytes]], dict[str, int]]:
+    """The stored (packed or raw) messages of each kept topic of a recording, and how many of
+    them are packed."""
     from mcap.reader import make_reader
 
     out: dict[str, list[bytes]] = collections.defaultdict(list)
+    packed: dict[str, int] = collections.defaultdict(int)
     with open(path, "rb") as f:
         for _s, channel, message in make_reader(f).iter_messages():
             if "pcdcodec.kept" in channel.metadata:
                 out[channel.topic].append(bytes(message.data))
-    return out
+                packed[channel.topic] += channel.message_encoding.startswith("pcdcodec.")
+    return out, packed
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -88,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
             args.bag, out, kept_images=args.kept_images, color=args.color, overwrite=True
         )
         took = time.perf_counter() - start
-        stored = pcdc_topics(out)
+        stored, packed = pcdc_topics(out)
         size = out.stat().st_size
     source = summary.source
     frame_topics = {source.get("depth_topic"): summary.bytes_depth}
@@ -100,7 +103,8 @@ def main(argv: list[str] | None = None) -> int:
         if topic in frame_topics:
             ours, how = frame_topics[topic], "frames"
         elif topic in stored:
-            ours, how = _zstd_chunks(stored[topic]), "kept"
+            ours = _zstd_chunks(stored[topic])
+            how = f"kept, {packed[topic]} of {len(stored[topic])} packed"
         else:
             ours, how = 0, "left out"
         print(f"{topic:<{width}}  {raw:>12,}  {_zstd_chunks(messages):>12,}  {ours:>12,}  {how}")

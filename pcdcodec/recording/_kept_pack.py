@@ -225,8 +225,6 @@ class Packer:
         self.pinhole = not getattr(camera, "has_distortion", False)
         self.depth_scale = float(depth_scale)
         self.frames: deque[tuple[int, npt.NDArray[np.uint16]]] = deque(maxlen=WINDOW)
-        #: Messages packed and left as they came, per topic.
-        self.counts: dict[str, list[int]] = {}
 
     @staticmethod
     def packs(topic: KeptTopic) -> str | None:
@@ -269,8 +267,6 @@ class Packer:
                     packed = None
             except DecodeError:
                 packed = None
-        count = self.counts.setdefault(message.topic.topic, [0, 0])
-        count[0 if packed is not None else 1] += 1
         return packed
 
     @staticmethod
