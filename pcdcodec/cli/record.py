@@ -56,6 +56,7 @@ def cmd_encode(args: argparse.Namespace) -> int:
                 overwrite=args.overwrite,
                 progress=bar.update,
                 passthrough=args.passthrough,
+                kept_images=args.kept_images,
             )
         used_camera, used_scale = source.intrinsics, source.depth_scale
         camera_from = _origin_text(source.intrinsics_origin)
