@@ -72,13 +72,14 @@ def test_every_other_topic_of_a_real_bag_is_kept_byte_for_byte(bag: str, tmp_pat
 
 
 def test_kept_channels_are_standard_mcap_with_schemas(tmp_path: Path) -> None:
-    """Other MCAP tools see each kept topic in its own encoding with its schema."""
+    """Other MCAP tools see each kept topic in its own encoding with its schema (kept images
+    as they came: compressed ones are pcdcodec's own, tests/test_kept_compressed.py)."""
     from mcap.reader import make_reader
     from rosbags.typesys import Stores, get_typestore
 
     path = _bag("ros2-converted/spot_ros2_mcap")
     out = tmp_path / "x.pcdc"
-    pcdcodec.encode(path, out, intrinsics=SPOT_CAMERA)
+    pcdcodec.encode(path, out, intrinsics=SPOT_CAMERA, kept_images="raw")
     with open(out, "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()

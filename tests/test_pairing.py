@@ -273,7 +273,9 @@ def test_every_paired_input_records_depth_only_as_the_no_pairs_error_says(
         assert not src.has_color
         assert src.color_intrinsics is None
         assert src.dropped == {"color": 0, "depth": 0}
-        assert any("color" in s.name.lower() for s in src.left_out)  # the color stream, listed
+        # the color stream: kept as it came, or listed as left out
+        names = [s.name for s in src.left_out] + [t.topic for t in src.kept_topics()]
+        assert any("color" in name.lower() for name in names)
     assert len(frames) == len(OFFSETS)
     assert all(f.color is None for f in frames)
 
@@ -315,6 +317,7 @@ def test_writing_a_source_whose_every_image_was_dropped_says_so(tmp_path: Path, 
             rec = pcdcodec.open(
                 out,
                 "w",
+                kept_topics=src.kept_topics(),
                 intrinsics=src.intrinsics,
                 depth_scale=src.depth_scale,
                 color_intrinsics=src.color_intrinsics,

@@ -10,7 +10,15 @@ from typing import Any
 
 from ..errors import VerificationError
 
-__all__ = ["check_frames", "depth_bound", "depth_mismatch", "digest"]
+__all__ = [
+    "check_frames",
+    "check_kept",
+    "depth_bound",
+    "depth_mismatch",
+    "digest",
+    "in_window",
+    "kept_in",
+]
 
 
 def digest(array: Any) -> str:
@@ -95,3 +103,45 @@ def depth_mismatch(decoded: Any, original: Any, bound: Any) -> str:
             f"(max_error={bound.abs_error:g}, max_rel_error={bound.rel_error:g})"
         )
     return ""
+
+
+def kept_in(source: Any, window: tuple[int | None, int | None]) -> Iterator[Any]:
+    """The kept messages of ``source`` whose log time falls in ``window`` (``[low, high)``,
+    ``None``: open): a segment's share of its input's other topics, so that the segments'
+    shares, joined, hold each message once. A source whose ``kept_messages`` takes ``start``
+    and ``stop`` (a bag's) reads only those."""
+    import inspect
+
+    if window != (None, None) and "stop" in inspect.signature(source.kept_messages).parameters:
+        return in_window(source.kept_messages(start=window[0], stop=window[1]), window)
+    return in_window(source.kept_messages(), window)
+
+
+def in_window(messages: Iterator[Any], window: tuple[int | None, int | None]) -> Iterator[Any]:
+    """The messages whose log time falls in ``window`` (``[low, high)``, ``None``: open)."""
+    low, high = window
+    for m in messages:
+        if (low is None or m.log_time >= low) and (high is None or m.log_time < high):
+            yield m
+
+
+def check_kept(name: str, output: Iterator[Any], source: Iterator[Any]) -> int:
+    """Compare the kept messages of an output with its source's: each message (topic, times,
+    bytes) there once; raise :class:`~pcdcodec.VerificationError` naming ``name`` on any
+    difference. Returns the messages compared."""
+    from collections import Counter
+
+    def key(m: Any) -> tuple[str, int, int, str]:
+        return m.topic.topic, m.log_time, m.published, hashlib.blake2b(m.data).hexdigest()
+
+    want = Counter(key(m) for m in source)
+    got = Counter(key(m) for m in output)
+    if got != want:
+        missing, extra = want - got, got - want
+        first = min(missing or extra)
+        raise VerificationError(
+            f"{name}: the kept messages differ from the source's: {sum(missing.values())} "
+            f"missing, {sum(extra.values())} not in the source or more than once (the first "
+            f"on {first[0]!r} at t={first[1]} ns)"
+        )
+    return sum(want.values())

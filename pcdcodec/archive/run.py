@@ -475,6 +475,7 @@ class _Run:
                 s.writer_options,
                 s.verify,
                 index.slice(start, stop) if index is not None else None,
+                _window(index, plan, i),
             )
 
     def segment_written(self, job: _Job, seg: int, result: dict[str, Any]) -> None:
@@ -528,3 +529,20 @@ class _Run:
                 item.state = "source-deleted"
                 self.manifest.update(rel, state="source-deleted")
         self.bar.inputs_done += 1
+
+
+def _window(
+    index: Any, plan: list[tuple[int, int | None]], i: int
+) -> tuple[int | None, int | None]:
+    """The log times (ns, ``[low, high)``) of the kept messages segment ``i`` of ``plan``
+    keeps: from its first frame's time to the next segment's, the first from the start and the
+    last to the end, so that each message is in one segment. Without a frame index (no times
+    to cut at), the first segment keeps them all."""
+    if len(plan) == 1:
+        return None, None
+    if index is None:
+        return (None, None) if i == 0 else (0, 0)
+    times = index.timestamps
+    low = None if i == 0 else int(times[plan[i][0]])
+    high = None if i == len(plan) - 1 else int(times[plan[i + 1][0]])
+    return low, high

@@ -13,7 +13,7 @@ from typing import Any
 
 from .._atomic import partial_path
 from ..errors import InputError, VerificationError
-from .checks import check_frames
+from .checks import check_frames, check_kept, kept_in
 from .checks import depth_bound as _depth_bound
 from .checks import depth_mismatch as _depth_mismatch  # noqa: F401 - its name here before
 from .checks import digest as _digest
@@ -93,10 +93,14 @@ def _encode_segment(
     writer_options: dict[str, Any],
     digests: bool,
     index: Any = None,
+    window: tuple[int | None, int | None] = (None, None),
 ) -> dict[str, Any]:
     """Write frames ``start:stop`` of ``src`` into the recording ``part`` (atomically); with
-    ``index`` (a :class:`~pcdcodec.sources.FrameIndex` slice), the frames it lists."""
+    ``index`` (a :class:`~pcdcodec.sources.FrameIndex` slice), the frames it lists. The
+    input's other topics are kept: their messages whose log time falls in ``window`` (ns,
+    ``[low, high)``, ``None`` open), merged with the frames by time."""
     from ..recording import Recording, RecordingWriter
+    from ..ros.kept import by_time
     from ..sources import open_source
 
     target = Path(part)
@@ -112,6 +116,9 @@ def _encode_segment(
             return {"frames": count, "bytes": target.stat().st_size, "colors": digested}
         with open_source(src, **options) as source:
             frames = source.frames_at(index) if index is not None else source.frames(start, stop)
+            kept = source.kept_topics()
+            if kept:
+                frames = by_time(iter(frames), kept_in(source, window))
             meta = dict(source.metadata)
             opts = dict(writer_options)
             if not source.has_color:
@@ -124,6 +131,7 @@ def _encode_segment(
                 # Sensors whose color camera is apart from the depth camera (RealSense bags).
                 color_intrinsics=source.color_intrinsics,
                 depth_to_color=source.depth_to_color,
+                kept_topics=kept,
                 **opts,
             ) as writer:
                 count = writer.write_frames(frames)
@@ -202,4 +210,5 @@ def _verify(
             )
         bound = _depth_bound(rec.codecs.get("depth") or {})
         n = check_frames(name, iter(rec), source, bound, colors)
-    return {"frames": n}
+        kept = check_kept(name, rec.kept_messages(), source.kept_messages())
+    return {"frames": n, **({"kept": kept} if kept else {})}

@@ -220,7 +220,7 @@ def source_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 #: The readers that keep their input's other topics (``include_topics``, ``exclude_topics``).
-KEEPING_KINDS = (None, "rosbag", "realsense", "azure_kinect")
+KEEPING_KINDS = (None, "rosbag", "realsense", "azure_kinect", "recording")
 
 
 def mib(n: float) -> str:

@@ -203,6 +203,13 @@ def _encode_options(p: argparse.ArgumentParser) -> None:
     )
     _add_camera_options(p)
     _add_topic_options(p)
+    p.add_argument(
+        "--kept-images",
+        choices=("lossless", "raw"),
+        default="lossless",
+        help="kept Image and organized PointCloud2 topics of a bag: compressed, given back byte "
+        "for byte, readable by pcdcodec only (lossless, the default); or as they came (raw)",
+    )
 
 
 def _record_options(p: argparse.ArgumentParser) -> None:

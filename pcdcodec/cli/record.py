@@ -56,6 +56,7 @@ def cmd_encode(args: argparse.Namespace) -> int:
                 overwrite=args.overwrite,
                 progress=bar.update,
                 passthrough=args.passthrough,
+                kept_images=args.kept_images,
             )
         used_camera, used_scale = source.intrinsics, source.depth_scale
         camera_from = _origin_text(source.intrinsics_origin)
@@ -272,8 +273,13 @@ def cmd_verify(args: argparse.Namespace) -> int:
             if isinstance(rec, RigRecording)
             else {}
         )
+        types = {t.topic: t.msgtype for t in getattr(rec, "kept_topics", [])}
     if args.quiet and report.ok:
         return 0
+    if not args.quiet:  # the kept topics read, with their messages
+        print_kept(
+            [{"name": n, "type": types.get(n, "?"), "messages": c} for n, c in report.kept.items()]
+        )
     out = sys.stderr if args.quiet else sys.stdout  # -q: only a report of problems, on stderr
     for name, frames in per_camera.items():
         bad = sum(1 for e in report.errors if e.startswith(f"camera {name!r}:"))

@@ -130,6 +130,9 @@ class FrameInputs:
         from ..frame import open3d_rgbd_kind
 
         count = 0
+        source = frames
+        if isinstance(frames, Source):
+            frames = self._items_of(frames)  # its other topics kept, or refused
         for item in frames:
             if isinstance(item, KeptMessage):
                 self.write_message(item)
@@ -160,7 +163,7 @@ class FrameInputs:
             count += 1
             if progress is not None:
                 progress(count)
-        _check_not_all_dropped(frames, count)
+        _check_not_all_dropped(source, count)
         return count
 
     def write_source(self, source: Source, *, progress: Callable[[int], None] | None = None) -> int:
@@ -214,16 +217,7 @@ class FrameInputs:
         """The frames of ``source``, whose camera, depth scale and color are this recording's
         (checked by :meth:`write_source`; :func:`~pcdcodec.encode` opens the writer from the
         source)."""
-        theirs = source.kept_topics()
-        if theirs and not self.kept_topics:
-            names = ", ".join(t.topic for t in theirs[:5]) + (", ..." if len(theirs) > 5 else "")
-            raise InputError(
-                f"source {str(source.path)!r} has {len(theirs)} other topics ({names}) that this "
-                "recording was not opened to keep: open it with kept_topics=source.kept_topics() "
-                "(pcdcodec.encode does), or open the source with keep_topics=False to record the "
-                "camera only"
-            )
-        items: Iterable[Any] = source.items() if theirs else source
+        items = self._items_of(source)
         if source.has_color and self.color_codec is None:
             # The color is left out; the pose stays.
             items = (
@@ -239,6 +233,20 @@ class FrameInputs:
                 for f in items
             )
         return self.write_frames(items, progress=progress)
+
+    def _items_of(self, source: Source) -> Iterable[Any]:
+        """The frames of ``source``, and the kept messages beside them where it has other
+        topics (refused when this recording was not opened to keep them)."""
+        theirs = source.kept_topics()
+        if theirs and not self.kept_topics:
+            names = ", ".join(t.topic for t in theirs[:5]) + (", ..." if len(theirs) > 5 else "")
+            raise InputError(
+                f"source {str(source.path)!r} has {len(theirs)} other topics ({names}) that this "
+                "recording was not opened to keep: open it with kept_topics=source.kept_topics() "
+                "(pcdcodec.encode does), or open the source with keep_topics=False to record the "
+                "camera only"
+            )
+        return source.items() if theirs else source
 
     def _synchronizer(self) -> Any:
         if self._sync is None:

@@ -9,17 +9,27 @@ import hashlib
 import json
 import struct
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import replace
 from typing import IO, Any
 
 from ..errors import DecodeError, InputError
 from ..ros.kept import IMAGE_ENCODING, KEPT_KEY, KeptMessage, KeptTopic
 from . import _index as fmt
 from ._camera import CameraAccess
+from ._kept_pack import (
+    PACKED_ENCODINGS,
+    DepthAt,
+    Packer,
+    kept_topic_of_channel,
+    packed_frames,
+    unpack,
+)
 
 __all__ = [
     "CHUNK_BYTES",
     "KEPT_VERSION",
     "KeptChannels",
+    "check_kept",
     "kept_problems",
     "kept_topics_of",
     "read_kept",
@@ -67,7 +77,10 @@ class KeptChannels:
     """A writer's kept channels: registered when the file starts, messages gathered and
     written a chunk at a time."""
 
-    def __init__(self, topics: Sequence[KeptTopic]) -> None:
+    def __init__(self, topics: Sequence[KeptTopic], packer: Packer | None = None) -> None:
+        #: Packs kept images and clouds (``_kept_pack``), or ``None``: all kept as they came.
+        self.packer = packer
+        self.packed_ids: dict[KeptTopic, int] = {}
         self.topics: list[KeptTopic] = []
         for t in topics:
             if not isinstance(t, KeptTopic):
@@ -99,6 +112,15 @@ class KeptChannels:
             self.ids[t] = mcap.register_channel(
                 t.topic, t.message_encoding, schemas[key], t.channel_metadata()
             )
+            packed = None if self.packer is None else self.packer.packs(t)
+            if packed is not None:
+                meta = Packer.channel_metadata(t)
+                self.packed_ids[t] = mcap.register_channel(t.topic, packed, schemas[key], meta)
+
+    def saw_frame(self, timestamp: int, depth: Any) -> None:
+        """A frame the recording holds: kept images and clouds may refer to its depth."""
+        if self.packer is not None:
+            self.packer.saw_frame(timestamp, depth)
 
     def add(self, message: KeptMessage) -> bool:
         """Take ``message``; ``True`` when a chunk's worth is waiting."""
@@ -118,6 +140,10 @@ class KeptChannels:
                 f"a kept message of {message.topic.topic!r} has a negative time "
                 f"({message.log_time} ns)"
             )
+        if self.packer is not None and message.topic in self.packed_ids:
+            packed = self.packer.pack(message)
+            if packed is not None:
+                cid, message = self.packed_ids[message.topic], replace(message, data=packed)
         self.pending.append((cid, message))
         self.pending_bytes += len(message.data) + 40
         return self.pending_bytes >= CHUNK_BYTES
@@ -172,7 +198,7 @@ class _CompressedChunks:
 def kept_channel_ids(index: fmt.FileIndex) -> dict[int, KeptTopic]:
     """The kept channels of a file, by channel id."""
     return {
-        cid: KeptTopic.from_channel(
+        cid: kept_topic_of_channel(
             ch.topic, ch.encoding, ch.metadata, index.schemas.get(index.channel_schema.get(cid, 0))
         )
         for cid, ch in index.channels.items()
@@ -222,12 +248,18 @@ def read_kept(
     topics: Iterable[str] | None = None,
     check: bool = True,
     select: Callable[[KeptTopic], bool] | None = None,
+    depth_at: DepthAt | None = None,
+    camera: tuple[float, float, float, float, float] | None = None,
 ) -> Iterator[KeptMessage]:
     """The kept messages of the file (those of ``topics`` and of channels ``select`` takes,
     when given), in file order, each chunk's CRC checked before its messages are given. With
     ``check`` the whole (every kept channel's) is compared with the seal's digest at the end:
-    a :class:`~pcdcodec.DecodeError` then says the messages given were not those sealed."""
+    a :class:`~pcdcodec.DecodeError` then says the messages given were not those sealed.
+    Packed images and clouds are given as they came; those that refer to a depth frame need
+    ``depth_at(timestamp)``, and clouds the recording's ``camera``, ``(fx, fy, cx, cy,
+    depth_scale)`` (:mod:`._kept_pack`)."""
     channels = kept_channel_ids(index)
+    packed = {c for c in channels if index.channels[c].encoding in PACKED_ENCODINGS}
     if not channels:
         return
     wanted = None if topics is None else set(topics)
@@ -247,6 +279,8 @@ def read_kept(
             data = bytes(m.data)
             digest.note(topic.topic, m.log_time, m.publish_time, data)
             if (wanted is None or topic.topic in wanted) and (select is None or select(topic)):
+                if m.channel_id in packed:
+                    data = unpack(data, depth_at, what, camera)
                 yield KeptMessage(topic, int(m.log_time), data, int(m.publish_time))
     seal = index.metadata.get(fmt.SEAL_NAME)
     if (
@@ -258,6 +292,58 @@ def read_kept(
             f"{what}: the kept messages are not those sealed (changed, added, removed or "
             "reordered); run `pcdcodec recover` to copy those that check out"
         )
+
+
+def kept_offsets(index: fmt.FileIndex) -> dict[int, list[str]]:
+    """The chunks that hold kept messages: byte offset -> the kept topics found there."""
+    names = {ch.topic for ch in index.channels.values() if ch.metadata.get(KEPT_KEY) == "1"}
+    out: dict[int, list[str]] = {}
+    for topic in sorted(names):
+        for off in index.offsets.get(topic, []):
+            if topic not in out.setdefault(off, []):
+                out[off].append(topic)
+    return dict(sorted(out.items()))
+
+
+def check_kept(f: IO[bytes], index: fmt.FileIndex, what: str) -> tuple[list[str], dict[str, int]]:
+    """Every kept message of the file read, each chunk's CRC checked (a damaged chunk is
+    passed over, and said with the topics it holds), and what was read compared with the
+    seal: each topic's count, then the digest of them all. Returns the problems and the
+    messages read per topic."""
+    channels = kept_channel_ids(index)
+    problems: list[str] = []
+    digest = KeptDigest()
+    for off, topics in kept_offsets(index).items():
+        try:
+            messages = fmt.read_chunk_messages(f, off, what=what)
+        except DecodeError as exc:
+            problems.append(f"kept topics {', '.join(topics)}: unreadable ({exc})")
+            continue
+        for m in messages:
+            kept = channels.get(m.channel_id)
+            if kept is not None:
+                digest.note(kept.topic, m.log_time, m.publish_time, bytes(m.data))
+    seal = index.metadata.get(fmt.SEAL_NAME)
+    if seal is None:
+        return problems, digest.counts
+    try:
+        sealed = json.loads(seal.get("kept", "{}"))
+        if not isinstance(sealed, dict):
+            raise ValueError
+    except ValueError:
+        return [*problems, f"kept messages: the seal's count {seal.get('kept')!r} is not JSON"], {}
+    for topic in sorted(set(sealed) | set(digest.counts)):
+        if sealed.get(topic, 0) != digest.counts.get(topic, 0):
+            problems.append(
+                f"kept topic {topic}: {sealed.get(topic, 0)} messages sealed, "
+                f"{digest.counts.get(topic, 0)} read"
+            )
+    if not problems and digest.seal().get("kept_digest") != seal.get("kept_digest"):
+        problems.append(
+            "the kept messages are not those sealed (changed or reordered; their chunks' CRCs "
+            f"hold) on topics {', '.join(sorted(digest.counts))}"
+        )
+    return problems, digest.counts
 
 
 class KeptAccess(CameraAccess):
@@ -305,11 +391,15 @@ class KeptAccess(CameraAccess):
         Each chunk's CRC is checked before its messages are given, and reading them all checks
         them against the seal at the end (:class:`~pcdcodec.DecodeError` if they differ).
         Reads its own handle of the file, so frames can be read meanwhile. The camera topics'
-        messages are not among them (:meth:`camera_messages`)."""
+        messages are not among them (:meth:`camera_messages`). Packed images and clouds
+        (``docs/bags.md``) come back byte for byte, rebuilt from what they hold and the depth
+        frames they refer to."""
+        depth_at, camera = packed_frames(self)
         with open(self.path, "rb") as f:
             yield from read_kept(
-                f, self.index, repr(str(self.path)), topics=topics, select=lambda t: not t.camera
-            )
+                f, self.index, repr(str(self.path)), topics=topics,
+                select=lambda t: not t.camera, depth_at=depth_at, camera=camera,
+            )  # fmt: skip
 
     def kept_images(self, topic: str) -> Iterator[tuple[int, Any]]:
         """The images of a kept topic of encoded depth frames (message encoding

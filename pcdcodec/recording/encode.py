@@ -86,6 +86,7 @@ def encode(
     progress: Callable[[int], None] | None = None,
     passthrough: bool | str = False,
     override: bool = False,
+    kept_images: str = "lossless",
     **source_options: Any,
 ) -> EncodeSummary:
     """Record any input into a ``.pcdc`` file: a :class:`~pcdcodec.Source`, or a path that
@@ -95,6 +96,9 @@ def encode(
     ``CompressedVideo`` or ffmpeg_image_transport packets, h264/h265) as it is, without
     decoding or re-encoding it; ``color`` is then ignored (see
     :meth:`~pcdcodec.sources.rosbag.RosbagSource.encoded_frames`).
+
+    ``kept_images`` is how the kept image and organized cloud topics are stored:
+    ``"lossless"`` (compressed, given back byte for byte; ``docs/bags.md``) or ``"raw"``.
 
     ``source_options`` go to :func:`~pcdcodec.open_source` (for bags: ``depth_topic``,
     ``color_topic``, ``info_topic``, ``cloud_topic``, ``max_frames``, ...).
@@ -174,7 +178,7 @@ def encode(
             if passthrough:
                 count, writer = _passthrough(
                     source, partial, passthrough, depth=depth, fps=rate, metadata=meta,
-                    progress=progress,
+                    progress=progress, kept_images=kept_images,
                 )  # fmt: skip
             else:
                 with RecordingWriter(
@@ -189,6 +193,7 @@ def encode(
                     depth_to_color=source.depth_to_color,
                     frame_id=source.frame_id or "camera",
                     kept_topics=source.kept_topics(),
+                    kept_images=kept_images,
                 ) as writer:
                     # Opened from the source: its camera is the recording's, checked once.
                     count = writer._write_source(source, progress)
@@ -219,6 +224,7 @@ def _passthrough(
     fps: float,
     metadata: dict[str, Any],
     progress: Callable[[int], None] | None,
+    kept_images: str = "lossless",
 ) -> tuple[int, Any]:
     from ..sources.rosbag import RosbagSource
     from .writer import RecordingWriter
@@ -244,6 +250,7 @@ def _passthrough(
                     fps=fps,
                     metadata={**metadata, "ros_video_topic": source.color_topic or ""},
                     kept_topics=source.kept_topics(),
+                    kept_images=kept_images,
                 )
             writer.write_encoded(packets, image, ts)
             count += 1

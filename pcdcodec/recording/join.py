@@ -20,6 +20,8 @@ from .._atomic import atomic_output
 from ..errors import DecodeError, InputError
 from . import _header as header
 from . import _index as fmt
+from ._kept import kept_topics_of
+from ._kept_copy import KeptCopy, union_of, without_kept
 
 __all__ = ["join"]
 
@@ -47,13 +49,18 @@ def _load(path: Path) -> fmt.FileIndex:
     return index
 
 
-def _settings(index: fmt.FileIndex) -> dict[str, dict[str, str]]:
-    """The metadata records that must agree between parts (each part has its own seals)."""
-    return {
+def _settings(index: fmt.FileIndex, *, compared: bool = False) -> dict[str, dict[str, str]]:
+    """The metadata records of a part (each part has its own seals); ``compared``: as they
+    must agree between parts, whose format versions may differ where only some keep topics."""
+    out = {
         name: data
         for name, data in index.metadata.items()
         if name != fmt.SEAL_NAME and not name.startswith(fmt.SEAL_NAME + ".")
     }
+    if compared and fmt.METADATA_NAME in out:
+        drop = ("format_version", fmt.DIGEST_KEY)
+        out[fmt.METADATA_NAME] = {k: v for k, v in out[fmt.METADATA_NAME].items() if k not in drop}
+    return out
 
 
 def _lanes(index: fmt.FileIndex, name: str) -> dict[str | None, fmt.FileIndex]:
@@ -90,12 +97,9 @@ def _check_same(first: fmt.FileIndex, other: fmt.FileIndex, name: str, first_nam
                     f"{name!r} cannot follow {first_name!r}: camera {cam!r} has other "
                     f"settings ({', '.join(fields)}); every part must record each camera alike"
                 )
-    if _settings(other) != _settings(first):
-        keys = sorted(
-            k
-            for k in set(_settings(first)) | set(_settings(other))
-            if first.metadata.get(k) != other.metadata.get(k)
-        )
+    ours_, theirs_ = _settings(first, compared=True), _settings(other, compared=True)
+    if ours_ != theirs_:
+        keys = sorted(k for k in set(ours_) | set(theirs_) if ours_.get(k) != theirs_.get(k))
         raise InputError(
             f"{name!r} cannot follow {first_name!r}: its recording metadata differs ({keys})"
         )
@@ -191,25 +195,32 @@ def join(
             if times:
                 lane.last_time = max(times)
 
+    # Parts keep the union of their kept topics; the settings are those of a part that keeps
+    # topics (format version 4) where one does.
+    kept = KeptCopy(union_of(indexes, [str(p) for p in paths]))
+    main = next((index for index in indexes if kept_topics_of(index)), first)
     frames = 0
     with atomic_output(dst_path) as tmp:  # noqa: SIM117 - the file closes before the rename
         with tmp.open("wb") as out:
             writer = header.start_mcap(out, header.library_of(paths[0]))
-            for name, data in _settings(first).items():
+            for name, data in _settings(main).items():
                 writer.add_metadata(name, data)
             # Each channel as the first part that has it registered it: a camera of a rig may
             # start recording in a later part.
             topic_ids: dict[str, int] = {}
             schemas: dict[tuple[str, str, bytes], int] = {}
             for index in indexes:
-                _register(writer, index, topic_ids, schemas)
+                _register(writer, without_kept(index), topic_ids, schemas)
+            kept.register(writer)
             integrity = fmt.integrity_version(first, repr(str(paths[0])))
             for path, index in zip(paths, indexes, strict=True):
-                frames += _copy_part(writer, path, index, lanes, topic_ids)
+                frames += _copy_part(writer, path, index, lanes, topic_ids, kept)
+            kept_seal = kept.finish(writer)
             if integrity:
                 for camera, lane in lanes.items():
                     seal_name = fmt.SEAL_NAME if camera is None else fmt.camera_seal(camera)
-                    writer.add_metadata(seal_name, fmt.seal(seal_name, lane.sealer.seal()))
+                    sealed = lane.sealer.seal() | (kept_seal if camera is None else {})
+                    writer.add_metadata(seal_name, fmt.seal(seal_name, sealed))
             writer.finish()
             out.flush()
             os.fsync(out.fileno())
@@ -226,8 +237,10 @@ def _copy_part(
     index: fmt.FileIndex,
     lanes: dict[str | None, _Lane],
     topic_ids: dict[str, int],
+    kept: KeptCopy,
 ) -> int:
-    """Copy the part at ``path`` into ``writer``; returns its frames.
+    """Copy the part at ``path`` into ``writer``; returns its frames. Its kept messages go
+    into ``kept``'s chunks, checked against the part's seal.
 
     Sequence numbers continue across parts: the color packets (and the keyframe markers,
     which share their packet's number), the depth frames and the frame digests count apart.
@@ -244,10 +257,13 @@ def _copy_part(
         lanes[camera].check = fmt.Sealer()
         lanes[camera].keyframes = set(view.times.get(fmt.TOPIC_KEYFRAMES, []))
     offsets = sorted({o for topic in index.offsets.values() for o in topic})
+    kept.source(index)
     with path.open("rb") as f:
         size = fmt.file_size(f)
         for offset in offsets:
             for m in fmt.read_chunk_messages(f, offset, what=repr(str(path)), size=size):
+                if kept.take(writer, m):
+                    continue
                 found = channel_topic.get(m.channel_id)
                 if found is None:
                     continue
@@ -271,6 +287,7 @@ def _copy_part(
                     payload = _rejoin(m.data, lane, frame, _where(path, camera, m.log_time, offset))
                 writer.add_message(topic_ids[real], m.log_time, payload, m.publish_time, sequence)
                 lane.sealer.note(topic, m.log_time, m.data)
+    kept.check_sealed(index.metadata.get(fmt.SEAL_NAME), repr(str(path)))
     frames = 0
     for camera, view in views.items():
         lane = lanes[camera]

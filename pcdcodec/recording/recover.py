@@ -264,7 +264,7 @@ def _copy(f: IO[bytes], tmp: Path, src_path: Path) -> tuple[list[_Lane], list[st
     _read(f, index, offsets, lane_of, lanes)
     for lane in lanes:
         _decide(lane, index)
-    _write(f, tmp, index, offsets, lane_of, lanes, cameras)
+    damage += _write(f, tmp, index, offsets, lane_of, lanes, cameras)
     return lanes, damage
 
 
@@ -287,12 +287,15 @@ def _drop_damaged_seals(index: fmt.FileIndex) -> list[str]:
 
 def _messages(f: IO[bytes], index: fmt.FileIndex, offsets: list[int]) -> Any:
     """(offset, message) of every message in the chunks at ``offsets``, each (channel, time)
-    once, in file order."""
+    once (a kept topic's messages may share a time), in file order."""
+    from ._kept import kept_channel_ids  # (not loaded by `import pcdcodec`)
+
     seen: set[tuple[int, int]] = set()
+    kept = set(kept_channel_ids(index))
     for offset in offsets:
         for m in fmt.read_chunk_messages(f, offset, what="recover", size=index.size):
             key = (m.channel_id, m.log_time)
-            if key not in seen:
+            if key not in seen or m.channel_id in kept:
                 seen.add(key)
                 yield offset, m
 
@@ -483,10 +486,11 @@ def _write(
     lane_of: dict[int, tuple[_Lane, str]],
     lanes: list[_Lane],
     cameras: list[str] | None,
-) -> None:
+) -> list[str]:
     """Write what every camera keeps, each camera's frame digests made again for what it
     keeps, a ``pcdcodec.recovered`` record per camera with frames kept without color, and a
-    seal per camera."""
+    seal per camera; the kept topics' messages from every chunk that holds (what of them was
+    lost is returned)."""
     recovered = {
         fmt.RECOVERED_NAME if lane.camera is None else fmt.camera_recovered(lane.camera): lane
         for lane in lanes
@@ -507,10 +511,16 @@ def _write(
             writer.add_metadata(record, pairs)
         for record, pairs in added.items():
             writer.add_metadata(record, pairs)
-        channel = _channels(writer, index, one_camera=cameras is None)
+        from ._kept_copy import KeptCopy  # (not loaded by `import pcdcodec`)
+
+        kept = KeptCopy.of(index if cameras is None else None)
+        kept.register(writer)
+        channel = _channels(writer, kept.source(index), one_camera=cameras is None)
         sealers = {id(lane): fmt.Sealer() for lane in lanes}
         packet_index = {id(lane): 0 for lane in lanes}
         for _, m in _messages(f, index, offsets):
+            if kept.take(writer, m):
+                continue
             found = lane_of.get(m.channel_id)
             data: Any = m.data
             if found is not None:
@@ -539,11 +549,13 @@ def _write(
             elif cameras is not None:
                 continue  # a rig keeps its cameras' channels only
             writer.add_message(channel(m.channel_id), m.log_time, data, m.publish_time, m.sequence)
+        kept_seal = kept.finish(writer)
         if any(lane.integrity for lane in lanes):
             for lane in lanes:
                 record = fmt.SEAL_NAME if lane.camera is None else fmt.camera_seal(lane.camera)
-                writer.add_metadata(record, fmt.seal(record, sealers[id(lane)].seal()))
+                writer.add_metadata(record, fmt.seal(record, sealers[id(lane)].seal() | kept_seal))
         writer.finish()
+    return kept.losses(lanes[0].seal if cameras is None else None)
 
 
 #: A frame's own messages, left out with the frame.

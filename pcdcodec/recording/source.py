@@ -26,6 +26,7 @@ from ..sources.base import InputStream, Source
 
 if TYPE_CHECKING:
     from ..frame import Frame
+    from ..ros.kept import KeptMessage, KeptTopic
     from ..sources.rig import CameraInput
     from .reader import Recording
     from .rig_reader import RigRecording
@@ -49,8 +50,11 @@ class RecordingSource(Source):
     """The frames of one camera of a ``.pcdc`` recording, as stored.
 
     ``camera`` names the camera of a rig's file (it may be left out when the file has one);
-    ``max_frames`` keeps the first frames; ``intrinsics`` and ``depth_scale`` replace what the
-    recording says (the depth values stay as stored); ``threads`` is the reader's (see
+    ``max_frames`` keeps the first frames (the kept topics' messages are all given, as a
+    bag's); ``keep_topics``, ``include_topics`` and ``exclude_topics`` choose the recording's
+    kept topics written again, as for a bag (:class:`~pcdcodec.sources.RosbagSource`);
+    ``intrinsics`` and ``depth_scale`` replace what the recording says (the depth values stay
+    as stored); ``threads`` is the reader's (see
     :class:`~pcdcodec.Recording`). Raises what opening the recording raises (a damaged file:
     :class:`~pcdcodec.DecodeError` naming it), :class:`~pcdcodec.DecodeError` for a file
     without its index (cut short, or its writer did not finish: ``pcdcodec recover`` first),
@@ -67,11 +71,16 @@ class RecordingSource(Source):
         intrinsics: Any = None,
         depth_scale: float | None = None,
         threads: int | None = None,
+        keep_topics: bool = True,
+        include_topics: Any = None,
+        exclude_topics: Any = None,
         _rig: RigRecording | None = None,
     ) -> None:
+        from ..ros.kept import TopicFilter
         from .rig_reader import RigRecording
 
         self.path = Path(path)
+        self.topic_filter = TopicFilter.of(include_topics, exclude_topics, keep_topics)
         if max_frames is not None and (
             isinstance(max_frames, bool) or not isinstance(max_frames, int) or max_frames < 1
         ):
@@ -165,13 +174,25 @@ class RecordingSource(Source):
             return iter(())
         return itertools.islice(self._rec._in_order(start), stop - start)
 
+    def kept_topics(self) -> list[KeptTopic]:
+        """The recording's kept topics (those the patterns choose), as it describes them."""
+        return [t for t in self._rec.kept_topics if self.topic_filter(t.topic)]
+
+    def kept_messages(self) -> Iterator[KeptMessage]:
+        """Their messages in file order, bytes as stored: each chunk's CRC checked, and the
+        whole against the recording's seal (:meth:`~pcdcodec.Recording.kept_messages`)."""
+        names = {t.topic for t in self.kept_topics()}
+        return self._rec.kept_messages(names) if names else iter(())
+
     def input_streams(self) -> list[InputStream]:
-        """Of a rig's file, its cameras (``camera NAME``, with their frame counts); a
-        one-camera recording is read whole."""
+        """Of a rig's file, its cameras (``camera NAME``, with their frame counts); of a
+        one-camera recording, its kept topics (with their messages)."""
         from .rig_reader import RigRecording
 
         if not isinstance(self._file, RigRecording):
-            return []
+            counts = self._rec.kept_counts()
+            types = {t.topic: t.msgtype for t in self._rec.kept_topics}
+            return [InputStream(n, types[n], counts.get(n, 0)) for n in sorted(types)]
         rig = self._file
         names = sorted(rig.camera_names)
         return [InputStream(f"camera {n}", "camera", len(rig.frames(n))) for n in names]

@@ -7,7 +7,7 @@ the index the frames are read through (``docs/format.md``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import IO, Any
 
 import numpy as np
@@ -16,6 +16,7 @@ from ..errors import PcdcodecError
 from ..geometry.camera import CameraIntrinsics
 from . import _header as header
 from . import _index as fmt
+from ._kept import check_kept, kept_offsets
 
 __all__ = ["VerifyReport", "index_problems", "structure_problems"]
 
@@ -28,6 +29,8 @@ class VerifyReport:
     errors: list[str]
     indexed: bool
     truncated_at: int | None
+    #: Kept messages read per topic (each chunk's CRC checked; ``docs/format.md``).
+    kept: dict[str, int] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -72,8 +75,10 @@ def structure_problems(
     except PcdcodecError as exc:
         return [f"reading the whole file failed: {exc}"]
     errors: list[str] = []
-    # Damaged chunks of frames are reported when those frames are decoded.
+    # Damaged chunks of frames are reported when those frames are decoded, and those of kept
+    # topics when they are read (with the topics they hold).
     used = {o for topic in (fmt.TOPIC_DEPTH, fmt.TOPIC_COLOR) for o in index.offsets.get(topic, [])}
+    used |= set(kept_offsets(index))
     skipped = {offset for offset, _ in scanned.damaged_chunks}
     errors.extend(
         text
@@ -174,6 +179,9 @@ def verify_recording(rec: Any) -> VerifyReport:
                     problem = str(exc)
                 if problem:
                     errors.append(problem)
+    with rec._lock:
+        problems, kept = check_kept(rec._file, index, repr(str(rec.path)))
+    errors.extend(problems)
     for i in range(len(rec)):
         try:
             rec.frame(i)
@@ -182,4 +190,4 @@ def verify_recording(rec: Any) -> VerifyReport:
                 errors.append(str(exc))
             with rec._lock:
                 rec._stream.reset()
-    return VerifyReport(len(rec), errors, index.indexed, index.truncated_at)
+    return VerifyReport(len(rec), errors, index.indexed, index.truncated_at, kept)

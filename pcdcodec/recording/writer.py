@@ -33,6 +33,7 @@ from . import _index as fmt
 from ._container import Container, SharedFile
 from ._inputs import FrameInputs
 from ._kept import KEPT_VERSION, KeptChannels
+from ._kept_pack import kept_packer
 from ._pipeline import Pipeline
 
 __all__ = ["MAX_TIMESTAMP_NS", "RecordingWriter"]
@@ -172,6 +173,7 @@ class RecordingWriter(FrameInputs):
         depth_to_color: Any = None,
         world_frame_id: str = "world",
         kept_topics: Sequence[KeptTopic] = (),
+        kept_images: str = "lossless",
         _shared: SharedFile | None = None,
         _camera: str | None = None,
     ) -> None:
@@ -217,7 +219,8 @@ class RecordingWriter(FrameInputs):
         self.depth_codec._require_available()
         user = header.user_metadata(metadata)
         two_cameras = self.color_intrinsics is not None
-        kept = KeptChannels(kept_topics) if kept_topics else None
+        packer = kept_packer(kept_images, depth_codec, self.intrinsics, self.depth_scale)
+        kept = KeptChannels(kept_topics, packer) if kept_topics else None
         if kept is not None and _shared is not None:
             raise InputError("a camera of a rig keeps no topics of its own")
         self._settings = header.Settings(
@@ -448,7 +451,9 @@ class RecordingWriter(FrameInputs):
         """Keep one message of a kept topic (one of ``kept_topics``, given when opening) as it
         came: its bytes, log and publish time. Messages are gathered into zstd chunks of about
         1 MiB (:data:`~pcdcodec.recording._kept.CHUNK_BYTES`), written as each fills and on
-        :meth:`close`. Raises :class:`~pcdcodec.InputError` for a topic not given."""
+        :meth:`close`. Images and organized clouds are packed where they rebuild exactly
+        (``kept_images``, ``docs/bags.md``). Raises :class:`~pcdcodec.InputError` for a topic
+        not given."""
         check_not_inherited(self, f"the writer of {str(self.path)!r}")
         self._check_open()
         self._container.add_kept(message)
@@ -618,6 +623,8 @@ class RecordingWriter(FrameInputs):
     ) -> None:
         # A copy: the caller may reuse its buffer while the thread encodes.
         self._pipeline.submit(timestamp, fut_color, self._encode_depth, d.copy())
+        if self._container.kept is not None:  # kept images and clouds may refer to it
+            self._container.kept.saw_frame(timestamp, d)
 
     def _raise_background_error(self) -> None:
         """Raise the first error met writing earlier frames; each is raised once."""

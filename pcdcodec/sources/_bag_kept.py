@@ -76,16 +76,19 @@ class BagKeptTopics:
                 out.append(t)
         return out
 
-    def kept_messages(self) -> Iterator[KeptMessage]:
-        """The kept topics' messages in the bag's order, their bytes as stored."""
+    def kept_messages(
+        self, start: int | None = None, stop: int | None = None
+    ) -> Iterator[KeptMessage]:
+        """The kept topics' messages in the bag's order, their bytes as stored; those logged
+        from ``start`` and before ``stop`` (ns) where given (the bag's index skips the rest)."""
         conns = self._kept_connections()
-        if not conns:
+        if not conns or (start is not None and stop is not None and stop <= start):
             return
         # A reader of its own: the frames are read from the bag at the same time.
         reader, tmp = bagfile.open_reader(self.path)
         try:
             wanted = [c for c in reader.connections if c.id in conns]
-            for c, t, raw in reader.messages(connections=wanted):
+            for c, t, raw in reader.messages(connections=wanted, start=start, stop=stop):
                 yield KeptMessage(conns[c.id], int(t), bytes(raw))
         except PcdcodecError:
             raise
