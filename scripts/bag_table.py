@@ -6,7 +6,8 @@ Spot bags with the Spot depth camera's intrinsics, which they lack). ``--robot``
 a robot with a RealSense records it (:func:`pcdcodec.bench.robot_bags.write_robot_bag`; SET is
 tum, realsense or 7scenes, KIND ros1, ros2-sqlite3 or ros2-mcap, SPLIT_MB splits a ROS 2 bag),
 measures it and removes it. ``--fx --fy --cx --cy --depth-scale`` fill in what the given BAGs
-lack.
+lack; ``--exclude-topic PATTERN`` keeps those topics out of the ``.pcdc`` (``'*'``: the camera
+alone, to time the encode of one camera).
 
 For each bag, one row (see :mod:`pcdcodec.bench.bag_table`): its size; the ``.pcdc`` of
 ``pcdcodec.encode`` at the defaults (every other topic kept) and the bag's size over it; the bag
@@ -86,6 +87,13 @@ def main() -> int:
         help=f"comma-separated, among {','.join(bag_table.PEERS)} (default: all)",
     )
     parser.add_argument("--no-export", action="store_true", help="skip the export")
+    parser.add_argument(
+        "--exclude-topic",
+        action="append",
+        default=[],
+        metavar="PATTERN",
+        help="topics the encode does not keep (every bag; the peers still write them all)",
+    )
     for name in ("fx", "fy", "cx", "cy", "depth-scale"):
         parser.add_argument(f"--{name}", type=float, help="for the given BAGs")
     args = parser.parse_args()
@@ -100,6 +108,8 @@ def main() -> int:
         }
     if args.depth_scale is not None:
         given["depth_scale"] = args.depth_scale
+    if args.exclude_topic:
+        given["exclude_topics"] = args.exclude_topic
     if args.bags or args.robot:
         todo: list[tuple[Path, dict[str, Any]]] = [(b, given) for b in args.bags]
     else:
@@ -138,6 +148,9 @@ def main() -> int:
             )
             # TUM's depth is in its own units (5000 a metre): the bag cannot say so.
             options = {"depth_scale": 5000.0, "override": True} if set_name == "tum" else {}
+            if args.exclude_topic:
+                options["exclude_topics"] = args.exclude_topic
+                label += " (" + ", ".join(f"-{p}" for p in args.exclude_topic) + ")"
             try:
                 rows.append(
                     bag_table.measure_bag(
