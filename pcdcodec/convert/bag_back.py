@@ -117,11 +117,16 @@ class BagBack:
         return self.camera is not None
 
     def defaults(
-        self, images: bool | None, cloud: bool | None, compressed_depth: bool | None
-    ) -> tuple[bool, bool, bool]:
-        """``images``, ``cloud`` and ``compressed_depth`` where not given: the camera topics the
-        input had (depth images as compressedDepth where its depth topic was). Where the camera
-        topics come back as they came, options that build them anew are refused."""
+        self,
+        images: bool | None,
+        camera_info: bool | None,
+        cloud: bool | None,
+        compressed_depth: bool | None,
+    ) -> tuple[bool, bool, bool, bool]:
+        """``images``, ``camera_info``, ``cloud`` and ``compressed_depth`` where not given: the
+        camera topics the input had (CameraInfo where it had a camera info topic, depth images
+        as compressedDepth where its depth topic was). Where the camera topics come back as
+        they came, options that build them anew are refused."""
         asked = [
             name
             for name, value in (
@@ -142,11 +147,12 @@ class BagBack:
         from_cloud = bool(meta.get("ros_cloud_topic")) and not depth
         return (
             (not from_cloud) if images is None else images,
+            bool(meta.get("ros_info_topic")) if camera_info is None else camera_info,
             from_cloud if cloud is None else cloud,
             depth.endswith("/compressedDepth") if compressed_depth is None else compressed_depth,
         )
 
-    def names(self, default: dict[str, Any], compressed_depth: bool) -> dict[str, str]:
+    def names(self, default: dict[str, Any], compressed_depth: bool, cloud: bool) -> dict[str, str]:
         """The topics of the camera built anew: those of ``default`` (``t_depth``,
         ``t_cdepth``, ``t_color``, ``t_dinfo``, ``t_cinfo``, ``t_cloud``), named as the
         input's were. Refuses an image or cloud topic that a kept topic's name takes."""
@@ -167,7 +173,8 @@ class BagBack:
                 self._notes.append(f"color topic {color!r} is written as {names['t_color']!r}")
         if meta.get("ros_cloud_topic"):
             names["t_cloud"] = meta["ros_cloud_topic"]
-        for key in ("t_depth", "t_cdepth", "t_color", "t_cloud"):
+        written_keys = ["t_cdepth" if compressed_depth else "t_depth", "t_color"]
+        for key in written_keys + (["t_cloud"] if cloud else []):
             if names[key] in self.kept_names:
                 raise InputError(
                     f"{self.what}: the camera topic {names[key]!r} would be written over the "

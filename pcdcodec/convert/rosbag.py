@@ -156,7 +156,7 @@ def export_bag(
     to: str = AS_IT_CAME,
     storage: str | None = None,
     images: bool | None = None,
-    camera_info: bool = True,
+    camera_info: bool | None = None,
     cloud: bool | None = None,
     compressed_depth: bool | None = None,
     kept: bool = True,
@@ -175,12 +175,12 @@ def export_bag(
     PointCloud2 bag: ``export_bag("tum_folder", "cloud.bag", images=False, cloud=True)``).
     ``to`` is ``"rosbag1"``, ``"rosbag2"`` or ``"rosbag"``: the kind the recording's input was
     (ROS 1 for an input that was no bag); ``storage`` (ROS 2) ``"mcap"``, ``"sqlite3"`` or
-    ``None``: the input's (else mcap). ``images`` (default on), ``camera_info`` and ``cloud``
+    ``None``: the input's (else mcap). ``images``, ``camera_info`` (default on) and ``cloud``
     (default off) pick the topics (see the module docstring); ``compressed_depth`` writes depth
     as image_transport compressedDepth (16UC1 depth, depth scale 1000, only). With ``kept``, a
     recording's kept topics are written too, as they came, and the camera topics as the input
-    had them (:mod:`pcdcodec.convert.bag_back`; the defaults of ``images``, ``cloud`` and
-    ``compressed_depth`` follow the input). ``intrinsics``/``depth_scale`` override a
+    had them (:mod:`pcdcodec.convert.bag_back`; the defaults of ``images``, ``camera_info``,
+    ``cloud`` and ``compressed_depth`` follow the input). ``intrinsics``/``depth_scale`` override a
     source's. ``namespace`` is where the topics go (default ``/camera``); of a recording of
     several cameras, each camera goes under ``<namespace>/<name>`` (default: ``/<name>``)
     with ``/tf_static`` placing the cameras in the rig (see the module docstring), and
@@ -217,12 +217,14 @@ def export_bag(
         if kept and isinstance(opened, Recording):
             back = BagBack.of(opened, repr(str(opened.path)))
         if back is not None:
-            images, cloud, compressed_depth = back.defaults(images, cloud, compressed_depth)
+            images, camera_info, cloud, compressed_depth = back.defaults(
+                images, camera_info, cloud, compressed_depth
+            )
         opts = _Options(
             to,
             storage,
             images is not False,
-            camera_info,
+            camera_info is not False,
             bool(cloud),
             bool(compressed_depth),
             namespace,
@@ -427,7 +429,7 @@ def _write(
     if back is not None and back.as_recorded:  # the frames' own messages, as they came
         frames, edges = back.messages(), []
     elif back is not None:  # the frames' messages built anew, named as the input's were
-        for key, name in back.names(vars(export), opts.compressed_depth).items():
+        for key, name in back.names(vars(export), opts.compressed_depth, opts.cloud).items():
             setattr(export, key, name)
         export.skip = back.kept_names
         edges = [] if "/tf_static" in back.kept_names else edges
@@ -526,6 +528,7 @@ def _to_bag(
         "topics": list(bag.conns) + ([] if back is None else back.written_topics()),
         "bytes": size,
         "format": opts.to,
+        "storage": opts.storage,
         **({} if back is None else back.summary()),
     }
     return summary, counts

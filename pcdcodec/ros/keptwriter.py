@@ -56,6 +56,11 @@ class KeptConnections:
         """Add a connection for each of ``topics`` not added yet."""
         new = [t for t in topics if t not in self.conns]
         for t in new:
+            if not t.msgtype:
+                raise InputError(
+                    f"{self.what}: topic {t.topic!r} has no message type: a bag cannot say "
+                    "what its messages are"
+                )
             if t.message_encoding not in _ENCODING.values():
                 raise InputError(
                     f"{self.what}: topic {t.topic!r} ({t.msgtype}) is serialized as "
