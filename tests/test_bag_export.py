@@ -171,6 +171,39 @@ def test_a_real_bag_comes_back_as_it_came(
     assert np.array_equal(np.frombuffer(msg.data, np.uint16).reshape(depth.shape), depth)
 
 
+def test_a_topic_of_several_publishers_stays_several_connections(tmp_path: Path) -> None:
+    """A ROS 1 topic that two nodes published (two caller ids, one latched) comes back as two
+    connections, each with its own messages."""
+    from rosbags.rosbag1 import Writer
+
+    from pcdcodec.ros.bagwriter import MessageBuilder
+
+    msgs = MessageBuilder(False, "cam")
+    store, string = msgs.store, msgs.types["std_msgs/msg/String"]
+    path = tmp_path / "two.bag"
+    with Writer(path) as w:
+        depth = w.add_connection("/cam/depth", "sensor_msgs/msg/Image", typestore=store)
+        a = w.add_connection("/chatter", "std_msgs/msg/String", typestore=store, callerid="/a")
+        b = w.add_connection(
+            "/chatter", "std_msgs/msg/String", typestore=store, callerid="/b", latching=1
+        )
+        for k in range(3):
+            t = (k + 1) * 10**9
+            w.write(depth, t, msgs.image(t, np.full((6, 8), 1000 + k, np.uint16), "16UC1"))
+            for conn, name in ((a, "a"), (b, "b")):
+                data = store.serialize_ros1(string(data=f"{name}{k}"), "std_msgs/msg/String")
+                w.write(conn, t + 1, data)
+    rec = tmp_path / "two.pcdc"
+    camera = {"width": 8, "height": 6, "fx": 5.0, "fy": 5.0, "cx": 4.0, "cy": 3.0}
+    pcdcodec.encode(path, rec, intrinsics=camera)
+    export_bag(rec, tmp_path / "back.bag")
+    original, back = Bag(path), Bag(tmp_path / "back.bag")
+    chatter = original.of({"/chatter"})
+    assert sorted(f[4:] for f in chatter) == [("/a", None), ("/b", 1)]
+    assert back.of({"/chatter"}) == chatter
+    assert back.counts() == original.counts() == {"/cam/depth": 3, "/chatter": 6}
+
+
 # -- robot bags -----------------------------------------------------------------------------
 
 
