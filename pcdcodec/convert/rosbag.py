@@ -40,7 +40,9 @@ in the camera frame (the color images and their camera info are in that frame). 
 pose place the rig in ``world`` on ``/tf``.
 
 The messages are built and the bag written by :mod:`pcdcodec.ros.bagwriter`. The bag is written
-beside its final name and moved into place when complete.
+beside its final name and moved into place when complete. A recording of a ROS bag also gives
+back the topics it kept, as they came, and its camera topics under the names the bag had them
+(:mod:`pcdcodec.convert.bag_back`, ``docs/bags.md``).
 """
 
 from __future__ import annotations
