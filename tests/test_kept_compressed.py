@@ -51,13 +51,14 @@ def _kept(rec: Any) -> dict[str, list[tuple[int, bytes]]]:
 
 
 def _channels(path: Path) -> dict[str, collections.Counter[str]]:
-    """Messages per topic and channel message encoding, as other MCAP tools see them."""
+    """Messages per kept topic and channel message encoding, as other MCAP tools see them
+    (the camera topics' channels, which hold their envelopes, left out)."""
     from mcap.reader import make_reader
 
     out: dict[str, collections.Counter[str]] = collections.defaultdict(collections.Counter)
     with open(path, "rb") as f:
         for _schema, channel, _message in make_reader(f).iter_messages():
-            if "pcdcodec.kept" in channel.metadata:
+            if "pcdcodec.kept" in channel.metadata and "pcdcodec.camera" not in channel.metadata:
                 out[channel.topic][channel.message_encoding] += 1
     return out
 

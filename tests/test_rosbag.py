@@ -233,7 +233,10 @@ def test_round_trip_bag_to_pcdc_to_bag_is_bit_exact(tmp_path: Path, to: str) -> 
     for compressed in (False, True):
         if out.exists():
             shutil.rmtree(out) if out.is_dir() else out.unlink()
-        pcdcodec.export_bag(tmp_path / "rs.pcdc", out, to=to, compressed_depth=compressed)
+        # The camera alone (kept=False): the bag's other topics are tests/test_bag_export.py's.
+        pcdcodec.export_bag(
+            tmp_path / "rs.pcdc", out, to=to, compressed_depth=compressed, kept=False
+        )
         with pcdcodec.open_source(out) as back:
             assert back.info_topic == "/camera/depth/camera_info"
             assert back.intrinsics == summary_intrinsics(tmp_path / "rs.pcdc")

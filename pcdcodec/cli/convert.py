@@ -7,6 +7,7 @@ Each takes the parsed command line and returns the exit status.
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from .._progress import Progress
 from ..errors import InputError
@@ -29,26 +30,42 @@ def cmd_export(args: argparse.Namespace) -> int:
                 args.output,
                 to=args.to,
                 storage=args.storage,
-                cloud=args.cloud,
-                compressed_depth=args.compressed_depth,
+                cloud=args.cloud or None,
+                compressed_depth=args.compressed_depth or None,
+                kept=args.kept,
                 overwrite=args.overwrite,
                 progress=bar.update,
             )
-        print(
-            f"exported {summary['frames']} frames to {args.output} ({args.to}"
-            + (f", {args.storage}" if args.to == "rosbag2" else "")
-            + f", {mib(summary['bytes'])}): {', '.join(summary['topics'])}"
-        )
-        for name, frames in summary.get("cameras", {}).items():
-            print(f"  camera {name}: {frames} frames under /{name}")
+        if not args.quiet:
+            _print_export(summary, args.output)
         return 0
     from ..convert.paper import export_paper
 
     if args.layout != "paper":
         raise InputError(f"unknown layout {args.layout!r}; known layouts: paper")
     summary = export_paper(args.input, args.output, overwrite=args.overwrite)
-    print(f"exported {summary['frames']} frames to {args.output} (layout {args.layout})")
+    if not args.quiet:
+        print(f"exported {summary['frames']} frames to {args.output} (layout {args.layout})")
     return 0
+
+
+def _print_export(summary: dict[str, Any], output: str) -> None:
+    fmt = summary["format"]
+    print(
+        f"exported {summary['frames']} frames to {output} ({fmt}"
+        + (f", {summary['storage']}" if fmt == "rosbag2" else "")
+        + f", {mib(summary['bytes'])}): {', '.join(summary['topics'])}"
+    )
+    for name, frames in summary.get("cameras", {}).items():
+        print(f"  camera {name}: {frames} frames under /{name}")
+    if "kept" in summary:
+        kept = summary["kept"]
+        print(
+            f"  kept topics: {len(kept)}, {sum(kept.values())} messages as they came; camera "
+            f"topics {summary['camera']}"
+        )
+    for note in summary.get("notes", []):
+        print(f"  note: {note}")
 
 
 def cmd_import(args: argparse.Namespace) -> int:

@@ -363,11 +363,23 @@ def _export_options(p: argparse.ArgumentParser) -> None:
         help="output bag (file for rosbag1, folder for rosbag2) or folder (or -o OUTPUT)",
     )
     p.add_argument("-o", "--output", help="the output, as the second argument says")
-    p.add_argument("--to", choices=("rosbag1", "rosbag2"), help="write a ROS bag")
-    p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap", help="ROS 2 storage")
+    p.add_argument(
+        "--to",
+        choices=("rosbag", "rosbag1", "rosbag2"),
+        help="write a ROS bag; rosbag: the kind the recording's input was (else ROS 1)",
+    )
+    p.add_argument(
+        "--storage", choices=("mcap", "sqlite3"), help="ROS 2 storage (default: the input's, mcap)"
+    )
     p.add_argument("--cloud", action="store_true", help="add the organized PointCloud2 XYZRGB")
     p.add_argument(
         "--compressed-depth", action="store_true", help="depth as compressedDepth (16UC1 mm)"
+    )
+    p.add_argument(
+        "--no-kept",
+        dest="kept",
+        action="store_false",
+        help="the camera alone: leave out the topics the recording kept as they came",
     )
     p.add_argument("--layout", default="paper", help="without --to: paper (video + LZ4 + JSON)")
     p.add_argument("--overwrite", action="store_true")

@@ -40,17 +40,17 @@ in the camera frame (the color images and their camera info are in that frame). 
 pose place the rig in ``world`` on ``/tf``.
 
 The messages are built and the bag written by :mod:`pcdcodec.ros.bagwriter`. The bag is written
-beside its final name and moved into place when complete.
+beside its final name and moved into place when complete. A recording of a ROS bag also gives
+back the topics it kept, as they came, and its camera topics under the names the bag had them
+(:mod:`pcdcodec.convert.bag_back`, ``docs/bags.md``).
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
-import heapq
 import json
 import os
-import shutil
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,13 +67,13 @@ from ..recording.rig_reader import RigRecording
 from ..ros.bagfile import MCAP_MAGIC
 from ..ros.bagwriter import BagWriter, InTimeOrder, MessageBuilder
 from ..ros.clouds import CLOUD_DTYPE, cloud_array
+from ..ros.kept import KeptMessage
 from ..ros.messages import compressed_depth_encode
 from ..sources.base import Source, open_source
+from .bag_back import AS_IT_CAME, FORMATS, STORAGES, BagBack, bag_kind, merge_by_time
+from .bag_layout import color_transform, frame_ids, in_time_order, rig_transforms, swap_in
 
 __all__ = ["CLOUD_DTYPE", "cloud_array", "export_bag"]
-
-FORMATS = ("rosbag1", "rosbag2")
-STORAGES = ("mcap", "sqlite3")
 
 
 @dataclass
@@ -155,12 +155,13 @@ def export_bag(
     src: Any,
     out: str | os.PathLike[str],
     *,
-    to: str = "rosbag1",
-    storage: str = "mcap",
-    images: bool = True,
-    camera_info: bool = True,
-    cloud: bool = False,
-    compressed_depth: bool = False,
+    to: str = AS_IT_CAME,
+    storage: str | None = None,
+    images: bool | None = None,
+    camera_info: bool | None = None,
+    cloud: bool | None = None,
+    compressed_depth: bool | None = None,
+    kept: bool = True,
     namespace: str | None = None,
     frame_id: str | None = None,
     intrinsics: Any = None,
@@ -174,26 +175,33 @@ def export_bag(
     ``src`` is a ``.pcdc`` path, a :class:`~pcdcodec.Recording`, a :class:`~pcdcodec.Source`, or
     a path :func:`pcdcodec.open_source` reads (so an RGB-D folder can be written straight to a
     PointCloud2 bag: ``export_bag("tum_folder", "cloud.bag", images=False, cloud=True)``).
-    ``to`` is ``"rosbag1"`` or ``"rosbag2"``; ``storage`` (ROS 2) ``"mcap"`` or ``"sqlite3"``.
-    ``images``, ``camera_info`` and ``cloud`` pick the topics (see the module docstring);
-    ``compressed_depth`` writes depth as image_transport compressedDepth (16UC1 depth, depth
-    scale 1000, only). ``intrinsics``/``depth_scale`` override a source's. ``namespace`` is
-    where the topics go (default ``/camera``); of a recording of several cameras, each camera
-    goes under ``<namespace>/<name>`` (default: ``/<name>``) with ``/tf_static`` placing the
-    cameras in the rig (see the module docstring), and ``frame_id``, ``intrinsics`` and
-    ``depth_scale`` cannot be given (each camera has its own).
+    ``to`` is ``"rosbag1"``, ``"rosbag2"`` or ``"rosbag"``: the kind the recording's input was
+    (ROS 1 for an input that was no bag); ``storage`` (ROS 2) ``"mcap"``, ``"sqlite3"`` or
+    ``None``: the input's (else mcap). ``images``, ``camera_info`` (default on) and ``cloud``
+    (default off) pick the topics (see the module docstring); ``compressed_depth`` writes depth
+    as image_transport compressedDepth (16UC1 depth, depth scale 1000, only). With ``kept``, a
+    recording's kept topics are written too, as they came, and the camera topics as the input
+    had them (:mod:`pcdcodec.convert.bag_back`; the defaults of ``images``, ``camera_info``,
+    ``cloud`` and ``compressed_depth`` follow the input). ``intrinsics``/``depth_scale`` override a
+    source's. ``namespace`` is where the topics go (default ``/camera``); of a recording of
+    several cameras, each camera goes under ``<namespace>/<name>`` (default: ``/<name>``)
+    with ``/tf_static`` placing the cameras in the rig (see the module docstring), and
+    ``frame_id``, ``intrinsics`` and ``depth_scale`` cannot be given (each camera has its own).
 
-    Returns a summary: ``frames``, ``path``, ``topics`` and ``bytes`` (size on disk), and of a
-    recording of several cameras ``cameras`` (frames written per camera). Raises
+    Returns a summary: ``frames``, ``path``, ``topics``, ``bytes`` (size on disk) and ``format``,
+    of a recording with kept topics ``kept`` (messages per topic), ``camera`` and ``notes``,
+    and of a recording of several cameras ``cameras`` (frames written per camera). Raises
     :class:`~pcdcodec.InputError` for an unknown format or storage, an existing output without
     ``overwrite``, or compressedDepth of depth that is not millimetres; nothing is left under
     ``out`` when writing fails.
     """
-    if to not in FORMATS:
-        raise InputError(f"bag format must be one of {', '.join(FORMATS)}, got {to!r}")
-    if storage not in STORAGES:
+    if to not in (*FORMATS, AS_IT_CAME):
+        raise InputError(
+            f"bag format must be one of {', '.join((*FORMATS, AS_IT_CAME))}, got {to!r}"
+        )
+    if storage not in (*STORAGES, None):
         raise InputError(f"ROS 2 storage must be one of {', '.join(STORAGES)}, got {storage!r}")
-    if not (images or cloud or camera_info):
+    if images is False and not (cloud or camera_info):
         raise InputError("nothing to write: enable images, camera_info or cloud")
     if max_frames is not None and max_frames < 1:
         raise InputError(f"max_frames must be at least 1, got {max_frames}")
@@ -206,8 +214,23 @@ def export_bag(
         if namespace is None:
             namespace = "" if rig else "/camera"
         namespace = "/" + namespace.strip("/") if namespace.strip("/") else ""
+        to, storage = bag_kind(to, storage, dict(getattr(opened, "metadata", {})))
+        back = None
+        if kept and isinstance(opened, Recording):
+            back = BagBack.of(opened, repr(str(opened.path)))
+        if back is not None:
+            images, camera_info, cloud, compressed_depth = back.defaults(
+                images, camera_info, cloud, compressed_depth
+            )
         opts = _Options(
-            to, storage, images, camera_info, cloud, compressed_depth, namespace, frame_id
+            to,
+            storage,
+            images is not False,
+            camera_info is not False,
+            bool(cloud),
+            bool(compressed_depth),
+            namespace,
+            frame_id,
         )
         if rig:
             given = [
@@ -227,7 +250,7 @@ def export_bag(
             return _write_rig(opened, target, opts, max_frames, progress)
         inp = _input(opened, intrinsics, depth_scale)
         try:
-            return _write(inp, target, opts, max_frames, progress)
+            return _write(inp, target, opts, max_frames, progress, back)
         finally:
             inp.close()
     finally:
@@ -308,8 +331,12 @@ class _Export:
         self.topics: list[str] = []
         #: Of a camera of a rig: the rig's frame and the camera's rig pose.
         self.rig_pose: tuple[str, Any] | None = None
+        #: Topics not written (those a recording kept, written as they came).
+        self.skip: set[str] = set()
 
     def _add(self, bag: BagWriter, topic: str, msgtype: str) -> None:
+        if topic in self.skip:
+            return
         self.topics.append(topic)
         bag.add(topic, msgtype)
 
@@ -396,40 +423,30 @@ def _write(
     opts: _Options,
     max_frames: int | None,
     progress: Callable[[int], None] | None,
+    back: BagBack | None = None,
 ) -> dict[str, Any]:
     export = _Export(inp, opts)
-    frames = (("", frame) for frame in inp.frames)
+    frames: Iterator[Any] = (("", frame) for frame in inp.frames)
     edges = [] if export.color_edge is None else [export.color_edge]
+    if back is not None and back.as_recorded:  # the frames' own messages, as they came
+        frames, edges = back.messages(), []
+    elif back is not None:  # the frames' messages built anew, named as the input's were
+        for key, name in back.names(vars(export), opts.compressed_depth, opts.cloud).items():
+            setattr(export, key, name)
+        export.skip = back.kept_names
+        edges = [] if "/tf_static" in back.kept_names else edges
+        frames = merge_by_time(frames, back.messages(), key=_item_time)
     start = _tf_static(opts, edges) if edges else None
-    summary, _ = _to_bag(frames, {"": export}, target, opts, max_frames, progress, start)
+    summary, _ = _to_bag(frames, {"": export}, target, opts, max_frames, progress, start, back)
     return summary
+
+
+def _item_time(item: Any) -> int:
+    return item.log_time if isinstance(item, KeptMessage) else _earliest(item[1])
 
 
 #: What :func:`_to_bag` starts a bag with, at the first frame's earliest stamp (``/tf_static``).
 _Start = Callable[[BagWriter, _Emit, int], None]
-
-#: A camera's frames, by the names realsense-ros gives them, where none is given.
-DEPTH_FRAME, COLOR_FRAME = "camera_depth_optical_frame", "camera_color_optical_frame"
-
-
-def frame_ids(frame_id: str | None, *, apart: bool) -> tuple[str, str]:
-    """The ``frame_id`` of a camera's depth and color messages: both ``frame_id`` where color is
-    registered to depth; else the depth's ``frame_id`` and the color's ``<frame_id>_color``,
-    and without ``frame_id`` realsense-ros's names (:data:`DEPTH_FRAME`,
-    :data:`COLOR_FRAME`; the one frame of registered color is :data:`COLOR_FRAME`)."""
-    if not apart:
-        fid = frame_id or COLOR_FRAME
-        return fid, fid
-    if frame_id:
-        return frame_id, f"{frame_id}_color"
-    return DEPTH_FRAME, COLOR_FRAME
-
-
-def color_transform(frame_id: str, color_frame: str, depth_to_color: Any) -> tuple[str, str, Any]:
-    """The ``/tf_static`` edge ``(parent, child, child-to-parent pose)`` placing the frame of a
-    color camera apart from its depth camera in the depth camera's frame: the inverse of
-    ``depth_to_color``."""
-    return frame_id, color_frame, np.linalg.inv(np.asarray(depth_to_color, np.float64))
 
 
 def _tf_static(opts: _Options, edges: list[tuple[str, str, Any]]) -> _Start:
@@ -444,34 +461,51 @@ def _tf_static(opts: _Options, edges: list[tuple[str, str, Any]]) -> _Start:
 
 
 def _to_bag(
-    frames: Iterator[tuple[str, Frame]],
+    frames: Iterator[Any],
     exports: dict[str, _Export],
     target: Path,
     opts: _Options,
     max_frames: int | None,
     progress: Callable[[int], None] | None,
     start: _Start | None = None,
+    back: BagBack | None = None,
 ) -> tuple[dict[str, Any], dict[str, int]]:
-    """Write ``frames`` (``(camera, frame)``, each camera's through its export) into a bag at
-    ``target``, the messages in time order; the summary, and the frames written per camera."""
+    """Write ``frames`` (``(camera, frame)``, each camera's through its export, and the kept
+    messages of ``back``) into a bag at ``target``, the messages in time order; the summary,
+    and the frames written per camera."""
     counts = dict.fromkeys(exports, 0)
     count = 0
-    with atomic_output(target, place=_swap_in) as staging:
+    with atomic_output(target, place=swap_in) as staging:
         staging.mkdir(parents=True)
         first = next(iter(exports.values()))
         bag = BagWriter(staging / target.name, opts.to, opts.storage, first.msgs)
         order = InTimeOrder(bag)
+        skip = first.skip
+
+        def emit(topic: str, ns: int, data: bytes) -> None:
+            if topic not in skip:  # a topic the recording kept is written as it came
+                order.emit(topic, ns, data)
+
         try:
-            for camera, frame in frames:
-                earliest = _earliest(frame)
-                order.flush(earliest)
-                if count == 0 and start is not None:
-                    start(bag, order.emit, earliest)
-                export = exports[camera]
-                if counts[camera] == 0:
-                    export.add_topics(bag, frame.color is not None)
-                export.write_frame(bag, order.emit, frame)
-                counts[camera] += 1
+            if back is not None:
+                back.open(bag)
+            for item in frames:
+                if isinstance(item, KeptMessage):
+                    order.flush(item.log_time)
+                    assert back is not None
+                    if not back.write(item):  # not a frame
+                        continue
+                else:
+                    camera, frame = item
+                    earliest = _earliest(frame)
+                    order.flush(earliest)
+                    if count == 0 and start is not None:
+                        start(bag, emit, earliest)
+                    export = exports[camera]
+                    if counts[camera] == 0:
+                        export.add_topics(bag, frame.color is not None)
+                    export.write_frame(bag, emit, frame)
+                    counts[camera] += 1
                 count += 1
                 if progress is not None:
                     progress(count)
@@ -493,24 +527,13 @@ def _to_bag(
     summary = {
         "frames": count,
         "path": str(target),
-        "topics": list(bag.conns),
+        "topics": list(bag.conns) + ([] if back is None else back.written_topics()),
         "bytes": size,
         "format": opts.to,
+        "storage": opts.storage,
+        **({} if back is None else back.summary()),
     }
     return summary, counts
-
-
-def _in_time_order(rig: RigRecording) -> Iterator[tuple[int, str, Any]]:
-    """``(timestamp, camera, frame)`` of every camera's frames, merged in time order (ties in
-    the rig's camera order); one decoded frame per camera is held at a time."""
-
-    def stamped(k: int, name: str) -> Iterator[tuple[int, int, str, Any]]:
-        for frame in rig.frames(name):
-            yield int(frame.timestamp_ns), k, name, frame
-
-    streams = [stamped(k, name) for k, name in enumerate(rig.camera_names)]
-    for ts, _, name, frame in heapq.merge(*streams, key=lambda e: (e[0], e[1])):
-        yield ts, name, frame
 
 
 def _camera_export(rig: RigRecording, name: str, opts: _Options) -> _Export:
@@ -536,19 +559,6 @@ def _camera_export(rig: RigRecording, name: str, opts: _Options) -> _Export:
     return export
 
 
-def rig_transforms(rig: RigRecording) -> list[tuple[str, str, Any]]:
-    """The static transforms of a rig, as ``(parent, child, child-to-parent pose)``: each
-    camera frame in the rig frame, and each color camera apart from its depth camera
-    (``<frame_id>_color``) in its camera frame."""
-    edges: list[tuple[str, str, Any]] = []
-    for cam in rig.cameras.values():
-        edges.append((rig.rig_frame_id, cam.frame_id, cam.rig_pose))
-        if cam.color_intrinsics is not None and cam.depth_to_color is not None:
-            fid, color_fid = frame_ids(cam.frame_id, apart=True)
-            edges.append(color_transform(fid, color_fid, cam.depth_to_color))
-    return edges
-
-
 def _write_rig(
     rig: RigRecording,
     target: Path,
@@ -558,22 +568,6 @@ def _write_rig(
 ) -> dict[str, Any]:
     exports = {name: _camera_export(rig, name, opts) for name in rig.camera_names}
     start = _tf_static(opts, rig_transforms(rig))
-    frames = ((name, frame) for _, name, frame in _in_time_order(rig))
+    frames = ((name, frame) for _, name, frame in in_time_order(rig))
     summary, counts = _to_bag(frames, exports, target, opts, max_frames, progress, start)
     return {**summary, "cameras": counts}
-
-
-def _swap_in(staging: Path, target: Path) -> None:
-    """Move the bag written as ``staging/NAME`` onto ``target``, replacing a bag there (a file
-    or a folder)."""
-    tmp_out = staging / target.name
-    if target.exists():
-        trash = target.parent / f".{target.name}.old-{os.getpid()}"
-        os.replace(target, trash)
-        os.replace(tmp_out, target)
-        if trash.is_dir():
-            shutil.rmtree(trash)
-        else:
-            trash.unlink()
-    else:
-        os.replace(tmp_out, target)

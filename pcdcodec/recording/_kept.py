@@ -206,6 +206,28 @@ def kept_channel_ids(index: fmt.FileIndex) -> dict[int, KeptTopic]:
     }
 
 
+def stored_channel_ids(index: fmt.FileIndex) -> dict[int, KeptTopic]:
+    """The kept channels of a file, by channel id, each described as stored (a packed or
+    envelope channel with its own message encoding and metadata): what a copy of the file's
+    chunks (recover, join) registers again, so the bytes it copies keep their meaning."""
+    return {
+        cid: KeptTopic.from_channel(
+            ch.topic, ch.encoding, ch.metadata, index.schemas.get(index.channel_schema.get(cid, 0))
+        )
+        for cid, ch in index.channels.items()
+        if ch.metadata.get(KEPT_KEY) == "1"
+    }
+
+
+def stored_topics_of(index: fmt.FileIndex) -> list[KeptTopic]:
+    """Every kept channel of a file as stored (:func:`stored_channel_ids`), each once."""
+    out: list[KeptTopic] = []
+    for t in stored_channel_ids(index).values():
+        if t not in out:
+            out.append(t)
+    return out
+
+
 def kept_topics_of(index: fmt.FileIndex, camera: bool = False) -> list[KeptTopic]:
     """The kept topics of a file, in channel order: those kept as they came, or with
     ``camera`` the channels of the camera topics (envelopes, and messages kept raw)."""

@@ -13,7 +13,14 @@ from typing import Any
 from ..errors import DecodeError, InputError
 from ..ros.kept import KeptMessage, KeptTopic
 from . import _index as fmt
-from ._kept import SEAL_KEPT_KEYS, KeptChannels, KeptDigest, kept_channel_ids, kept_topics_of
+from ._kept import (
+    SEAL_KEPT_KEYS,
+    KeptChannels,
+    KeptDigest,
+    kept_channel_ids,
+    stored_channel_ids,
+    stored_topics_of,
+)
 
 __all__ = ["KeptCopy", "union_of", "without_kept"]
 
@@ -25,10 +32,10 @@ def union_of(indexes: Sequence[fmt.FileIndex], names: Sequence[str]) -> list[Kep
     (a ROS 1 publisher's caller id, QoS) may differ: each is a channel of its own, as in a bag.
     """
     out: list[KeptTopic] = []
-    first: dict[str, tuple[KeptTopic, str]] = {}
+    first: dict[tuple[str, str], tuple[KeptTopic, str]] = {}
     for index, name in zip(indexes, names, strict=True):
-        for t in kept_topics_of(index):
-            seen = first.setdefault(t.topic, (t, name))
+        for t in stored_topics_of(index):
+            seen = first.setdefault((t.topic, t.message_encoding), (t, name))
             a = seen[0]
             if (a.msgtype, a.schema_encoding, a.definition, a.message_encoding) != (
                 t.msgtype,
@@ -67,12 +74,12 @@ class KeptCopy:
     @classmethod
     def of(cls, index: fmt.FileIndex | None) -> KeptCopy:
         """The kept topics of the file of ``index`` (none for ``None``), to be copied."""
-        return cls(kept_topics_of(index) if index is not None else [])
+        return cls(stored_topics_of(index) if index is not None else [])
 
     def source(self, index: fmt.FileIndex) -> fmt.FileIndex:
         """Start copying the file of ``index``; returns ``index`` without its kept channels
         (the others are copied as they are)."""
-        self.channels = kept_channel_ids(index)
+        self.channels = stored_channel_ids(index)
         self.read = KeptDigest()
         return without_kept(index)
 

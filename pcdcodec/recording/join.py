@@ -20,7 +20,7 @@ from .._atomic import atomic_output
 from ..errors import DecodeError, InputError
 from . import _header as header
 from . import _index as fmt
-from ._kept import kept_topics_of
+from ._kept import stored_topics_of
 from ._kept_copy import KeptCopy, union_of, without_kept
 
 __all__ = ["join"]
@@ -198,7 +198,7 @@ def join(
     # Parts keep the union of their kept topics; the settings are those of a part that keeps
     # topics (format version 4) where one does.
     kept = KeptCopy(union_of(indexes, [str(p) for p in paths]))
-    main = next((index for index in indexes if kept_topics_of(index)), first)
+    main = next((index for index in indexes if stored_topics_of(index)), first)
     frames = 0
     with atomic_output(dst_path) as tmp:  # noqa: SIM117 - the file closes before the rename
         with tmp.open("wb") as out:

@@ -175,14 +175,26 @@ class RecordingSource(Source):
         return itertools.islice(self._rec._in_order(start), stop - start)
 
     def kept_topics(self) -> list[KeptTopic]:
-        """The recording's kept topics (those the patterns choose), as it describes them."""
-        return [t for t in self._rec.kept_topics if self.topic_filter(t.topic)]
+        """The recording's kept topics (those the patterns choose), as it describes them, and
+        the channels of its camera topics (their envelopes), copied as stored so the new file
+        gives the camera messages back as this one does."""
+        from ._kept import kept_topics_of
+
+        topics = [*self._rec.kept_topics, *kept_topics_of(self._rec.index, camera=True)]
+        return [t for t in topics if self.topic_filter(t.topic)]
 
     def kept_messages(self) -> Iterator[KeptMessage]:
-        """Their messages in file order, bytes as stored: each chunk's CRC checked, and the
-        whole against the recording's seal (:meth:`~pcdcodec.Recording.kept_messages`)."""
-        names = {t.topic for t in self.kept_topics()}
-        return self._rec.kept_messages(names) if names else iter(())
+        """Their messages, bytes as the input held them (camera channels' as stored), in log
+        time order: each chunk's CRC checked, and the whole against the recording's seal
+        (:meth:`~pcdcodec.Recording.kept_messages`)."""
+        import heapq
+
+        chosen = self.kept_topics()
+        names = {t.topic for t in chosen if not t.camera}
+        cameras = {t.topic for t in chosen if t.camera}
+        kept = self._rec.kept_messages(names) if names else iter(())
+        camera = (m for m in self._rec._read_kept(camera=True) if m.topic.topic in cameras)
+        return heapq.merge(kept, camera, key=lambda m: m.log_time)
 
     def input_streams(self) -> list[InputStream]:
         """Of a rig's file, its cameras (``camera NAME``, with their frame counts); of a

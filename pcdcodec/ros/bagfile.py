@@ -22,6 +22,7 @@ __all__ = [
     "ROS1_MAGIC",
     "SQLITE_MAGIC",
     "bag_error",
+    "bag_kind",
     "is_bag_folder",
     "is_bag_head",
     "mcap_profile",
@@ -31,6 +32,8 @@ __all__ = [
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 SQLITE_MAGIC = b"SQLite format 3\x00"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
+#: The recording metadata keys that say what kind of bag its input was (:func:`bag_kind`).
+FORMAT_KEY, STORAGE_KEY = "bag_format", "bag_storage"
 
 
 def mcap_profile(head: bytes) -> str | None:
@@ -59,6 +62,26 @@ def is_bag_head(head: bytes) -> bool:
     if head.startswith(ROS1_MAGIC) or head.startswith(SQLITE_MAGIC):
         return True
     return mcap_profile(head) == "ros2"
+
+
+def bag_kind(path: Path, ros2: bool) -> dict[str, str]:
+    """The metadata that notes what kind of bag ``path`` is: ``bag_format`` (``rosbag1``,
+    ``rosbag2``) and, of a ROS 2 bag, ``bag_storage`` (``mcap``, ``sqlite3``) from its
+    storage files' first bytes."""
+    if not ros2:
+        return {FORMAT_KEY: "rosbag1"}
+    files = sorted(p for p in path.iterdir() if p.is_file()) if path.is_dir() else [path]
+    for f in files:
+        try:
+            with f.open("rb") as fh:
+                head = fh.read(16)
+        except OSError:
+            continue
+        if head.startswith(MCAP_MAGIC):
+            return {FORMAT_KEY: "rosbag2", STORAGE_KEY: "mcap"}
+        if head.startswith(SQLITE_MAGIC):
+            return {FORMAT_KEY: "rosbag2", STORAGE_KEY: "sqlite3"}
+    return {FORMAT_KEY: "rosbag2"}
 
 
 def bag_error(exc: Exception, path: Path) -> PcdcodecError:

@@ -421,6 +421,7 @@ class RosbagSource(BagVideo, BagEnvelopes, Source):
         metadata = {
             "source": "rosbag",
             "bag": self.path.name,
+            **bagfile.bag_kind(self.path, bool(self._reader.is2)),  # given back as it came
             **{
                 f"ros_{k}": v
                 for k, v in (
