@@ -96,14 +96,10 @@ def _child(op: str, kwargs: dict[str, Any]) -> dict[str, Any]:
             "duration": duration,
             "kept": kept,
         }
-    if op == "export":
-        from ..cli import main
-
+    if op == "export":  # what `pcdcodec export REC OUT --to ... [--storage ...]` runs
         start = time.perf_counter()
-        status = main(["export", kwargs["rec"], kwargs["out"], *kwargs["args"], "-q"])
+        pcdcodec.export_bag(kwargs["rec"], kwargs["out"], **kwargs["options"])
         seconds = time.perf_counter() - start
-        if status:
-            raise PcdcodecError(f"export exited with {status}")
         return {"seconds": seconds, "bytes": bag_peers.bag_bytes(kwargs["out"])}
     raise InputError(f"unknown operation {op!r}; known: encode, export")
 
@@ -183,11 +179,12 @@ class BagRow:
         return (self.frames - 1) / self.duration if self.frames > 1 and self.duration else None
 
 
-def _export_args(kind: str) -> list[str] | None:
+def _export_options(kind: str) -> dict[str, str] | None:
+    """The bag a recording of a ``kind`` bag is exported to: the same kind."""
     if kind == "ros1":
-        return ["--to", "rosbag1"]
+        return {"to": "rosbag1"}
     if kind.startswith("ros2-"):
-        return ["--to", "rosbag2", "--storage", kind.removeprefix("ros2-")]
+        return {"to": "rosbag2", "storage": kind.removeprefix("ros2-")}
     return None
 
 
@@ -238,12 +235,12 @@ def measure_bag(
         row.kept_topics = row.encode.info["kept"]
         if row.kept_topics:
             row.kept_pcdc = chunk_bytes(rec, lambda ch: "pcdcodec.kept" in ch.metadata)
-        args = _export_args(kind)
+        args = _export_options(kind)
         if export and args is not None:
-            log(f"{row.name}: export {' '.join(args)}")
+            log(f"{row.name}: export {args}")
             out = work / (f"{path.stem}.export.bag" if kind == "ros1" else f"{path.stem}.export")
             try:
-                row.export = run_child("export", rec=str(rec), out=str(out), args=args)
+                row.export = run_child("export", rec=str(rec), out=str(out), options=args)
             finally:
                 remove_output(out)
     except PcdcodecError as exc:
