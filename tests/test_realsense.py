@@ -174,7 +174,7 @@ def test_exported_bag_gives_each_camera_its_own_info(tmp_path: Path) -> None:
         assert color_cam is not None
         pcdcodec.encode(src, rec_path, color="ffv1")
     bag = tmp_path / "rs-out.bag"
-    pcdcodec.export_bag(rec_path, bag, to="rosbag1", cloud=True)
+    pcdcodec.export_bag(rec_path, bag, to="rosbag1", cloud=True, kept=False)
     infos: dict[str, list[float]] = {}
     clouds = 0
     with AnyReader([bag]) as reader:

@@ -540,9 +540,9 @@ def _window(
     to cut at), the first segment keeps them all."""
     if len(plan) == 1:
         return None, None
-    if index is None:
+    times = getattr(index, "timestamps", None)  # (a rig's index has none: it keeps no topics)
+    if times is None:
         return (None, None) if i == 0 else (0, 0)
-    times = index.timestamps
     low = None if i == 0 else int(times[plan[i][0]])
     high = None if i == len(plan) - 1 else int(times[plan[i + 1][0]])
     return low, high
