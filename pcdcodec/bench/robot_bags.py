@@ -44,6 +44,7 @@ import numpy.typing as npt
 from ..errors import InputError
 from ..geometry.camera import CameraIntrinsics
 from ..geometry.projector import Projector
+from ..ros.bagwriter import offered_qos
 from .robot_streams import COLOR_FRAME, DEPTH_FRAME, BagMessages, extra_streams, static_tf
 
 __all__ = [
@@ -154,31 +155,6 @@ class SequenceFrames:
                 yield frame.depth, frame.color
 
 
-def _qos(*, reliable: bool = True, latched: bool = False, depth: int = 1) -> Any:
-    """An offered QoS profile as ``ros2 bag record`` stores it."""
-    from rosbags.interfaces import (
-        Qos,
-        QosDurability,
-        QosHistory,
-        QosLiveliness,
-        QosReliability,
-        QosTime,
-    )
-
-    never = QosTime(0, 0)
-    return Qos(
-        QosHistory.KEEP_LAST,
-        depth,
-        QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
-        QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
-        never,
-        never,
-        QosLiveliness.AUTOMATIC,
-        never,
-        False,
-    )
-
-
 _QOS: dict[str, dict[str, Any]] = {"/tf_static": {"latched": True}, "/tf": {"depth": 100}}
 _QOS["/camera/imu"] = {"reliable": False, "depth": 5}
 
@@ -227,7 +203,7 @@ class _Sink:
             return writer.add_connection(
                 topic, msgtype, typestore=self.store, callerid=callerid, latching=latching
             )
-        qos = _qos(**_QOS.get(topic, {}))
+        qos = offered_qos(**_QOS.get(topic, {}))
         return writer.add_connection(
             topic, msgtype, typestore=self.store, offered_qos_profiles=[qos]
         )

@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from ..geometry.transform import matrix_to_quaternion
 
-__all__ = ["BagWriter", "InTimeOrder", "MessageBuilder"]
+__all__ = ["BagWriter", "InTimeOrder", "MessageBuilder", "offered_qos"]
 
 _NS = 1_000_000_000
 
@@ -177,7 +177,7 @@ class BagWriter:
         when the bag plays (ROS 1 latching, ROS 2 transient-local durability)."""
         options: dict[str, Any] = {}
         if latched and self.messages.ros2:
-            options["offered_qos_profiles"] = [_latched_qos()]
+            options["offered_qos_profiles"] = [offered_qos(latched=True)]
         elif latched:
             options["latching"] = 1
         self.conns[topic] = self.writer.add_connection(
@@ -195,8 +195,9 @@ class BagWriter:
         self.writer.abort()
 
 
-def _latched_qos() -> Any:
-    """The QoS ``/tf_static`` is published with in ROS 2: reliable, transient local, depth 1."""
+def offered_qos(*, reliable: bool = True, latched: bool = False, depth: int = 1) -> Any:
+    """An offered QoS profile as ``ros2 bag record`` stores it: keep last ``depth``, reliable
+    or best effort, transient local (``latched``, as ``/tf_static`` is published) or volatile."""
     from rosbags.interfaces import (
         Qos,
         QosDurability,
@@ -209,9 +210,9 @@ def _latched_qos() -> Any:
     never = QosTime(0, 0)
     return Qos(
         QosHistory.KEEP_LAST,
-        1,
-        QosReliability.RELIABLE,
-        QosDurability.TRANSIENT_LOCAL,
+        depth,
+        QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+        QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
         never,
         never,
         QosLiveliness.AUTOMATIC,

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import DecodeError, InputError, PcdcodecError
 from ..ros.kept import IMAGE_ENCODING, KeptMessage, KeptTopic, TopicFilter
-from ._mkv import track_name
+from ._mkv import packets, track_name
 
 __all__ = [
     "ATTACHMENT_ENCODING",
@@ -206,16 +206,7 @@ class K4aKeptTracks:
                     tracks.append(s)
             if not tracks:
                 return
-            packets = container.demux(tracks)
-            while True:
-                try:
-                    packet = next(packets)
-                except StopIteration:
-                    break
-                except (av.error.FFmpegError, OSError) as exc:
-                    raise DecodeError(f"{where}: the file is damaged: {exc}") from exc
-                if packet.size == 0:
-                    continue
+            for packet in packets(container, tracks, where):
                 k = by_index[packet.stream.index]
                 pts = int(packet.pts if packet.pts is not None else packet.dts or 0)
                 tb = packet.stream.time_base

@@ -8,6 +8,7 @@ given, and read those tags itself.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -207,3 +208,22 @@ def list_tracks(streams: Any) -> list[tuple[int | None, str, str]]:
         codec = str(getattr(ctx, "codec_tag", "") or getattr(ctx, "name", "") or "")
         out.append((s.index + 1, track_name(s), f"{s.type} {codec}".strip()))
     return sorted(out, key=lambda t: t[1])
+
+
+def packets(container: Any, streams: Any, where: str) -> Iterator[Any]:
+    """The non-empty packets PyAV demuxes of ``streams`` (every track for ``None``), in file
+    order; a damaged file is a :class:`~pcdcodec.DecodeError` naming ``where``."""
+    import av
+
+    from ..errors import DecodeError
+
+    demuxed = container.demux() if streams is None else container.demux(streams)
+    while True:
+        try:
+            packet = next(demuxed)
+        except StopIteration:
+            return
+        except (av.error.FFmpegError, OSError) as exc:
+            raise DecodeError(f"{where}: the file is damaged: {exc}") from exc
+        if packet.size:
+            yield packet

@@ -33,7 +33,15 @@ from ..ros.kept import TopicFilter
 from ..sync import MAX_DIFFERENCE, Synchronizer, as_max_difference
 from . import _k4a_calibration as k4a
 from ._k4a_kept import IMU_SAMPLE, K4aKeptTracks, imu_samples
-from ._mkv import EBML_MAGIC, blocks_by_track, declared_tag, has_cluster, list_tracks, walk_blocks
+from ._mkv import (
+    EBML_MAGIC,
+    blocks_by_track,
+    declared_tag,
+    has_cluster,
+    list_tracks,
+    packets,
+    walk_blocks,
+)
 from ._mkv import track_name as _name
 from .base import InputStream, Source, read_magic, register_source
 
@@ -440,18 +448,9 @@ class AzureKinectSource(K4aKeptTracks, Source):
             tb = depth_stream.time_base
             tb_ns = float(tb * _NS) if tb is not None else 1000.0
             # Every track is demuxed, so that the packets can be counted against the blocks.
-            packets = container.demux()
             wanted = {s.index for s in streams}
             delivered = 0
-            while True:
-                try:
-                    packet = next(packets)
-                except StopIteration:
-                    break
-                except (av.error.FFmpegError, OSError) as exc:
-                    raise DecodeError(f"{where}: the file is damaged: {exc}") from exc
-                if packet.size == 0:
-                    continue
+            for packet in packets(container, None, where):
                 delivered += 1
                 if packet.pts is None or packet.stream.index not in wanted:
                     continue
