@@ -427,3 +427,18 @@ def test_a_segment_reads_only_the_kept_messages_of_its_window(robot_bag: Path) -
         assert _as_tuples(source.kept_messages(start=low, stop=high)) == parts[1]
     assert [m for part in parts for m in part] == every
     assert all(parts[k] for k in (0, 1, 3))
+
+
+def test_verify_lists_a_bags_kept_topics_with_their_types_and_its_camera_messages_apart(
+    robot_bag: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from pcdcodec.cli import main
+
+    out = tmp_path / "x.pcdc"
+    pcdcodec.encode(robot_bag, out, color=None, depth="rvl")
+    assert main(["verify", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "[?" not in said  # every kept topic listed with its type
+    assert "[sensor_msgs/msg/Imu, " in said
+    assert "  camera       " in said  # the camera topics' messages, counted apart
+    assert "/camera/aligned_depth_to_color/image_raw " not in said.split("camera   ")[0]

@@ -274,12 +274,20 @@ def cmd_verify(args: argparse.Namespace) -> int:
             else {}
         )
         types = {t.topic: t.msgtype for t in getattr(rec, "kept_topics", [])}
+        cameras = {t.topic for t in getattr(rec, "camera_topics", [])}
     if args.quiet and report.ok:
         return 0
     if not args.quiet:  # the kept topics read, with their messages
         print_kept(
-            [{"name": n, "type": types.get(n, "?"), "messages": c} for n, c in report.kept.items()]
+            [
+                {"name": n, "type": types.get(n, "?"), "messages": c}
+                for n, c in report.kept.items()
+                if n not in cameras
+            ]
         )
+        held = sum(c for n, c in report.kept.items() if n in cameras)
+        if held:
+            print(f"  camera       {held} messages of {len(cameras)} topics, checked")
     out = sys.stderr if args.quiet else sys.stdout  # -q: only a report of problems, on stderr
     for name, frames in per_camera.items():
         bad = sum(1 for e in report.errors if e.startswith(f"camera {name!r}:"))
