@@ -381,3 +381,44 @@ def test_a_cloud_is_rebuilt_by_the_rule_that_made_it(make: Any, rule: int) -> No
     for _ in "xyz":
         corrections = zstandard.ZstdDecompressor().decompress(cur.section())
         assert not any(corrections)
+
+
+def test_a_cloud_of_tum_colours_is_packed_by_its_bayer_pattern_and_old_packs_still_read(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A cloud coloured by a TUM frame (a Kinect v1 through OpenNI: demosaiced) packs its
+    colours as the Bayer pattern: well under half of what the version 1 layout (lossless JPEG
+    XL) took. Messages packed in the version 1 layout still read, byte for byte."""
+    from pcdcodec.datasets import load_sample
+    from pcdcodec.recording import _kept_pack as kp
+
+    frame = load_sample(1)[0]
+    crop = (slice(200, 248), slice(300, 364))  # the camera's 64 x 48, on even rows and columns
+    depth = np.ascontiguousarray(np.asarray(frame.depth)[crop])
+    color = np.asarray(frame.color)[crop].astype(np.uint32)
+    pts = _cloud_of(depth)
+    pts["rgb"] = (color[..., 0] << 16) | (color[..., 1] << 8) | color[..., 2]
+    t = 7_000_000_000
+    raw = _cloud_message(pts, t)
+    topic = KeptTopic(rb.CLOUD, "sensor_msgs/msg/PointCloud2", "", "", "ros1")
+    camera = (CAMERA.fx, CAMERA.fy, CAMERA.cx, CAMERA.cy, 1000.0)
+
+    def packed() -> bytes:
+        packer = kp.Packer(pcdcodec.get_codec("depthac"), CAMERA, 1000.0)
+        packer.saw_frame(t, depth)
+        out = packer.pack(KeptMessage(topic, 1, raw))
+        assert out is not None
+        return out
+
+    now = packed()
+    with monkeypatch.context() as m:
+        m.setattr(kp, "_VERSION", 1)
+        m.setattr(kp, "_colour_encode", kp._jxl_encode)
+        old = packed()
+    assert (now[4], old[4]) == (2, 1)
+    assert len(now) < 0.6 * len(old)
+    for data in (now, old):
+        assert unpack(data, {t: depth}.get, "x", camera) == raw
+    newer = now[:4] + bytes([3]) + now[5:]
+    with pytest.raises(DecodeError, match="damaged"):
+        unpack(newer, {t: depth}.get, "x", camera)

@@ -318,6 +318,7 @@ class Container:
         name = fmt.SEAL_NAME if self.camera is None else fmt.camera_seal(self.camera)
         record = self.sealer.seal()
         if self.kept is not None:
+            self.kept.drain()
             self.kept.write(self.mcap)
             record.update(self.kept.digest.seal())
         self.mcap.add_metadata(name, fmt.seal(name, record))

@@ -8,7 +8,9 @@ from __future__ import annotations
 import hashlib
 import json
 import struct
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import replace
 from typing import IO, Any
 
@@ -40,6 +42,9 @@ __all__ = [
 KEPT_VERSION = 4
 #: Kept messages are gathered into zstd chunks of about this many bytes (MCAP's default).
 CHUNK_BYTES = 1 << 20
+#: Kept images and clouds packed at once on the packing thread, at most (each holds its
+#: message, a cloud about 10 MB): the reading thread waits for the oldest beyond that.
+PACKING = 4
 #: The seal's keys for kept messages: per topic counts (JSON) and the digest of them all.
 SEAL_KEPT_KEYS = ("kept", "kept_digest")
 _FIELDS = struct.Struct("<QQQQ")  # topic length, log time, publish time, data length
@@ -93,6 +98,11 @@ class KeptChannels:
             if t not in self.topics:
                 self.topics.append(t)
         self.ids: dict[KeptTopic, int] = {}
+        #: Messages taken, in order, each with its channel or the packing under way.
+        self.taken: deque[tuple[int, KeptMessage, Future[bytes | None] | None]] = deque()
+        self.packing = 0  # how many of them are being packed
+        self._pool: ThreadPoolExecutor | None = None
+        #: Messages ready to write, in the order taken.
         self.pending: list[tuple[int, KeptMessage]] = []
         self.pending_bytes = 0
         self.digest = KeptDigest()
@@ -140,16 +150,43 @@ class KeptChannels:
                 f"a kept message of {message.topic.topic!r} has a negative time "
                 f"({message.log_time} ns)"
             )
+        job = None
         if self.packer is not None and message.topic in self.packed_ids:
-            packed = self.packer.pack(message)
-            if packed is not None:
-                cid, message = self.packed_ids[message.topic], replace(message, data=packed)
-        self.pending.append((cid, message))
-        self.pending_bytes += len(message.data) + 40
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-kept")
+            # packed on a thread of its own (the coders release the GIL), with the frames held
+            # now: the thread reading the input goes on
+            job = self._pool.submit(self.packer.pack, message, self.packer.recent())
+            self.packing += 1
+        self.taken.append((cid, message, job))
+        self._settle(PACKING)
         return self.pending_bytes >= CHUNK_BYTES
 
+    def _settle(self, most: int) -> None:
+        """Move the messages taken to the ones ready, in order, until at most ``most`` are
+        being packed (waiting for the oldest), and no finished one is left behind."""
+        while self.taken:
+            cid, message, job = self.taken[0]
+            if job is not None:
+                if self.packing <= most and not job.done():
+                    return
+                packed = job.result()
+                self.packing -= 1
+                if packed is not None:
+                    cid, message = self.packed_ids[message.topic], replace(message, data=packed)
+            self.taken.popleft()
+            self.pending.append((cid, message))
+            self.pending_bytes += len(message.data) + 40
+
+    def drain(self) -> None:
+        """Wait for every message being packed (before the last chunk is written)."""
+        self._settle(0)
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
     def write(self, mcap: Any) -> None:
-        """Write the messages waiting as one zstd chunk (each in the order taken)."""
+        """Write the messages ready as one zstd chunk (each in the order taken)."""
         if not self.pending:
             return
         pending, self.pending, self.pending_bytes = self.pending, [], 0

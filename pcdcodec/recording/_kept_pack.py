@@ -53,7 +53,10 @@ IMAGE = "sensor_msgs/msg/Image"
 CLOUD = "sensor_msgs/msg/PointCloud2"
 _MAGIC = b"PCDK"
 _HEAD = struct.Struct("<4sBBII")  # magic, version, kind, CRC-32 and length of the original
-_VERSION = 1
+#: 2: three-channel colours (kept rgb8/bgr8 images, clouds' packed colours) coded by
+#: :mod:`pcdcodec.color.rgb_lossless`; 1: by lossless JPEG XL (still read).
+_VERSION = 2
+_VERSIONS = (1, 2)
 _IMAGE16, _IMAGE8, _DEPTH_REF, _CLOUD = 1, 2, 3, 4
 _SHAPE = struct.Struct("<IIB")  # height, width, channels (8-bit) or big-endian (16-bit)
 # frame, h, w, point_step, x, y, z and rgb offsets, rule of the rebuild
@@ -67,6 +70,8 @@ _8BIT = {"mono8": 1, "8UC1": 1, "rgb8": 3, "bgr8": 3, "8UC3": 3, "rgba8": 4, "bg
 #: frame's stamp a cloud's stamp may be.
 WINDOW = 16
 CLOUD_TOLERANCE_NS = 20_000_000
+#: Recorded frames a message may refer to: (timestamp, depth) pairs.
+Frames = tuple[tuple[int, "npt.NDArray[np.uint16]"], ...]
 #: A cloud's x, y and z may differ from the rebuild by this many float32 ulps at most (the
 #: difference is stored, so they come back bit-exact).
 MAX_ULPS = 1
@@ -95,6 +100,26 @@ def _jxl_decode(data: bytes, shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
         return np.asarray(imagecodecs.jpegxl_decode(data))
     except Exception as exc:  # the library's own errors: damaged data
         raise ValueError(f"its JPEG XL image does not decode: {exc}") from None
+
+
+def _colour_encode(pixels: npt.NDArray[np.uint8]) -> bytes:
+    """8-bit pixels coded losslessly: three channels by :mod:`pcdcodec.color.rgb_lossless`
+    (a camera's Bayer pattern found and used), others by JPEG XL."""
+    if pixels.ndim == 3 and pixels.shape[2] == 3:
+        from ..color import rgb_lossless
+
+        return rgb_lossless.encode(pixels)
+    return _jxl_encode(pixels)
+
+
+def _colour_decode(
+    data: bytes, shape: tuple[int, int], channels: int, version: int
+) -> npt.NDArray[np.uint8]:
+    if version >= 2 and channels == 3:
+        from ..color import rgb_lossless
+
+        return rgb_lossless.decode(data, shape)
+    return _jxl_decode(data, shape)
 
 
 def _zstd(data: bytes) -> bytes:
@@ -242,28 +267,38 @@ class Packer:
         if self.reference and depth.dtype == np.uint16:
             self.frames.append((int(timestamp), np.array(depth, copy=True)))
 
-    def _frame(self, stamp: int, tolerance: int) -> tuple[int, npt.NDArray[np.uint16]] | None:
-        best = min(self.frames, key=lambda f: abs(f[0] - stamp), default=None)
+    def recent(self) -> Frames:
+        """The frames held now (what a message taken now may refer to), for :meth:`pack` on
+        another thread while more frames arrive."""
+        return tuple(self.frames)
+
+    @staticmethod
+    def _frame(
+        frames: Frames, stamp: int, tolerance: int
+    ) -> tuple[int, npt.NDArray[np.uint16]] | None:
+        best = min(frames, key=lambda f: abs(f[0] - stamp), default=None)
         return best if best is not None and abs(best[0] - stamp) <= tolerance else None
 
-    def pack(self, message: KeptMessage) -> bytes | None:
+    def pack(self, message: KeptMessage, frames: Frames | None = None) -> bytes | None:
         """``message``'s packed bytes, checked to rebuild it exactly, or ``None`` (keep it
-        as it came)."""
+        as it came). ``frames``: the frames it may refer to (:meth:`recent`; by default those
+        held now)."""
+        frames = self.recent() if frames is None else frames
         raw = bytes(message.data)
         enc = message.topic.message_encoding
         try:
             if message.topic.msgtype == IMAGE:
-                body = self._image(raw, enc)
+                body = self._image(raw, enc, frames)
             else:
-                body = self._cloud(raw, enc)
+                body = self._cloud(raw, enc, frames)
         except Exception:  # a coder refusing these pixels: the message is kept as it came
             body = None
         packed = None if body is None else self._whole(raw, *body)
         if packed is not None:
-            frames = dict(self.frames)
+            by_time = dict(frames)
             try:
                 camera = (*self.camera, self.depth_scale)
-                if unpack(packed, frames.get, "a kept message", camera) != raw:
+                if unpack(packed, by_time.get, "a kept message", camera) != raw:
                     packed = None
             except DecodeError:
                 packed = None
@@ -274,7 +309,7 @@ class Packer:
         head = _HEAD.pack(_MAGIC, _VERSION, kind, zlib.crc32(raw), len(raw))
         return head + _sections(raw[: env.data_start], raw[env.data_end :]) + body
 
-    def _image(self, raw: bytes, enc: str) -> tuple[Envelope, int, bytes] | None:
+    def _image(self, raw: bytes, enc: str, frames: Frames) -> tuple[Envelope, int, bytes] | None:
         env = split_image(raw, enc)
         if env is None:
             return None
@@ -286,7 +321,7 @@ class Packer:
             depth = np.frombuffer(data, ">u2" if env.is_bigendian else "<u2").reshape(h, w)
             depth = depth.astype(np.uint16)
             stamp = _stamp(raw, enc)
-            found = None if stamp is None else self._frame(stamp, 0)
+            found = None if stamp is None else self._frame(frames, stamp, 0)
             if found is not None and np.array_equal(found[1], depth):
                 return (
                     env,
@@ -309,9 +344,9 @@ class Packer:
             return None
         shape = (h, w) if channels == 1 else (h, w, channels)
         pixels = np.frombuffer(data, np.uint8).reshape(shape)
-        return env, _IMAGE8, _SHAPE.pack(h, w, channels) + _jxl_encode(pixels)
+        return env, _IMAGE8, _SHAPE.pack(h, w, channels) + _colour_encode(pixels)
 
-    def _cloud(self, raw: bytes, enc: str) -> tuple[Envelope, int, bytes] | None:
+    def _cloud(self, raw: bytes, enc: str, frames: Frames) -> tuple[Envelope, int, bytes] | None:
         env = split_cloud(raw, enc)
         if env is None or not self.pinhole:
             return None
@@ -319,7 +354,7 @@ class Packer:
         stamp = _stamp(raw, enc)
         if shape is None or stamp is None:
             return None
-        found = self._frame(stamp, CLOUD_TOLERANCE_NS)
+        found = self._frame(frames, stamp, CLOUD_TOLERANCE_NS)
         if found is None or found[1].shape != (env.height, env.width):
             return None
         ts, depth = found
@@ -349,7 +384,8 @@ class Packer:
             return None  # not made from this frame's depth
         rule, _, diffs = best
         parts = [_zstd(d.tobytes()) for d in diffs]
-        parts.append(b"" if shape.offsets[3] < 0 else _jxl_encode(_rgb(data, shape, points.shape)))
+        rgb = b"" if shape.offsets[3] < 0 else _colour_encode(_rgb(data, shape, points.shape))
+        parts.append(rgb)
         parts.append(_zstd(points[..., shape.rest].tobytes()))
         head = _CLOUD_HEAD.pack(ts, env.height, env.width, env.point_step, *shape.offsets, rule)
         return env, _CLOUD, head + _sections(*parts)
@@ -406,14 +442,14 @@ def unpack(
     original's CRC-32."""
     try:
         magic, version, kind, crc, size = _HEAD.unpack_from(data, 0)
-        if magic != _MAGIC or version != _VERSION:
+        if magic != _MAGIC or version not in _VERSIONS:
             raise ValueError("not a packed kept message")
         cur = _Cursor(data, _HEAD.size)
         prefix, suffix = cur.section(), cur.section()
         if kind == _CLOUD:
-            body = _unpack_cloud(cur, depth_at, camera, size)
+            body = _unpack_cloud(cur, depth_at, camera, size, version)
         else:
-            body = _unpack_image(kind, cur, depth_at, size)
+            body = _unpack_image(kind, cur, depth_at, size, version)
     except (ValueError, struct.error, TypeError) as exc:
         raise DecodeError(f"{what}: a packed kept message is damaged ({exc})") from None
     except PcdcodecError as exc:  # its depth codec's, or a frame the file lacks
@@ -433,12 +469,14 @@ def _frame_depth(depth_at: DepthAt | None, ts: int, shape: tuple[int, int]) -> A
     return depth
 
 
-def _unpack_image(kind: int, cur: _Cursor, depth_at: DepthAt | None, size: int) -> bytes:
+def _unpack_image(
+    kind: int, cur: _Cursor, depth_at: DepthAt | None, size: int, version: int
+) -> bytes:
     h, w, extra = _SHAPE.unpack(cur.take(_SHAPE.size))
     if kind == _IMAGE8:
         if h * w * max(extra, 1) > size:
             raise ValueError(f"a {h}x{w} image does not fit the message's {size} bytes")
-        pixels = _jxl_decode(cur.take(len(cur.data) - cur.pos), (h, w))
+        pixels = _colour_decode(cur.take(len(cur.data) - cur.pos), (h, w), extra, version)
         if pixels.dtype != np.uint8 or pixels.size != h * w * max(extra, 1):
             raise ValueError(f"the image is {pixels.shape}, expected {h}x{w}x{extra}")
         return pixels.tobytes()
@@ -463,7 +501,9 @@ def _unpack_image(kind: int, cur: _Cursor, depth_at: DepthAt | None, size: int) 
     return bytes(depth.astype(">u2" if extra else "<u2").tobytes())
 
 
-def _unpack_cloud(cur: _Cursor, depth_at: DepthAt | None, camera: Any, size: int) -> bytes:
+def _unpack_cloud(
+    cur: _Cursor, depth_at: DepthAt | None, camera: Any, size: int, version: int
+) -> bytes:
     ts, h, w, step, *offsets, rule = _CLOUD_HEAD.unpack(cur.take(_CLOUD_HEAD.size))
     if camera is None:
         raise DecodeError("a kept cloud needs the recording's camera to be rebuilt")
@@ -484,7 +524,7 @@ def _unpack_cloud(cur: _Cursor, depth_at: DepthAt | None, camera: Any, size: int
         np.add(bits, diff, out=_column(data, off, dims))
     rgb = cur.section()
     if offsets[3] >= 0:
-        pixels = _jxl_decode(rgb, (h, w))
+        pixels = _colour_decode(rgb, (h, w), 3, version)
         if pixels.shape != (h, w, 3):
             raise ValueError(f"the colours are {pixels.shape}, expected {(h, w, 3)}")
         _rgb(data, shape, dims)[...] = pixels
