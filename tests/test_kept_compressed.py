@@ -358,8 +358,6 @@ def test_a_cloud_is_rebuilt_by_the_rule_that_made_it(make: Any, rule: int) -> No
     """pcdcodec's projector (float64 divisions) and librealsense's deprojection (float32)
     differ by up to 2 ulps in x and y: each cloud is rebuilt by the rule that needs no
     correction, and comes back bit-exact."""
-    import zstandard
-
     from pcdcodec.recording import _kept_pack as kp
 
     rng = np.random.default_rng(4)
@@ -379,8 +377,7 @@ def test_a_cloud_is_rebuilt_by_the_rule_that_made_it(make: Any, rule: int) -> No
     head = kp._CLOUD_HEAD.unpack(cur.take(kp._CLOUD_HEAD.size))
     assert head[-1] == rule
     for _ in "xyz":
-        corrections = zstandard.ZstdDecompressor().decompress(cur.section())
-        assert not any(corrections)
+        assert cur.section() == b""  # no corrections: an empty section
 
 
 def test_a_cloud_of_tum_colours_is_packed_by_its_bayer_pattern_and_old_packs_still_read(
@@ -413,7 +410,7 @@ def test_a_cloud_of_tum_colours_is_packed_by_its_bayer_pattern_and_old_packs_sti
     now = packed()
     with monkeypatch.context() as m:
         m.setattr(kp, "_VERSION", 1)
-        m.setattr(kp, "_colour_encode", kp._jxl_encode)
+        m.setattr(kp, "_colour_encode", lambda pixels, check=False: kp._jxl_encode(pixels))
         old = packed()
     assert (now[4], old[4]) == (2, 1)
     assert len(now) < 0.6 * len(old)

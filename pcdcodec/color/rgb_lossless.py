@@ -41,7 +41,7 @@ __all__ = ["decode", "encode", "model_of"]
 _MAGIC = b"RGBL"
 _VERSION = 1
 _HEAD = struct.Struct("<4sBBBBII")  # magic, version, model, phase, green rule, height, width
-_PLANAR, _BAYER = 0, 1
+_PLANAR, _BAYER, _YUY2 = 0, 1, 2
 #: Green filled in at a red or blue site: OpenNI's edge-aware weighted mean, the mean of the
 #: flatter direction, the four-neighbour mean.
 _RULES = (0, 1, 2)
@@ -156,6 +156,123 @@ def _misses(bands: Any, ry: int, rx: int, rule: int) -> int:
     return missed
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _yuy2_pixel(y: int, d: int, e: int) -> tuple[int, int, int]:
+    """librealsense's YUY2 to RGB (its SIMD form: each product floored on its own)."""
+    k = (298 * (y - 16)) >> 8
+    r = k + ((409 * e) >> 8)
+    g = k - ((100 * d) >> 8) - ((208 * e) >> 8)
+    b = k + ((516 * d) >> 8)
+    return min(max(r, 0), 255), min(max(g, 0), 255), min(max(b, 0), 255)
+
+
+_STEPS = np.array([0, -1, 1, -2, 2], np.int64)  # luma
+_CHROMA_STEPS = np.array([0, -1, 1, -2, 2, -3, 3, -4, 4], np.int64)  # wider where clamped
+
+
+@njit(cache=True, nogil=True)
+def _luma_for(r: int, g: int, b: int, y0: int, d: int, e: int) -> int:
+    """The luma near ``y0`` that gives the pixel ``(r, g, b)`` with chroma ``d, e``, or -1."""
+    for step in _STEPS:
+        y = y0 + step
+        if 0 <= y <= 255:
+            pr, pg, pb = _yuy2_pixel(y, d, e)
+            if pr == r and pg == g and pb == b:
+                return y
+    return -1
+
+
+@njit(cache=True, nogil=True)
+def _yuy2_of(rgb: Any, ri: int, bi: int, luma: Any, chroma: Any, limit: int) -> int:
+    """The YUY2 samples that give ``rgb`` (red in channel ``ri``, blue in ``bi``): luma
+    H x W, chroma H x W (U of each pixel pair, then V, side by side). Returns how many pixel
+    pairs no samples near the estimate give exactly (they keep the estimate); once more than
+    ``limit`` are missed, stops there (the rest left unset)."""
+    h, w, _ = rgb.shape
+    half = w // 2
+    missed = 0
+    for i in range(h):
+        for p in range(half):
+            j = 2 * p
+            r0, g0, b0 = np.int64(rgb[i, j, ri]), np.int64(rgb[i, j, 1]), np.int64(rgb[i, j, bi])
+            r1 = np.int64(rgb[i, j + 1, ri])
+            g1 = np.int64(rgb[i, j + 1, 1])
+            b1 = np.int64(rgb[i, j + 1, bi])
+            # the formula solved for the pair's chroma and each pixel's luma, in floating point
+            # (each floor of the formula taken as half a step); the search starts there
+            rg = 128.0 * (r0 + r1 - g0 - g1) + 384.0  # 256 x (R - G), R + 1 and G - 0.5
+            bg = 128.0 * (b0 + b1 - g0 - g1) + 384.0
+            df = (208.0 * rg - 617.0 * bg) / -359272.0
+            ef = (100.0 * bg - 616.0 * rg) / -359272.0
+            u0 = np.int64(np.floor(df + 128.5))
+            v0 = np.int64(np.floor(ef + 128.5))
+            y0 = np.int64(np.floor(16.5 + (256.0 * g0 - 128.0 + 100.0 * df + 208.0 * ef) / 298.0))
+            y1 = np.int64(np.floor(16.5 + (256.0 * g1 - 128.0 + 100.0 * df + 208.0 * ef) / 298.0))
+            found = False
+            for du in _CHROMA_STEPS:
+                u = u0 + du
+                if u < 0 or u > 255:
+                    continue
+                for dv in _CHROMA_STEPS:
+                    v = v0 + dv
+                    if v < 0 or v > 255:
+                        continue
+                    ya = _luma_for(r0, g0, b0, y0, u - 128, v - 128)
+                    if ya < 0:
+                        continue
+                    yb = _luma_for(r1, g1, b1, y1, u - 128, v - 128)
+                    if yb < 0:
+                        continue
+                    luma[i, j] = ya
+                    luma[i, j + 1] = yb
+                    chroma[i, p] = u
+                    chroma[i, half + p] = v
+                    found = True
+                    break
+                if found:
+                    break
+            if not found:
+                missed += 1
+                if missed > limit:
+                    return missed
+                luma[i, j] = min(max(y0, 0), 255)
+                luma[i, j + 1] = min(max(y1, 0), 255)
+                chroma[i, p] = min(max(u0, 0), 255)
+                chroma[i, half + p] = min(max(v0, 0), 255)
+    return missed
+
+
+@njit(cache=True, nogil=True)
+def _yuy2_rebuild(luma: Any, chroma: Any, ri: int, bi: int, out: Any) -> None:
+    h, w = luma.shape
+    half = w // 2
+    for i in range(h):
+        for j in range(w):
+            p = j >> 1
+            r, g, b = _yuy2_pixel(
+                np.int64(luma[i, j]),
+                np.int64(chroma[i, p]) - 128,
+                np.int64(chroma[i, half + p]) - 128,
+            )
+            out[i, j, ri] = r
+            out[i, j, 1] = g
+            out[i, j, bi] = b
+
+
+def _yuy2_order(rgb: npt.NDArray[np.uint8]) -> int:
+    """0 (red first) or 1 (blue first) when nearly every sampled pixel pair of ``rgb`` is a
+    YUY2 pair converted the way librealsense converts it, else -1."""
+    h, w = rgb.shape[:2]
+    band = np.ascontiguousarray(rgb[:: max(1, h // 8)])
+    limit = int((1.0 - _MIN_MATCH) * band.shape[0] * (w // 2))
+    for order in (0, 1):
+        luma = np.empty(band.shape[:2], np.uint8)
+        chroma = np.empty(band.shape[:2], np.uint8)
+        if _yuy2_of(band, 2 * order, 2 - 2 * order, luma, chroma, limit) <= limit:
+            return order
+    return -1
+
+
 def model_of(rgb: npt.NDArray[np.uint8]) -> tuple[int, int, int]:
     """The model :func:`encode` codes ``rgb`` with: ``(model, phase, rule)``, ``model`` 1 for
     a Bayer pattern (``phase`` its red site, ``2 * row parity + column parity``; ``rule`` the
@@ -163,6 +280,9 @@ def model_of(rgb: npt.NDArray[np.uint8]) -> tuple[int, int, int]:
     h, w = rgb.shape[:2]
     if h < 8 or w < 8 or h % 2 or w % 2:
         return _PLANAR, 0, 0
+    order = _yuy2_order(rgb)
+    if order >= 0:
+        return _YUY2, order, 0
     # bands of 4 rows starting on even rows (the pattern's phase kept), every 16th row
     bands = np.concatenate([rgb[t : t + 4] for t in range(0, h - 3, 4 * _SAMPLE_ROWS)])
     tried = 2 * (len(bands) // 4) * (w - 2)
@@ -259,8 +379,10 @@ def _rebuild(mosaic: npt.NDArray[np.uint8], ry: int, rx: int, rule: int) -> Any:
     return out
 
 
-def encode(rgb: npt.NDArray[np.uint8]) -> bytes:
-    """``rgb`` (H x W x 3 uint8) coded losslessly (the model chosen by :func:`model_of`)."""
+def encode(rgb: npt.NDArray[np.uint8], check: bool = False) -> bytes:
+    """``rgb`` (H x W x 3 uint8) coded losslessly (the model chosen by :func:`model_of`).
+    ``check``: decode the coded planes and compare them with the planes given (what the
+    model rebuilds from them is exact by construction); ``ValueError`` if they differ."""
     import zstandard
 
     rgb = np.ascontiguousarray(rgb)
@@ -273,6 +395,13 @@ def encode(rgb: npt.NDArray[np.uint8]) -> bytes:
         mosaic = _mosaic_of(rgb, ry, rx)
         planes = _planes(mosaic, ry, rx)
         residual = rgb - _rebuild(mosaic, ry, rx, rule)  # wraps: modulo 256
+    elif model == _YUY2:
+        ri, bi = 2 * phase, 2 - 2 * phase
+        planes = np.empty((2 * h, w), np.uint8)  # luma above, U and V side by side below
+        _yuy2_of(rgb, ri, bi, planes[:h], planes[h:], h * w)
+        rebuilt = np.empty_like(rgb)
+        _yuy2_rebuild(planes[:h], planes[h:], ri, bi, rebuilt)
+        residual = rgb - rebuilt
     else:
         g = rgb[..., 1]
         planes = np.vstack([g, rgb[..., 0] - g, rgb[..., 2] - g])  # modulo 256
@@ -280,8 +409,11 @@ def encode(rgb: npt.NDArray[np.uint8]) -> bytes:
     rest = b""
     if residual is not None and residual.any():
         rest = zstandard.ZstdCompressor(level=3).compress(residual.tobytes())
+    coded = _jpegls_encode(planes)
+    if check and not np.array_equal(_jpegls_decode(coded, planes.shape), planes):
+        raise ValueError("JPEG-LS did not give the colour planes back exactly")
     head = _HEAD.pack(_MAGIC, _VERSION, model, phase, rule, h, w)
-    return head + _section(_jpegls_encode(planes)) + _section(rest)
+    return head + _section(coded) + _section(rest)
 
 
 def decode(data: bytes, shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
@@ -297,10 +429,14 @@ def decode(data: bytes, shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
         raise ValueError("its colour image is not a pcdcodec lossless RGB image")
     if (h, w) != tuple(shape):
         raise ValueError(f"its colour image is {(h, w)}, expected {tuple(shape)}")
-    if model not in (_PLANAR, _BAYER) or phase > 3 or rule not in _RULES:
+    if (
+        model not in (_PLANAR, _BAYER, _YUY2)
+        or phase > (3 if model == _BAYER else 1)
+        or rule not in _RULES
+    ):
         raise ValueError(f"its colour image has an unknown model ({model}, {phase}, {rule})")
-    if model == _BAYER and (h % 2 or w % 2):
-        raise ValueError(f"a Bayer colour image must have an even size, not {(h, w)}")
+    if model != _PLANAR and (h % 2 or w % 2):
+        raise ValueError(f"a Bayer or YUY2 colour image must have an even size, not {(h, w)}")
     pos = _HEAD.size
     parts = []
     for _ in range(2):
@@ -317,6 +453,10 @@ def decode(data: bytes, shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
         ry, rx = phase >> 1, phase & 1
         mosaic = _unplanes(_jpegls_decode(parts[0], (2 * h, w // 2)), h, w, ry, rx)
         rgb: npt.NDArray[np.uint8] = _rebuild(mosaic, ry, rx, rule)
+    elif model == _YUY2:
+        planes = _jpegls_decode(parts[0], (2 * h, w))
+        rgb = np.empty((h, w, 3), np.uint8)
+        _yuy2_rebuild(planes[:h], planes[h:], 2 * phase, 2 - 2 * phase, rgb)
     else:
         planes = _jpegls_decode(parts[0], (3 * h, w))
         g = planes[:h]
