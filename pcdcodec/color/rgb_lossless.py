@@ -178,7 +178,7 @@ def _luma_for(r: int, g: int, b: int, y0: int, d: int, e: int) -> int:
         if 0 <= y <= 255:
             pr, pg, pb = _yuy2_pixel(y, d, e)
             if pr == r and pg == g and pb == b:
-                return y
+                return int(y)
     return -1
 
 
