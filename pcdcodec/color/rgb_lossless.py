@@ -170,11 +170,11 @@ _STEPS = np.array([0, -1, 1, -2, 2], np.int64)  # luma
 _CHROMA_STEPS = np.array([0, -1, 1, -2, 2, -3, 3, -4, 4], np.int64)  # wider where clamped
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _luma_for(r: int, g: int, b: int, y0: int, d: int, e: int) -> int:
     """The luma near ``y0`` that gives the pixel ``(r, g, b)`` with chroma ``d, e``, or -1."""
-    for step in _STEPS:
-        y = y0 + step
+    for k in range(5):
+        y = y0 + ((k + 1) >> 1) * (1 if k % 2 == 0 else -1)  # y0, y0 - 1, y0 + 1, ...
         if 0 <= y <= 255:
             pr, pg, pb = _yuy2_pixel(y, d, e)
             if pr == r and pg == g and pb == b:

@@ -45,6 +45,8 @@ CHUNK_BYTES = 1 << 20
 #: Kept images and clouds packed at once on the packing thread, at most (each holds its
 #: message, a cloud about 10 MB): the reading thread waits for the oldest beyond that.
 PACKING = 4
+#: Threads packing them (the reading thread and the frame coders take the rest of the CPU).
+PACKERS = 1
 #: The seal's keys for kept messages: per topic counts (JSON) and the digest of them all.
 SEAL_KEPT_KEYS = ("kept", "kept_digest")
 _FIELDS = struct.Struct("<QQQQ")  # topic length, log time, publish time, data length
@@ -153,7 +155,7 @@ class KeptChannels:
         job = None
         if self.packer is not None and message.topic in self.packed_ids:
             if self._pool is None:
-                self._pool = ThreadPoolExecutor(1, thread_name_prefix="pcdcodec-kept")
+                self._pool = ThreadPoolExecutor(PACKERS, thread_name_prefix="pcdcodec-kept")
             # packed on a thread of its own (the coders release the GIL), with the frames held
             # now: the thread reading the input goes on
             job = self._pool.submit(self.packer.pack, message, self.packer.recent())

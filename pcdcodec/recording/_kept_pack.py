@@ -1,14 +1,17 @@
 """Kept images and organized clouds stored compressed (``docs/format.md``, "kept images and
 clouds"): a kept ``sensor_msgs/Image`` has its pixels coded losslessly (16-bit through a
-lossless depth codec, 8-bit through lossless JPEG XL), or, when they equal a depth frame of
+lossless depth codec, 8-bit RGB through :mod:`pcdcodec.color.rgb_lossless`, other 8-bit
+through lossless JPEG XL), or, when they equal a depth frame of
 the recording, a reference to that frame; a kept organized ``sensor_msgs/PointCloud2`` made
 from a recorded depth frame keeps its envelope, a reference to the frame, the corrections of
-its x, y and z to the one ulp, its packed colours losslessly and its other bytes. The rest
-of each message (header, encoding, step, fields, ...) is kept byte for byte.
+its x, y and z to the one ulp, its packed colours losslessly (``rgb_lossless``) and its
+other bytes (an empty section where they are all zero). The rest of each message (header,
+encoding, step, fields, ...) is kept byte for byte.
 
-Every packed message is rebuilt when written and compared with the original; one that does
-not come back byte-identical is kept as it came, on the topic's plain channel. Reading gives
-back the original bytes, checked against the CRC-32 of the original each packed message holds.
+Every packed image is rebuilt when written and compared with the original, and every cloud
+checked as it is split (:meth:`Packer.pack`); one that would not come back byte-identical is
+kept as it came, on the topic's plain channel. Reading gives back the original bytes, checked
+against the CRC-32 of the original each packed message holds.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from __future__ import annotations
 import itertools
 import json
 import struct
+import threading
 import zlib
 from collections import deque
 from collections.abc import Callable, Mapping
@@ -251,6 +255,7 @@ class Packer:
         self.pinhole = not getattr(camera, "has_distortion", False)
         self.depth_scale = float(depth_scale)
         self.frames: deque[tuple[int, npt.NDArray[np.uint16]]] = deque(maxlen=WINDOW)
+        self._lock = threading.Lock()
 
     @staticmethod
     def packs(topic: KeptTopic) -> str | None:
@@ -283,10 +288,11 @@ class Packer:
     def pack(self, message: KeptMessage, frames: Frames | None = None) -> bytes | None:
         """``message``'s packed bytes, checked to rebuild it exactly, or ``None`` (keep it
         as it came). ``frames``: the frames it may refer to (:meth:`recent`; by default those
-        held now). An image is rebuilt whole and compared; a cloud part by part where it is
-        made (its colours decoded and compared; x, y and z are the rebuild and the stored
-        differences, exact by construction), which costs a third of rebuilding it. Reading
-        checks every rebuilt message against the original's CRC-32."""
+        held now). An image is rebuilt whole and compared. A cloud is checked as it is split,
+        in one pass over its points: x, y and z within one ulp of the rebuild from the frame
+        (the differences stored), the colours coded losslessly, the rest kept; it is not
+        decoded again, which would cost as much as packing it. Reading checks every rebuilt
+        message against the original's CRC-32, as it checks every frame."""
         frames = self.recent() if frames is None else frames
         raw = bytes(message.data)
         enc = message.topic.message_encoding
@@ -332,10 +338,11 @@ class Packer:
                     _DEPTH_REF,
                     _SHAPE.pack(h, w, env.is_bigendian) + struct.pack("<q", found[0]),
                 )
-            if self.depth_codec is None:
-                from ..registry import get_codec
+            with self._lock:  # packed on more than one thread
+                if self.depth_codec is None:
+                    from ..registry import get_codec
 
-                self.depth_codec = get_codec("depthac", kind="depth")
+                    self.depth_codec = get_codec("depthac", kind="depth")
             config = json.dumps(self.depth_codec.stored_config(), separators=(",", ":"))
             coded = self.depth_codec.encode(depth)
             return (
@@ -364,50 +371,43 @@ class Packer:
         ts, depth = found
         data = np.frombuffer(raw, np.uint8, env.data_end - env.data_start, env.data_start)
         points = data.reshape(env.height, env.width, env.point_step)
-        hole = depth == 0
-        best: tuple[int, int, list[Any]] | None = None
+        from ._cloud_kernels import split_points
+
+        h, w = depth.shape
+        offsets = np.array(shape.offsets, np.int64)
+        # the other bytes: whole aligned words read at once where the points allow it
+        groups = set(shape.rest) if env.point_step % 4 == 0 and data.size % 4 == 0 else set()
+        full = [g for g in range(0, env.point_step, 4) if groups.issuperset(range(g, g + 4))]
+        rest = np.array([i for i in shape.rest if i - i % 4 not in full], np.int64)
+        rest_words = np.array(full, np.int64)
+        colours = np.empty((h, w, 3), np.uint8)
+        # the points as uint32 words too (x, y and z read at once where 4-byte aligned)
+        words = data.view("<u4") if data.size % 4 == 0 else np.zeros(1, "<u4")
+        best: tuple[int, tuple[int, int, int], Any, bool] | None = None
         for rule in RULES:
-            diffs = []
-            for bits, off in zip(
-                _predict_xyz(depth, self.camera, self.depth_scale, rule),
-                shape.offsets[:3],
-                strict=True,
-            ):
-                diff = _column(data, off, points.shape) - bits  # wraps: the bits' difference
-                far = (diff + np.uint32(MAX_ULPS)) > 2 * MAX_ULPS  # over MAX_ULPS either way
-                if np.logical_and(far, ~hole, out=far).any():
-                    break  # not this rule's rebuild of this frame's depth
-                diffs.append(diff)
-            else:
-                changed = sum(int(np.count_nonzero(d)) for d in diffs)
-                if best is None or changed < best[1]:
-                    best = (rule, changed, diffs)
-                if changed == 0:
-                    break
+            predicted = np.stack(_predict_xyz(depth, self.camera, self.depth_scale, rule))
+            diffs = np.empty((3, h, w), np.uint32)
+            fits, nx, ny, nz, rest_set = split_points(
+                data, words, env.point_step, offsets, rest, rest_words, predicted, depth,
+                MAX_ULPS, diffs, colours,
+            )  # fmt: skip
+            if not fits:
+                continue  # not this rule's rebuild of this frame's depth
+            changed = (nx, ny, nz)
+            if best is None or sum(changed) < sum(best[1]):
+                best = (rule, changed, diffs, rest_set)
+            if not any(changed):
+                break
         if best is None:
             return None  # not made from this frame's depth
-        rule, _, diffs = best
+        rule, changed, diffs, rest_set = best
         # an empty section: all zero (as every correction is, for a cloud made by the rule)
-        parts = [_zstd(d.tobytes()) if d.any() else b"" for d in diffs]
-        rgb = b""
-        if shape.offsets[3] >= 0:
-            rgb = _colour_encode(_rgb(data, shape, points.shape), check=True)
+        parts = [_zstd(d.tobytes()) if n else b"" for d, n in zip(diffs, changed, strict=True)]
+        rgb = _colour_encode(colours) if shape.offsets[3] >= 0 else b""
         parts.append(rgb)
-        rest_zero = not any(points[..., a:b].any() for a, b in _runs(shape.rest))
-        parts.append(b"" if rest_zero else _zstd(points[..., shape.rest].tobytes()))
+        parts.append(_zstd(points[..., shape.rest].tobytes()) if rest_set else b"")
         head = _CLOUD_HEAD.pack(ts, env.height, env.width, env.point_step, *shape.offsets, rule)
         return env, _CLOUD, head + _sections(*parts)
-
-
-def _runs(indices: list[int]) -> list[tuple[int, int]]:
-    """``indices`` (ascending) as ``(start, stop)`` runs of consecutive ones."""
-    runs: list[tuple[int, int]] = []
-    for i in indices:
-        if runs and runs[-1][1] == i:
-            runs[-1] = (runs[-1][0], i + 1)
-        else:
-            runs.append((i, i + 1))
-    return runs
 
 
 def _column(data: npt.NDArray[np.uint8], offset: int, shape: tuple[int, ...]) -> Any:
