@@ -183,6 +183,29 @@ def _luma_for(r: int, g: int, b: int, y0: int, d: int, e: int) -> int:
 
 
 @njit(cache=True, nogil=True)
+def _chroma_search(
+    r0: int, g0: int, b0: int, r1: int, g1: int, b1: int, u0: int, v0: int, y0: int, y1: int
+) -> tuple[int, int, int, int]:
+    """The chroma near ``(u0, v0)`` (and each pixel's luma) that gives both pixels, or lumas
+    of -1."""
+    for du in _CHROMA_STEPS:
+        u = u0 + du
+        if u < 0 or u > 255:
+            continue
+        for dv in _CHROMA_STEPS:
+            v = v0 + dv
+            if v < 0 or v > 255:
+                continue
+            ya = _luma_for(r0, g0, b0, y0, u - 128, v - 128)
+            if ya < 0:
+                continue
+            yb = _luma_for(r1, g1, b1, y1, u - 128, v - 128)
+            if yb >= 0:
+                return u, v, ya, yb
+    return u0, v0, -1, -1
+
+
+@njit(cache=True, nogil=True)
 def _yuy2_of(rgb: Any, ri: int, bi: int, luma: Any, chroma: Any, limit: int) -> int:
     """The YUY2 samples that give ``rgb`` (red in channel ``ri``, blue in ``bi``): luma
     H x W, chroma H x W (U of each pixel pair, then V, side by side). Returns how many pixel
@@ -202,35 +225,26 @@ def _yuy2_of(rgb: Any, ri: int, bi: int, luma: Any, chroma: Any, limit: int) -> 
             # (each floor of the formula taken as half a step); the search starts there
             rg = 128.0 * (r0 + r1 - g0 - g1) + 384.0  # 256 x (R - G), R + 1 and G - 0.5
             bg = 128.0 * (b0 + b1 - g0 - g1) + 384.0
-            df = (208.0 * rg - 617.0 * bg) / -359272.0
-            ef = (100.0 * bg - 616.0 * rg) / -359272.0
-            u0 = np.int64(np.floor(df + 128.5))
-            v0 = np.int64(np.floor(ef + 128.5))
-            y0 = np.int64(np.floor(16.5 + (256.0 * g0 - 128.0 + 100.0 * df + 208.0 * ef) / 298.0))
-            y1 = np.int64(np.floor(16.5 + (256.0 * g1 - 128.0 + 100.0 * df + 208.0 * ef) / 298.0))
-            found = False
-            for du in _CHROMA_STEPS:
-                u = u0 + du
-                if u < 0 or u > 255:
-                    continue
-                for dv in _CHROMA_STEPS:
-                    v = v0 + dv
-                    if v < 0 or v > 255:
-                        continue
-                    ya = _luma_for(r0, g0, b0, y0, u - 128, v - 128)
-                    if ya < 0:
-                        continue
-                    yb = _luma_for(r1, g1, b1, y1, u - 128, v - 128)
-                    if yb < 0:
-                        continue
-                    luma[i, j] = ya
-                    luma[i, j + 1] = yb
-                    chroma[i, p] = u
-                    chroma[i, half + p] = v
-                    found = True
-                    break
-                if found:
-                    break
+            df = (617.0 * bg - 208.0 * rg) * (1.0 / 359272.0)
+            ef = (616.0 * rg - 100.0 * bg) * (1.0 / 359272.0)
+            u0 = np.int64(df + 256.5) - 128  # rounded (the offset keeps it positive)
+            v0 = np.int64(ef + 256.5) - 128
+            base = 100.0 * df + 208.0 * ef - 128.0
+            y0 = np.int64((256.0 * g0 + base) * (1.0 / 298.0) + 16.5 + 256.0) - 256
+            y1 = np.int64((256.0 * g1 + base) * (1.0 / 298.0) + 16.5 + 256.0) - 256
+            d0, e0 = u0 - 128, v0 - 128
+            ya = _luma_for(r0, g0, b0, y0, d0, e0)  # nearly always the estimate itself
+            yb = _luma_for(r1, g1, b1, y1, d0, e0) if ya >= 0 else -1
+            if ya < 0 or yb < 0:  # a clamped colour, say: search the chroma nearby
+                u, v, ya, yb = _chroma_search(r0, g0, b0, r1, g1, b1, u0, v0, y0, y1)
+            else:
+                u, v = u0, v0
+            found = ya >= 0
+            if found:
+                luma[i, j] = ya
+                luma[i, j + 1] = yb
+                chroma[i, p] = u
+                chroma[i, half + p] = v
             if not found:
                 missed += 1
                 if missed > limit:
